@@ -1,0 +1,17 @@
+//! mufe — micro finite-element (μFE) simulator for granular soil.
+//!
+//! Every grain is a deformable linear-tetrahedral mesh; grains interact only through
+//! their meshed surfaces; time integration is explicit central difference. The crate is
+//! laid out by stage of the step pipeline (see `docs/ARCHITECTURE.md`):
+//! scene → mesh → element/material → contact → boundary → solver → energy → io,
+//! with `domain` the only module that talks to MPI.
+
+pub mod error;
+pub mod mesh;
+
+/// Scalar type used throughout (SI units).
+pub type Real = f64;
+/// 3-vector (m, m/s, N, ... depending on context).
+pub type Vec3 = nalgebra::Vector3<Real>;
+/// 3×3 matrix (deformation gradients, stresses in Pa).
+pub type Mat3 = nalgebra::Matrix3<Real>;
