@@ -3,6 +3,30 @@
 //!
 //! Node coordinates are in metres, in the grain's own frame (centre at the origin for
 //! generated spheres); the solver places grains in the scene.
+//!
+//! Pipeline of [`mesh_sphere`]:
+//! 1. [`surface_refine`]: icosahedron → conforming longest-edge (Rivara LEPP) bisection driven
+//!    by the surface sizing function of the [`SphereMeshSpec`], new vertices projected onto the
+//!    sphere, then edge flips to the convex hull (the spherical Delaunay triangulation);
+//! 2. [`tetgen`] (private): the triangulated sphere (plus, for graded meshes, an internal
+//!    sphere separating a fine band from a coarse core) is handed to TetGen as a PLC with
+//!    per-region maximum volumes and a radius–edge quality bound;
+//! 3. tets are re-oriented to positive volume and checked with [`validate`].
+//!
+//! [`extract_surface`], [`facet_normals`] and [`surface_node_geometry`] give contact what it
+//! needs; [`quality`] summarises element shape (the explicit time step depends on the worst
+//! element, so the minimum dihedral angle matters).
+
+pub mod block;
+mod quality;
+mod sphere;
+mod surface;
+pub mod surface_refine;
+mod tetgen;
+
+pub use quality::{quality, tet_dihedral_angles, tet_volume, validate, QualityReport};
+pub use sphere::{mesh_sphere, GradedBand, LocalRefinement, SphereMeshSpec};
+pub use surface::{extract_surface, facet_normals, surface_node_geometry, SurfaceNodeGeometry};
 
 /// A linear tetrahedral (tet4) mesh of one grain. Every tet is positively oriented:
 /// `(x1−x0)·((x2−x0)×(x3−x0)) > 0`.
@@ -22,4 +46,131 @@ pub struct SurfaceMesh {
     /// Boundary triangles as mesh node ids, ordered so that
     /// `(x1−x0)×(x2−x0)` points out of the body.
     pub facets: Vec<[u32; 3]>,
+}
+
+/// Everything that can go wrong while building or checking a mesh. Each message is one line
+/// naming the spec field or the element/node concerned.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    /// A field of a [`SphereMeshSpec`] is out of range (`field` is the dotted path,
+    /// e.g. `graded.band_depth`, `refine[1].direction`).
+    #[error("{field}: {message}")]
+    InvalidSpec { field: String, message: String },
+    /// The spec would need more surface triangles than the mesher accepts.
+    #[error("{field}: the surface would need more than {limit} triangles; use a larger seeding")]
+    TooLarge { field: String, limit: usize },
+    /// TetGen rejected the input or produced an unusable mesh.
+    #[error("TetGen failed: {0}")]
+    TetGen(String),
+    /// The mesh has no elements.
+    #[error("mesh has no elements")]
+    Empty,
+    /// A node coordinate is NaN or infinite.
+    #[error("node {node}: non-finite coordinate {coords:?}")]
+    NonFiniteNode { node: usize, coords: [f64; 3] },
+    /// An element refers to a node id that does not exist.
+    #[error("element {element}: node id {node} out of range (mesh has {nnodes} nodes)")]
+    NodeOutOfRange { element: usize, node: u32, nnodes: usize },
+    /// An element lists the same node twice.
+    #[error("element {element}: node {node} appears twice")]
+    RepeatedNode { element: usize, node: u32 },
+    /// An element has negative volume (nodes ordered clockwise).
+    #[error("element {element}: inverted, volume {volume:e} m³ < 0")]
+    InvertedElement { element: usize, volume: f64 },
+    /// An element is flat: |volume| < 1e-12·(mean edge)³.
+    #[error("element {element}: degenerate, volume {volume:e} m³ (mean edge {mean_edge:e} m)")]
+    DegenerateElement { element: usize, volume: f64, mean_edge: f64 },
+}
+
+impl MeshError {
+    /// The spec field or mesh item the error is about (`radius`, `element 17`, `node 3`), for
+    /// building an [`crate::error::InputError`] with the file name added by the caller.
+    pub fn item(&self) -> String {
+        match self {
+            MeshError::InvalidSpec { field, .. } | MeshError::TooLarge { field, .. } => field.clone(),
+            MeshError::TetGen(_) | MeshError::Empty => String::new(),
+            MeshError::NonFiniteNode { node, .. } => format!("node {node}"),
+            MeshError::NodeOutOfRange { element, .. }
+            | MeshError::RepeatedNode { element, .. }
+            | MeshError::InvertedElement { element, .. }
+            | MeshError::DegenerateElement { element, .. } => format!("element {element}"),
+        }
+    }
+
+    /// Converts to the user-facing input error (exit code 2) of `file`. The item is the
+    /// `prefix` (e.g. `grains[3].mesh`) joined with [`MeshError::item`].
+    pub fn to_input_error(&self, file: &str, prefix: &str) -> crate::error::InputError {
+        let item = self.item();
+        let item = match (prefix.is_empty(), item.is_empty()) {
+            (true, _) => item,
+            (false, true) => prefix.to_string(),
+            (false, false) if item.starts_with("element") || item.starts_with("node") => {
+                format!("{prefix}: {item}")
+            }
+            (false, false) => format!("{prefix}.{item}"),
+        };
+        let message = match self {
+            MeshError::InvalidSpec { message, .. } => message.clone(),
+            other => {
+                // Drop the leading "item: " that Display repeats.
+                let full = other.to_string();
+                let own = self.item();
+                match full.strip_prefix(&format!("{own}: ")) {
+                    Some(rest) => rest.to_string(),
+                    None => full,
+                }
+            }
+        };
+        crate::error::InputError::new(file, item, message)
+    }
+}
+
+#[inline]
+pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+pub(crate) fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+#[inline]
+pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+#[inline]
+pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline]
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+#[inline]
+pub(crate) fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn error_messages_name_the_item() {
+        let e = MeshError::InvertedElement { element: 17, volume: -1e-12 };
+        assert_eq!(e.to_string(), "element 17: inverted, volume -1e-12 m³ < 0");
+        let ie = e.to_input_error("scene.toml", "grains[2].mesh");
+        assert_eq!(ie.item, "grains[2].mesh: element 17");
+        assert_eq!(ie.message, "inverted, volume -1e-12 m³ < 0");
+        let e = MeshError::InvalidSpec { field: "seeding".into(), message: "must be > 0, got -1".into() };
+        assert_eq!(e.to_string(), "seeding: must be > 0, got -1");
+        let ie = e.to_input_error("scene.toml", "grains[2].mesh");
+        assert_eq!(ie.item, "grains[2].mesh.seeding");
+        assert_eq!(ie.to_string(), "scene.toml: grains[2].mesh.seeding: must be > 0, got -1");
+        assert!(!MeshError::TetGen("x".into()).to_string().contains('\n'));
+    }
 }

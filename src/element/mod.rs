@@ -1,0 +1,215 @@
+//! Linear tetrahedron (tet4) kinematics in the total-Lagrangian form.
+//!
+//! Why total Lagrangian: F = Ds·Dm⁻¹ is computed from current positions, and the material
+//! (St Venant–Kirchhoff, see [`crate::material`]) depends on F only through FᵀF, so a
+//! rigid rotation of any size gives exactly zero stress — no corotational frame to
+//! extract, no polar decomposition, no rate integration that could drift. Dm⁻¹ and the
+//! reference volume are the only per-element data the force kernel needs (80 bytes).
+
+use crate::material::{det3, StVenantKirchhoff};
+
+/// Reference data of one tetrahedron needed by the force kernel.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TetReference {
+    /// Inverse of the reference edge matrix Dm = [X1−X0, X2−X0, X3−X0] (row-major, 1/m).
+    pub dm_inv: [f64; 9],
+    /// Reference volume V0 (m³).
+    pub volume: f64,
+}
+
+impl TetReference {
+    /// Returns `None` if the tetrahedron is inverted or degenerate (V0 ≤ 0).
+    pub fn new(x: [[f64; 3]; 4]) -> Option<Self> {
+        let dm = edge_matrix(&x);
+        let det = det3(&dm);
+        if det.is_nan() || det <= 0.0 {
+            return None;
+        }
+        Some(Self { dm_inv: inverse3(&dm, det), volume: det / 6.0 })
+    }
+
+    /// Shape-function gradients ∇N_a (1/m) of the four nodes in the reference frame.
+    pub fn shape_gradients(&self) -> [[f64; 3]; 4] {
+        // ∇N_{1,2,3} are the rows of Dm⁻¹; ∇N_0 = −Σ.
+        let d = &self.dm_inv;
+        let g1 = [d[0], d[1], d[2]];
+        let g2 = [d[3], d[4], d[5]];
+        let g3 = [d[6], d[7], d[8]];
+        let g0 = [-(g1[0] + g2[0] + g3[0]), -(g1[1] + g2[1] + g3[1]), -(g1[2] + g2[2] + g3[2])];
+        [g0, g1, g2, g3]
+    }
+}
+
+/// Edge matrix [x1−x0, x2−x0, x3−x0] as columns, row-major.
+#[inline(always)]
+pub fn edge_matrix(x: &[[f64; 3]; 4]) -> [f64; 9] {
+    let mut m = [0.0; 9];
+    for c in 0..3 {
+        for r in 0..3 {
+            m[3 * r + c] = x[c + 1][r] - x[0][r];
+        }
+    }
+    m
+}
+
+/// Inverse of a row-major 3×3 matrix with known determinant.
+#[inline(always)]
+pub fn inverse3(m: &[f64; 9], det: f64) -> [f64; 9] {
+    let inv_det = 1.0 / det;
+    [
+        (m[4] * m[8] - m[5] * m[7]) * inv_det,
+        (m[2] * m[7] - m[1] * m[8]) * inv_det,
+        (m[1] * m[5] - m[2] * m[4]) * inv_det,
+        (m[5] * m[6] - m[3] * m[8]) * inv_det,
+        (m[0] * m[8] - m[2] * m[6]) * inv_det,
+        (m[2] * m[3] - m[0] * m[5]) * inv_det,
+        (m[3] * m[7] - m[4] * m[6]) * inv_det,
+        (m[1] * m[6] - m[0] * m[7]) * inv_det,
+        (m[0] * m[4] - m[1] * m[3]) * inv_det,
+    ]
+}
+
+/// Deformation gradient F = Ds·Dm⁻¹ of a tetrahedron at current node positions.
+#[inline(always)]
+pub fn deformation_gradient(x: &[[f64; 3]; 4], dm_inv: &[f64; 9]) -> [f64; 9] {
+    let ds = edge_matrix(x);
+    crate::material::mat_mul(&ds, dm_inv)
+}
+
+/// Outcome of one element force evaluation.
+#[derive(Debug, Clone, Copy)]
+pub struct ElementForces {
+    /// Forces on the four nodes from the element's stress (N): f_a = −V0 P ∇N_a.
+    pub nodal: [[f64; 3]; 4],
+    /// Strain energy V0·W (J).
+    pub strain_energy: f64,
+    /// det F (–): ≤ 0 means the element inverted.
+    pub jacobian: f64,
+}
+
+/// Nodal forces of one tetrahedron: f_{1,2,3} = columns of H = −V0 P Dm⁻ᵀ, f_0 = −Σ.
+#[inline(always)]
+pub fn tet_forces(x: &[[f64; 3]; 4], reference: &TetReference, material: &StVenantKirchhoff) -> ElementForces {
+    let f = deformation_gradient(x, &reference.dm_inv);
+    let (p, w) = material.first_piola_and_energy(&f);
+    let d = &reference.dm_inv;
+    let v = reference.volume;
+    // H = −V0 · P · Dm⁻ᵀ ; H[i][j] = −V0 Σ_k P[i][k] Dm⁻¹[j][k]
+    let mut nodal = [[0.0; 3]; 4];
+    for j in 0..3 {
+        for i in 0..3 {
+            nodal[j + 1][i] = -v * (p[3 * i] * d[3 * j] + p[3 * i + 1] * d[3 * j + 1] + p[3 * i + 2] * d[3 * j + 2]);
+        }
+    }
+    for i in 0..3 {
+        nodal[0][i] = -(nodal[1][i] + nodal[2][i] + nodal[3][i]);
+    }
+    ElementForces { nodal, strain_energy: v * w, jacobian: det3(&f) }
+}
+
+/// Largest eigenvalue of the small-strain element stiffness K_e = V0 Bᵀ D B (N/m).
+///
+/// The nonzero spectrum of the 12×12 K_e equals that of the 6×6 V0·Lᵀ(B Bᵀ)L with
+/// D = L Lᵀ, so a 6×6 symmetric eigenproblem gives the exact value. With a lumped mass
+/// m = ρV0/4 per node, ω_e² = λ_max(K_e)/m bounds the global ω_max from above
+/// (element eigenvalue inequality), so Δt = 2/ω_e is a safe explicit step.
+pub fn max_stiffness_eigenvalue(reference: &TetReference, lambda: f64, mu: f64) -> f64 {
+    use nalgebra::{Matrix6, SMatrix};
+    let g = reference.shape_gradients();
+    // B: 6×12 strain-displacement (Voigt: xx, yy, zz, yz, xz, xy; engineering shear).
+    let mut b = SMatrix::<f64, 6, 12>::zeros();
+    for (a, ga) in g.iter().enumerate() {
+        let c = 3 * a;
+        b[(0, c)] = ga[0];
+        b[(1, c + 1)] = ga[1];
+        b[(2, c + 2)] = ga[2];
+        b[(3, c + 1)] = ga[2];
+        b[(3, c + 2)] = ga[1];
+        b[(4, c)] = ga[2];
+        b[(4, c + 2)] = ga[0];
+        b[(5, c)] = ga[1];
+        b[(5, c + 1)] = ga[0];
+    }
+    let mut d = Matrix6::<f64>::zeros();
+    for i in 0..3 {
+        for j in 0..3 {
+            d[(i, j)] = lambda;
+        }
+        d[(i, i)] = lambda + 2.0 * mu;
+        d[(i + 3, i + 3)] = mu;
+    }
+    let l = match d.cholesky() {
+        Some(c) => c.l(),
+        None => return f64::INFINITY,
+    };
+    let bbt = b * b.transpose();
+    let m = l.transpose() * bbt * l;
+    let eig = m.symmetric_eigenvalues();
+    reference.volume * eig.iter().cloned().fold(0.0, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::ElasticParameters;
+
+    fn regular_tet(h: f64) -> [[f64; 3]; 4] {
+        [
+            [0.0, 0.0, 0.0],
+            [h, 0.0, 0.0],
+            [0.5 * h, 0.5 * 3f64.sqrt() * h, 0.0],
+            [0.5 * h, 3f64.sqrt() / 6.0 * h, (2.0f64 / 3.0).sqrt() * h],
+        ]
+    }
+
+    #[test]
+    fn forces_sum_to_zero_and_are_energy_gradient() {
+        let p = ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 };
+        let m = StVenantKirchhoff::new(&p);
+        let x0 = regular_tet(1e-5);
+        let r = TetReference::new(x0).unwrap();
+        let mut x = x0;
+        x[2][0] += 2e-8;
+        x[3][1] -= 1e-8;
+        x[1][2] += 3e-8;
+        let ef = tet_forces(&x, &r, &m);
+        for i in 0..3 {
+            let s: f64 = ef.nodal.iter().map(|f| f[i]).sum();
+            assert!(s.abs() < 1e-12 * ef.nodal[1][i].abs().max(1.0));
+        }
+        // f = −∂U/∂x, checked by central differences
+        let h = 1e-12;
+        for a in 0..4 {
+            for i in 0..3 {
+                let mut xp = x;
+                xp[a][i] += h;
+                let mut xm = x;
+                xm[a][i] -= h;
+                let du = (tet_forces(&xp, &r, &m).strain_energy - tet_forces(&xm, &r, &m).strain_energy) / (2.0 * h);
+                let f = ef.nodal[a][i];
+                assert!((f + du).abs() < 1e-5 * f.abs().max(1e-3), "node {a} dir {i}: {f} vs {}", -du);
+            }
+        }
+    }
+
+    #[test]
+    fn regular_tet_stable_step_matches_theory() {
+        // THEORY.md §7: regular tet, lumped mass: Δt_crit = 0.565 h / c_p (for ν = 0.22).
+        let p = ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 };
+        let (lambda, mu) = p.lame();
+        let h = 1e-5;
+        let r = TetReference::new(regular_tet(h)).unwrap();
+        let k = max_stiffness_eigenvalue(&r, lambda, mu);
+        let m = p.density * r.volume / 4.0;
+        let dt = 2.0 / (k / m).sqrt();
+        let ratio = dt * p.dilatational_wave_speed() / h;
+        assert!((ratio - 0.565).abs() < 0.01, "Δt·c_p/h = {ratio}");
+    }
+
+    #[test]
+    fn inverted_tet_is_rejected() {
+        let mut x = regular_tet(1.0);
+        x.swap(1, 2);
+        assert!(TetReference::new(x).is_none());
+    }
+}

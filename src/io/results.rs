@@ -1,0 +1,926 @@
+//! `results.h5`: the run's results in one parallel HDF5 file (layout: DESIGN.md §1).
+//!
+//! ```text
+//! /scene                          fixed-length UTF-8 string: the scene text as run
+//! /provenance                     group; attributes version, ranks, threads, start_time,
+//!                                 command_line, hostname
+//! /history/<name>                 1-D f64 over output times, chunked and extended at each
+//!                                 flush; attributes units, description, abaqus (if any)
+//! /mesh/nodes                     (N, 3) f64, m
+//! /mesh/tetrahedra                (M, 4) u64, global node ids (0-based)
+//! /mesh/grain_of_element          (M,) u32
+//! /mesh/owner_rank_of_grain       (G,) u32
+//! /frames/NNNNNN/<field>          (rows,) or (rows, components) f64; group attribute time (s)
+//! ```
+//! Every dataset has a string attribute `units`; ids, counts and text have `units = ""`.
+//!
+//! The file is opened with the MPI-IO driver on the [`Domain`]'s communicator, on one rank
+//! as on many. Each rank writes its own contiguous block of rows with a collective transfer
+//! (see [`super::collective`]); whole-job data (history, scene, the grain-owner table) is
+//! written by rank 0 within the same collective calls. HDF5 metadata (groups, datasets,
+//! attributes) must be identical on every rank, so the writer takes the scene text and
+//! provenance from rank 0 and checks that the ranks agree on names and sizes before each
+//! write: a disagreement is an error on every rank, never a deadlock or a corrupt file.
+//!
+//! After every history flush and frame the file is flushed (`H5Fflush`), so a run that
+//! dies later leaves a file that h5py and h5dump can read up to the last output.
+
+use std::fmt::Display;
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use hdf5::types::VarLenUnicode;
+use hdf5::{Dataset, File, Group, Location};
+use serde::{Deserialize, Serialize};
+
+use super::collective::{self, IoMode};
+use crate::domain::Domain;
+use crate::error::MufeError;
+
+/// File name of the results inside a run's output directory.
+pub const RESULTS_FILE_NAME: &str = "results.h5";
+
+/// Rows per chunk of the extendable history datasets (8 KiB of f64: small enough that a
+/// short run wastes little, large enough that a long one has few chunks).
+const HISTORY_CHUNK_ROWS: usize = 1024;
+
+/// One time series of `/history`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct HistoryColumn {
+    /// Dataset name under `/history` (`kinetic_energy`); no `/`.
+    pub name: String,
+    /// Units (`J`, `N`, `s`, `""` for dimensionless).
+    pub units: String,
+    /// Name of the Abaqus history output with the same meaning (`ALLKE`), if there is one.
+    pub abaqus: Option<String>,
+    /// One-line description for people reading the file.
+    pub description: String,
+}
+
+impl HistoryColumn {
+    /// Convenience constructor.
+    pub fn new(name: &str, units: &str, abaqus: Option<&str>, description: &str) -> Self {
+        HistoryColumn {
+            name: name.to_string(),
+            units: units.to_string(),
+            abaqus: abaqus.map(str::to_string),
+            description: description.to_string(),
+        }
+    }
+}
+
+/// Who produced the file, stored as attributes of `/provenance`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// mufe version (`CARGO_PKG_VERSION`).
+    pub version: String,
+    /// Number of MPI ranks.
+    pub ranks: usize,
+    /// Threads per rank.
+    pub threads: usize,
+    /// Start of the run, UTC, ISO-8601 (`2024-05-01T12:00:00Z`).
+    pub start_time: String,
+    /// The command line, shell-quoted where needed.
+    pub command_line: String,
+    /// Host of rank 0.
+    pub hostname: String,
+}
+
+impl Provenance {
+    /// Provenance of this run, now. Local (not collective); the writer stores rank 0's.
+    pub fn collect(domain: &Domain, threads: usize) -> Self {
+        Provenance {
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            ranks: domain.size(),
+            threads,
+            start_time: iso8601_utc(SystemTime::now()),
+            command_line: command_line(),
+            hostname: domain.processor_name(),
+        }
+    }
+}
+
+/// This rank's part of the mesh, for [`ResultsWriter::write_mesh`]. Nodes and elements are
+/// numbered globally; each rank holds a contiguous block of each.
+#[derive(Debug, Clone, Copy)]
+pub struct MeshPart<'a> {
+    /// Coordinates (m) of nodes `node_offset .. node_offset + nodes.len()`.
+    pub nodes: &'a [[f64; 3]],
+    pub node_offset: u64,
+    pub total_nodes: u64,
+    /// Global node ids of tetrahedra `tet_offset .. tet_offset + tets.len()`.
+    pub tets: &'a [[u64; 4]],
+    pub tet_offset: u64,
+    pub total_tets: u64,
+    /// Grain id of each of this rank's tetrahedra (same length as `tets`).
+    pub grain_of_tet: &'a [u32],
+    /// Owning rank of every grain of the scene (global; identical on all ranks).
+    pub grain_owner_rank: &'a [u32],
+}
+
+/// This rank's rows of one field of a frame, for [`ResultsWriter::write_frame`].
+#[derive(Debug, Clone, Copy)]
+pub struct FieldPart<'a> {
+    /// Dataset name in the frame group (`displacement`); no `/`.
+    pub name: &'a str,
+    /// Units of the values (`m`, `Pa`).
+    pub units: &'a str,
+    /// Values per row: 1 (scalar, stored 1-D), 3 (vector), 6 (symmetric tensor), ...
+    pub components: usize,
+    /// `rows × components` values, row-major.
+    pub data: &'a [f64],
+    /// Global index of this rank's first row.
+    pub offset: u64,
+    /// Rows of the whole field (all ranks).
+    pub total: u64,
+}
+
+/// How the writer's bulk writes were actually performed, as HDF5 reports them
+/// (`H5Pget_mpio_actual_io_mode`), counted on this rank.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct IoStats {
+    /// Writes HDF5 performed collectively.
+    pub collective: u64,
+    /// Writes HDF5 performed (wholly or partly) independently.
+    pub not_collective: u64,
+}
+
+/// Extendable `/history` time series, buffered between flushes.
+struct History {
+    columns: Vec<HistoryColumn>,
+    datasets: Vec<Dataset>,
+    /// Rows pushed since the last flush, row-major (`columns.len()` values per row).
+    pending: Vec<f64>,
+    /// Rows already in the file.
+    rows_written: u64,
+}
+
+/// Writer of `results.h5` (see the module docs for the layout). Borrows the [`Domain`] so it
+/// cannot outlive MPI; methods documented "all ranks must call" are collective.
+///
+/// On error every rank gets an error (the ranks agree on success after each operation), so
+/// all ranks can stop together.
+pub struct ResultsWriter<'d> {
+    domain: &'d Domain,
+    path: PathBuf,
+    // Before `file`: open datasets must close before the file does (MPI-IO closes "semi").
+    history: Option<History>,
+    io: IoStats,
+    file: File,
+}
+
+impl<'d> ResultsWriter<'d> {
+    /// Creates (truncating) the results file at `path` (normally `DIR/results.h5`) and writes
+    /// `/scene` and `/provenance`. Rank 0's `scene_text` and `provenance` are used on all
+    /// ranks.
+    ///
+    /// All ranks must call.
+    pub fn create(
+        domain: &'d Domain,
+        path: &Path,
+        scene_text: &str,
+        provenance: &Provenance,
+    ) -> Result<Self, MufeError> {
+        // HDF5 metadata must be identical on all ranks (hostnames and clocks are not).
+        let mut bytes = if domain.is_root() {
+            serde_json::to_vec(&(scene_text, provenance)).unwrap_or_default()
+        } else {
+            Vec::new()
+        };
+        domain.broadcast_bytes(&mut bytes);
+        let (scene, provenance): (String, Provenance) = serde_json::from_slice(&bytes)
+            .map_err(|e| io_error(path, "sharing scene and provenance", e))?;
+
+        let created = if path.is_dir() {
+            Err(format!("is a directory; expected a file path such as DIR/{RESULTS_FILE_NAME}"))
+        } else {
+            File::with_options()
+                .with_fapl(|p| p.mpio(domain.raw_comm(), None))
+                .create(path)
+                .map_err(|e| e.to_string())
+        };
+        let local = created.as_ref().map(|_| ()).map_err(Clone::clone);
+        agree(domain, path, "creating results file", local)?;
+        let file = created.map_err(|e| io_error(path, "creating results file", e))?;
+
+        let mut writer = ResultsWriter {
+            domain,
+            path: path.to_path_buf(),
+            history: None,
+            io: IoStats::default(),
+            file,
+        };
+        let local = writer.write_header(&scene, &provenance);
+        writer.agree("writing /scene and /provenance", local)?;
+        writer.flush_file()?;
+        Ok(writer)
+    }
+
+    /// Path of the file being written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// How this rank's bulk writes were performed so far.
+    pub fn io_stats(&self) -> IoStats {
+        self.io
+    }
+
+    fn write_header(&mut self, scene: &str, provenance: &Provenance) -> Result<(), String> {
+        let is_root = self.domain.is_root();
+        let ds = collective::create_text_dataset(&self.file, "scene", scene, is_root)
+            .map_err(|e| format!("/scene: {e}"))?;
+        put_str_attr(&ds, "units", "").map_err(|e| format!("/scene: {e}"))?;
+        put_str_attr(&ds, "description", "the scene file (TOML) as run, after --set overrides")
+            .map_err(|e| format!("/scene: {e}"))?;
+
+        let group = self.file.create_group("provenance").map_err(|e| format!("/provenance: {e}"))?;
+        let write = || -> hdf5::Result<()> {
+            put_str_attr(&group, "version", &provenance.version)?;
+            put_u64_attr(&group, "ranks", provenance.ranks as u64)?;
+            put_u64_attr(&group, "threads", provenance.threads as u64)?;
+            put_str_attr(&group, "start_time", &provenance.start_time)?;
+            put_str_attr(&group, "command_line", &provenance.command_line)?;
+            put_str_attr(&group, "hostname", &provenance.hostname)?;
+            Ok(())
+        };
+        write().map_err(|e| format!("/provenance: {e}"))
+    }
+
+    /// Defines the `/history` time series (once per file) and creates their empty,
+    /// extendable datasets with attributes `units`, `description` and `abaqus` (where
+    /// given). Column names must be unique, non-empty and free of `/`.
+    ///
+    /// All ranks must call, with the same columns.
+    pub fn define_history(&mut self, columns: &[HistoryColumn]) -> Result<(), MufeError> {
+        let mut local = if self.history.is_some() {
+            Err("history is already defined".to_string())
+        } else {
+            check_names(columns.iter().map(|c| c.name.as_str()))
+        };
+        if local.is_ok() {
+            let text = serde_json::to_string(columns).unwrap_or_default();
+            local = self.same_on_all_ranks(fnv1a(text.as_bytes()), "history columns");
+        }
+        self.agree("defining /history", local)?;
+
+        let created = (|| -> hdf5::Result<Vec<Dataset>> {
+            let group = self.file.create_group("history")?;
+            let mut datasets = Vec::with_capacity(columns.len());
+            for c in columns {
+                let ds = group
+                    .new_dataset::<f64>()
+                    .chunk(HISTORY_CHUNK_ROWS)
+                    .shape(0..)
+                    .create(c.name.as_str())?;
+                put_str_attr(&ds, "units", &c.units)?;
+                put_str_attr(&ds, "description", &c.description)?;
+                if let Some(a) = &c.abaqus {
+                    put_str_attr(&ds, "abaqus", a)?;
+                }
+                datasets.push(ds);
+            }
+            Ok(datasets)
+        })();
+        let local = created.as_ref().map(|_| ()).map_err(|e| e.to_string());
+        self.agree("defining /history", local)?;
+        let datasets = created.map_err(|e| self.error("defining /history", e))?;
+        self.history = Some(History {
+            columns: columns.to_vec(),
+            datasets,
+            pending: Vec::new(),
+            rows_written: 0,
+        });
+        self.flush_file()
+    }
+
+    /// Buffers one history row (one value per column, in the order of `define_history`).
+    /// Local, not collective: every rank pushes the same rows (rank 0's are written).
+    pub fn push_history(&mut self, values: &[f64]) -> Result<(), MufeError> {
+        let path = self.path.clone();
+        let Some(history) = self.history.as_mut() else {
+            return Err(io_error(&path, "history row", "define_history was not called"));
+        };
+        if values.len() != history.columns.len() {
+            return Err(io_error(
+                &path,
+                "history row",
+                format!("{} values for {} columns", values.len(), history.columns.len()),
+            ));
+        }
+        history.pending.extend_from_slice(values);
+        Ok(())
+    }
+
+    /// Appends the buffered history rows to the `/history` datasets (extending them, a
+    /// collective operation) and flushes the file. Rank 0's rows are written.
+    ///
+    /// All ranks must call.
+    pub fn flush_history(&mut self) -> Result<(), MufeError> {
+        let Some(history) = self.history.as_mut() else {
+            return Ok(());
+        };
+        let ncol = history.columns.len();
+        let local_rows = (history.pending.len() / ncol.max(1)) as u64;
+        // The extent change must be identical on all ranks: use rank 0's row count.
+        let rows = self.domain.all_gather_u64(local_rows)[0];
+        if rows == 0 {
+            history.pending.clear();
+            return Ok(());
+        }
+        let start = history.rows_written;
+        let end = start + rows;
+        let is_root = self.domain.is_root();
+        let mut column = Vec::with_capacity(if is_root { rows as usize } else { 0 });
+        let mut modes = Vec::with_capacity(ncol);
+        let mut result = Ok(());
+        for (j, ds) in history.datasets.iter().enumerate() {
+            column.clear();
+            if is_root {
+                column.extend(history.pending.chunks_exact(ncol).map(|row| row[j]));
+            }
+            let written = ds
+                .resize(end as usize)
+                .and_then(|()| collective::write_1d_f64(ds, &column, start, end));
+            match written {
+                Ok(mode) => modes.push(mode),
+                Err(e) => {
+                    result = Err(format!("/history/{}: {e}", history.columns[j].name));
+                    break;
+                }
+            }
+        }
+        history.pending.clear();
+        history.rows_written = end;
+        self.count(&modes);
+        self.agree("writing /history", result)?;
+        self.flush_file()
+    }
+
+    /// Writes `/mesh` (nodes, tetrahedra, grain of each element, owner rank of each grain)
+    /// collectively, each rank its own blocks; rank 0 writes the grain-owner table. Once per
+    /// file.
+    ///
+    /// All ranks must call.
+    pub fn write_mesh(&mut self, part: &MeshPart) -> Result<(), MufeError> {
+        let mut local = self.check_mesh_part(part);
+        if local.is_ok() {
+            let mut key = Vec::new();
+            key.extend_from_slice(&part.total_nodes.to_le_bytes());
+            key.extend_from_slice(&part.total_tets.to_le_bytes());
+            for r in part.grain_owner_rank {
+                key.extend_from_slice(&r.to_le_bytes());
+            }
+            local = self.same_on_all_ranks(fnv1a(&key), "mesh sizes and grain owners");
+        }
+        self.agree("writing /mesh", local)?;
+        self.check_blocks("/mesh/nodes", part.node_offset, part.nodes.len() as u64, part.total_nodes)?;
+        self.check_blocks("/mesh/tetrahedra", part.tet_offset, part.tets.len() as u64, part.total_tets)?;
+
+        let is_root = self.domain.is_root();
+        let owners: &[u32] = if is_root { part.grain_owner_rank } else { &[] };
+        let grains = part.grain_owner_rank.len() as u64;
+        let mut modes = Vec::with_capacity(4);
+        let result = (|| -> hdf5::Result<()> {
+            let group = self.file.create_group("mesh")?;
+            let ds = new_fixed::<f64>(&group, "nodes", part.total_nodes, 3)?;
+            put_str_attr(&ds, "units", "m")?;
+            put_str_attr(&ds, "description", "node coordinates in the reference configuration")?;
+            modes.push(collective::write_2d_f64(
+                &ds,
+                part.nodes.as_flattened(),
+                3,
+                part.node_offset,
+                part.total_nodes,
+            )?);
+
+            let ds = new_fixed::<u64>(&group, "tetrahedra", part.total_tets, 4)?;
+            put_str_attr(&ds, "units", "")?;
+            put_str_attr(&ds, "description", "global node ids (0-based) of each linear tetrahedron")?;
+            modes.push(collective::write_2d_u64(
+                &ds,
+                part.tets.as_flattened(),
+                4,
+                part.tet_offset,
+                part.total_tets,
+            )?);
+
+            let ds = new_fixed::<u32>(&group, "grain_of_element", part.total_tets, 1)?;
+            put_str_attr(&ds, "units", "")?;
+            put_str_attr(&ds, "description", "grain id of each tetrahedron")?;
+            modes.push(collective::write_1d_u32(&ds, part.grain_of_tet, part.tet_offset, part.total_tets)?);
+
+            let ds = new_fixed::<u32>(&group, "owner_rank_of_grain", grains, 1)?;
+            put_str_attr(&ds, "units", "")?;
+            put_str_attr(&ds, "description", "MPI rank that owns each grain in this run")?;
+            modes.push(collective::write_1d_u32(&ds, owners, 0, grains)?);
+            Ok(())
+        })();
+        self.count(&modes);
+        self.agree("writing /mesh", result.map_err(|e| e.to_string()))?;
+        self.flush_file()
+    }
+
+    /// Writes frame `index` (`/frames/NNNNNN`, six digits) with group attribute `time` (s)
+    /// and one dataset per field, each rank its own rows, collectively. Scalar fields
+    /// (`components == 1`) are 1-D, others `(total, components)`.
+    ///
+    /// All ranks must call, with the same index, time and fields (names, units,
+    /// components, totals) in the same order.
+    pub fn write_frame(&mut self, index: usize, time: f64, fields: &[FieldPart]) -> Result<(), MufeError> {
+        let group_name = format!("{index:06}");
+        let what = format!("writing /frames/{group_name}");
+        let mut local = check_names(fields.iter().map(|f| f.name)).and_then(|()| {
+            for f in fields {
+                if f.components == 0 {
+                    return Err(format!("field {}: 0 components", f.name));
+                }
+                if f.data.len() % f.components != 0 {
+                    return Err(format!(
+                        "field {}: {} values are not whole rows of {} components",
+                        f.name,
+                        f.data.len(),
+                        f.components
+                    ));
+                }
+            }
+            Ok(())
+        });
+        if local.is_ok() && self.file.link_exists(&format!("frames/{group_name}")) {
+            local = Err("frame already written".to_string());
+        }
+        if local.is_ok() {
+            let mut key = format!("{index}|{}|", time.to_bits());
+            for f in fields {
+                key.push_str(&format!("{}|{}|{}|{}|", f.name, f.units, f.components, f.total));
+            }
+            local = self.same_on_all_ranks(fnv1a(key.as_bytes()), "frame index, time and fields");
+        }
+        self.agree(&what, local)?;
+        for f in fields {
+            let rows = (f.data.len() / f.components) as u64;
+            self.check_blocks(&format!("/frames/{group_name}/{}", f.name), f.offset, rows, f.total)?;
+        }
+
+        let mut modes = Vec::with_capacity(fields.len());
+        let result = (|| -> hdf5::Result<()> {
+            let frames = if self.file.link_exists("frames") {
+                self.file.group("frames")?
+            } else {
+                self.file.create_group("frames")?
+            };
+            let group = frames.create_group(&group_name)?;
+            group.new_attr::<f64>().create("time")?.write_scalar(&time)?;
+            for f in fields {
+                let ds = new_fixed::<f64>(&group, f.name, f.total, f.components)?;
+                put_str_attr(&ds, "units", f.units)?;
+                modes.push(collective::write_2d_f64(&ds, f.data, f.components, f.offset, f.total)?);
+            }
+            Ok(())
+        })();
+        self.count(&modes);
+        self.agree(&what, result.map_err(|e| e.to_string()))?;
+        self.flush_file()
+    }
+
+    /// Flushes the history and closes the file.
+    ///
+    /// All ranks must call.
+    pub fn close(mut self) -> Result<(), MufeError> {
+        self.flush_history()?;
+        let ResultsWriter { domain, path, history, file, .. } = self;
+        // Datasets first: with MPI-IO the file only closes when nothing in it is open.
+        drop(history);
+        let local = file.close().map_err(|e| e.to_string());
+        agree(domain, &path, "closing results file", local)
+    }
+
+    fn check_mesh_part(&self, part: &MeshPart) -> Result<(), String> {
+        if part.grain_of_tet.len() != part.tets.len() {
+            return Err(format!(
+                "{} grain ids for {} tetrahedra",
+                part.grain_of_tet.len(),
+                part.tets.len()
+            ));
+        }
+        if let Some((i, t)) = part.tets.iter().enumerate().find(|(_, t)| t.iter().any(|&n| n >= part.total_nodes)) {
+            return Err(format!(
+                "element {}: node id out of range in {t:?} ({} nodes)",
+                part.tet_offset + i as u64,
+                part.total_nodes
+            ));
+        }
+        let grains = part.grain_owner_rank.len();
+        if let Some((i, g)) = part.grain_of_tet.iter().enumerate().find(|(_, &g)| g as usize >= grains) {
+            return Err(format!(
+                "element {}: grain {g} out of range ({grains} grains)",
+                part.tet_offset + i as u64
+            ));
+        }
+        let size = self.domain.size();
+        if let Some((g, r)) = part.grain_owner_rank.iter().enumerate().find(|(_, &r)| r as usize >= size) {
+            return Err(format!("grain {g}: owner rank {r} out of range ({size} ranks)"));
+        }
+        Ok(())
+    }
+
+    /// Checks (on every rank, from gathered data, so every rank reaches the same verdict)
+    /// that the ranks' blocks `[offset, offset + rows)` tile `[0, total)` exactly and that
+    /// all ranks name the same total. All ranks must call.
+    fn check_blocks(&self, what: &str, offset: u64, rows: u64, total: u64) -> Result<(), MufeError> {
+        let offsets = self.domain.all_gather_u64(offset);
+        let counts = self.domain.all_gather_u64(rows);
+        let totals = self.domain.all_gather_u64(total);
+        if let Some(r) = totals.iter().position(|&t| t != totals[0]) {
+            return Err(self.error(what, format!("rank {r} says {} rows, rank 0 says {}", totals[r], totals[0])));
+        }
+        let mut blocks: Vec<(u64, u64, usize)> = offsets
+            .iter()
+            .zip(&counts)
+            .enumerate()
+            .filter(|(_, (_, &n))| n > 0)
+            .map(|(r, (&o, &n))| (o, n, r))
+            .collect();
+        blocks.sort_unstable();
+        let mut next = 0u64;
+        for &(o, n, r) in &blocks {
+            if o != next {
+                return Err(self.error(
+                    what,
+                    format!("rank {r} writes rows from {o}, expected {next} (blocks must not overlap or leave gaps)"),
+                ));
+            }
+            next = o.saturating_add(n);
+        }
+        if next != totals[0] {
+            return Err(self.error(what, format!("the ranks write {next} rows of {}", totals[0])));
+        }
+        Ok(())
+    }
+
+    /// `Ok` if every rank passes the same `key`, else a local error naming `what`.
+    /// All ranks must call.
+    fn same_on_all_ranks(&self, key: u64, what: &str) -> Result<(), String> {
+        let keys = self.domain.all_gather_u64(key);
+        match keys.iter().position(|&k| k != keys[0]) {
+            Some(r) => Err(format!("{what} differ between rank 0 and rank {r}")),
+            None => Ok(()),
+        }
+    }
+
+    fn agree(&self, what: &str, local: Result<(), String>) -> Result<(), MufeError> {
+        agree(self.domain, &self.path, what, local)
+    }
+
+    fn count(&mut self, modes: &[IoMode]) {
+        for m in modes {
+            if m.is_collective() {
+                self.io.collective += 1;
+            } else {
+                self.io.not_collective += 1;
+            }
+        }
+    }
+
+    /// `H5Fflush`: makes everything written so far readable even if the run dies later.
+    /// All ranks must call.
+    fn flush_file(&self) -> Result<(), MufeError> {
+        let local = self.file.flush().map_err(|e| e.to_string());
+        self.agree("flushing results file", local)
+    }
+
+    fn error(&self, what: &str, e: impl Display) -> MufeError {
+        io_error(&self.path, what, e)
+    }
+}
+
+fn io_error(path: &Path, what: &str, e: impl Display) -> MufeError {
+    MufeError::Io(format!("{}: {what}: {e}", path.display()))
+}
+
+/// Turns rank-local outcomes into one outcome on every rank: `Err` everywhere if any rank
+/// failed (a rank's own message where it failed, "failed on rank R" elsewhere), so that no
+/// rank goes on into a collective the others have abandoned. All ranks must call.
+fn agree(domain: &Domain, path: &Path, what: &str, local: Result<(), String>) -> Result<(), MufeError> {
+    let failed = domain.all_gather_u64(u64::from(local.is_err()));
+    match local {
+        Err(m) => Err(io_error(path, what, m)),
+        Ok(()) => match failed.iter().position(|&f| f != 0) {
+            Some(r) => Err(io_error(path, what, format!("failed on rank {r} (see its error)"))),
+            None => Ok(()),
+        },
+    }
+}
+
+/// Names must be non-empty, free of `/` (they become HDF5 link names) and unique.
+fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<(), String> {
+    let mut seen = std::collections::HashSet::new();
+    for name in names {
+        if name.is_empty() || name.contains('/') || name == "." {
+            return Err(format!("invalid name {name:?} (must be non-empty, without '/')"));
+        }
+        if !seen.insert(name) {
+            return Err(format!("duplicate name {name:?}"));
+        }
+    }
+    Ok(())
+}
+
+/// A fixed-size dataset of `rows` (× `columns` if > 1) elements. All ranks must call.
+fn new_fixed<T: hdf5::H5Type>(group: &Group, name: &str, rows: u64, columns: usize) -> hdf5::Result<Dataset> {
+    let rows = rows as usize;
+    let builder = group.new_dataset::<T>();
+    if columns == 1 {
+        builder.shape(rows).create(name)
+    } else {
+        builder.shape([rows, columns]).create(name)
+    }
+}
+
+/// A scalar variable-length UTF-8 string attribute (reads as `str` in h5py).
+fn put_str_attr(loc: &Location, name: &str, value: &str) -> hdf5::Result<()> {
+    // VarLenUnicode cannot hold NUL; replace it rather than fail on odd input.
+    let value: VarLenUnicode = value
+        .replace('\0', "\u{FFFD}")
+        .parse()
+        .map_err(|e| hdf5::Error::from(format!("attribute {name}: {e}")))?;
+    loc.new_attr::<VarLenUnicode>().create(name)?.write_scalar(&value)
+}
+
+fn put_u64_attr(loc: &Location, name: &str, value: u64) -> hdf5::Result<()> {
+    loc.new_attr::<u64>().create(name)?.write_scalar(&value)
+}
+
+/// FNV-1a: a stable (process- and platform-independent) hash for comparing metadata
+/// across ranks.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// UTC time as ISO-8601 (`YYYY-MM-DDThh:mm:ssZ`), without a date crate.
+pub fn iso8601_utc(t: SystemTime) -> String {
+    let secs = match t.duration_since(UNIX_EPOCH) {
+        Ok(d) => d.as_secs() as i64,
+        Err(e) => -(e.duration().as_secs() as i64),
+    };
+    let days = secs.div_euclid(86_400);
+    let sod = secs.rem_euclid(86_400);
+    let (y, m, d) = civil_from_days(days);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        sod / 3600,
+        sod % 3600 / 60,
+        sod % 60
+    )
+}
+
+/// Proleptic Gregorian date of a day count since 1970-01-01 (H. Hinnant's algorithm).
+fn civil_from_days(z: i64) -> (i64, u32, u32) {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    (y, m, d)
+}
+
+/// The process's command line, with arguments quoted for a POSIX shell where needed.
+fn command_line() -> String {
+    std::env::args_os()
+        .map(|a| shell_quote(&a.to_string_lossy()))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn shell_quote(arg: &str) -> String {
+    let plain = !arg.is_empty()
+        && arg
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c));
+    if plain {
+        arg.to_string()
+    } else {
+        format!("'{}'", arg.replace('\'', r"'\''"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::with_test_domain;
+
+    fn temp_path(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("mufe-io-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    fn str_attr(loc: &Location, name: &str) -> String {
+        loc.attr(name).unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str().to_string()
+    }
+
+    fn provenance() -> Provenance {
+        Provenance {
+            version: "9.9.9".into(),
+            ranks: 1,
+            threads: 2,
+            start_time: "2024-01-02T03:04:05Z".into(),
+            command_line: "mufe run 'a b.toml'".into(),
+            hostname: "node1".into(),
+        }
+    }
+
+    #[test]
+    fn iso8601_matches_known_instants() {
+        let at = |s: u64| iso8601_utc(UNIX_EPOCH + std::time::Duration::from_secs(s));
+        assert_eq!(at(0), "1970-01-01T00:00:00Z");
+        assert_eq!(at(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(at(1_700_000_000), "2023-11-14T22:13:20Z");
+        assert_eq!(at(4_107_542_399), "2100-02-28T23:59:59Z");
+    }
+
+    #[test]
+    fn shell_quoting() {
+        assert_eq!(shell_quote("--set=a.b=1"), "--set=a.b=1");
+        assert_eq!(shell_quote("a b"), "'a b'");
+        assert_eq!(shell_quote("it's"), r"'it'\''s'");
+        assert_eq!(shell_quote(""), "''");
+    }
+
+    #[test]
+    fn single_rank_file_reads_back() {
+        let path = temp_path("single.h5");
+        let scene = "[scene]\nname = \"drop\" # ünïcode\n";
+        let (stats, n_nodes) = with_test_domain(|d| {
+            let mut w = ResultsWriter::create(d, &path, scene, &provenance()).unwrap();
+            w.define_history(&[
+                HistoryColumn::new("time", "s", None, "output time"),
+                HistoryColumn::new("kinetic_energy", "J", Some("ALLKE"), "kinetic energy"),
+            ])
+            .unwrap();
+            // More rows than one chunk, over two flushes, to exercise extension.
+            for i in 0..1500 {
+                let t = i as f64 * 1e-3;
+                w.push_history(&[t, 0.5 * t * t]).unwrap();
+                if i == 700 {
+                    w.flush_history().unwrap();
+                }
+            }
+            let nodes: Vec<[f64; 3]> = (0..5).map(|i| [i as f64, 2.0 * i as f64, -(i as f64)]).collect();
+            let tets = [[0u64, 1, 2, 3], [1, 2, 3, 4]];
+            w.write_mesh(&MeshPart {
+                nodes: &nodes,
+                node_offset: 0,
+                total_nodes: 5,
+                tets: &tets,
+                tet_offset: 0,
+                total_tets: 2,
+                grain_of_tet: &[0, 1],
+                grain_owner_rank: &[0, 0],
+            })
+            .unwrap();
+            let u: Vec<f64> = (0..15).map(|i| i as f64 * 0.1).collect();
+            let p = [1.0, 2.0, 3.0, 4.0, 5.0];
+            w.write_frame(
+                3,
+                0.25,
+                &[
+                    FieldPart { name: "displacement", units: "m", components: 3, data: &u, offset: 0, total: 5 },
+                    FieldPart { name: "pressure", units: "Pa", components: 1, data: &p, offset: 0, total: 5 },
+                ],
+            )
+            .unwrap();
+            let stats = w.io_stats();
+            w.close().unwrap();
+            (stats, nodes.len())
+        });
+        assert_eq!(stats.not_collective, 0, "{stats:?}");
+        assert!(stats.collective >= 6, "{stats:?}");
+
+        let f = File::open(&path).unwrap();
+        assert_eq!(collective::read_text_dataset(&f.dataset("scene").unwrap()).unwrap(), scene);
+        assert_eq!(str_attr(&f.dataset("scene").unwrap(), "units"), "");
+        let prov = f.group("provenance").unwrap();
+        assert_eq!(str_attr(&prov, "version"), "9.9.9");
+        assert_eq!(str_attr(&prov, "command_line"), "mufe run 'a b.toml'");
+        assert_eq!(str_attr(&prov, "hostname"), "node1");
+        assert_eq!(str_attr(&prov, "start_time"), "2024-01-02T03:04:05Z");
+        assert_eq!(prov.attr("ranks").unwrap().read_scalar::<u64>().unwrap(), 1);
+        assert_eq!(prov.attr("threads").unwrap().read_scalar::<u64>().unwrap(), 2);
+
+        let time = f.dataset("history/time").unwrap();
+        let ke = f.dataset("history/kinetic_energy").unwrap();
+        let tv = time.read_raw::<f64>().unwrap();
+        let kv = ke.read_raw::<f64>().unwrap();
+        assert_eq!(tv.len(), 1500);
+        for (i, (&t, &k)) in tv.iter().zip(&kv).enumerate() {
+            assert_eq!(t, i as f64 * 1e-3);
+            assert_eq!(k, 0.5 * t * t);
+        }
+        assert_eq!(str_attr(&time, "units"), "s");
+        assert!(time.attr("abaqus").is_err());
+        assert_eq!(str_attr(&ke, "units"), "J");
+        assert_eq!(str_attr(&ke, "abaqus"), "ALLKE");
+        assert_eq!(str_attr(&ke, "description"), "kinetic energy");
+
+        let nodes = f.dataset("mesh/nodes").unwrap();
+        assert_eq!(nodes.shape(), vec![n_nodes, 3]);
+        assert_eq!(str_attr(&nodes, "units"), "m");
+        let xyz = nodes.read_raw::<f64>().unwrap();
+        for i in 0..n_nodes {
+            assert_eq!(&xyz[3 * i..3 * i + 3], &[i as f64, 2.0 * i as f64, -(i as f64)]);
+        }
+        let tets = f.dataset("mesh/tetrahedra").unwrap();
+        assert_eq!(tets.shape(), vec![2, 4]);
+        assert_eq!(tets.read_raw::<u64>().unwrap(), vec![0, 1, 2, 3, 1, 2, 3, 4]);
+        assert_eq!(str_attr(&tets, "units"), "");
+        assert_eq!(f.dataset("mesh/grain_of_element").unwrap().read_raw::<u32>().unwrap(), vec![0, 1]);
+        assert_eq!(f.dataset("mesh/owner_rank_of_grain").unwrap().read_raw::<u32>().unwrap(), vec![0, 0]);
+
+        let frame = f.group("frames/000003").unwrap();
+        assert_eq!(frame.attr("time").unwrap().read_scalar::<f64>().unwrap(), 0.25);
+        let u = frame.dataset("displacement").unwrap();
+        assert_eq!(u.shape(), vec![5, 3]);
+        assert_eq!(str_attr(&u, "units"), "m");
+        let uv = u.read_raw::<f64>().unwrap();
+        assert!(uv.iter().enumerate().all(|(i, &v)| v == i as f64 * 0.1));
+        let p = frame.dataset("pressure").unwrap();
+        assert_eq!(p.shape(), vec![5]);
+        assert_eq!(str_attr(&p, "units"), "Pa");
+        assert_eq!(p.read_raw::<f64>().unwrap(), vec![1.0, 2.0, 3.0, 4.0, 5.0]);
+        std::fs::remove_file(&path).ok();
+    }
+
+    #[test]
+    fn bad_input_is_an_error_and_the_file_stays_usable() {
+        let path = temp_path("bad.h5");
+        with_test_domain(|d| {
+            let mut w = ResultsWriter::create(d, &path, "", &provenance()).unwrap();
+            assert!(w.push_history(&[1.0]).is_err(), "push before define");
+            let dup = [HistoryColumn::new("a", "", None, ""), HistoryColumn::new("a", "", None, "")];
+            assert!(w.define_history(&dup).is_err());
+            assert!(w.define_history(&[HistoryColumn::new("a/b", "", None, "")]).is_err());
+            w.define_history(&[HistoryColumn::new("time", "s", None, "t")]).unwrap();
+            assert!(w.define_history(&[HistoryColumn::new("x", "", None, "")]).is_err(), "twice");
+            let e = w.push_history(&[1.0, 2.0]).unwrap_err();
+            assert!(e.to_string().contains("bad.h5"), "{e}");
+
+            // Rows that do not cover the field, wrong row width, node ids out of range.
+            let short = FieldPart { name: "u", units: "m", components: 3, data: &[0.0; 6], offset: 0, total: 3 };
+            assert!(w.write_frame(0, 0.0, &[short]).is_err());
+            let ragged = FieldPart { name: "u", units: "m", components: 3, data: &[0.0; 7], offset: 0, total: 2 };
+            assert!(w.write_frame(0, 0.0, &[ragged]).is_err());
+            let bad_mesh = MeshPart {
+                nodes: &[[0.0; 3]; 4],
+                node_offset: 0,
+                total_nodes: 4,
+                tets: &[[0, 1, 2, 9]],
+                tet_offset: 0,
+                total_tets: 1,
+                grain_of_tet: &[0],
+                grain_owner_rank: &[0],
+            };
+            let e = w.write_mesh(&bad_mesh).unwrap_err();
+            assert!(e.to_string().contains("element 0"), "{e}");
+
+            // The writer is still usable after refused input.
+            let ok = FieldPart { name: "u", units: "m", components: 3, data: &[1.0; 6], offset: 0, total: 2 };
+            w.write_frame(0, 0.5, &[ok]).unwrap();
+            assert!(w.write_frame(0, 0.5, &[ok]).is_err(), "same frame twice");
+            w.push_history(&[0.5]).unwrap();
+            w.close().unwrap();
+        });
+        let f = File::open(&path).unwrap();
+        assert_eq!(collective::read_text_dataset(&f.dataset("scene").unwrap()).unwrap(), "");
+        assert_eq!(f.dataset("history/time").unwrap().read_raw::<f64>().unwrap(), vec![0.5]);
+        assert_eq!(f.dataset("frames/000000/u").unwrap().read_raw::<f64>().unwrap(), vec![1.0; 6]);
+        std::fs::remove_file(&path).ok();
+    }
+
+    #[test]
+    fn directory_path_is_a_clear_error() {
+        let dir = temp_path("a-directory");
+        std::fs::create_dir_all(&dir).unwrap();
+        with_test_domain(|d| {
+            let e = ResultsWriter::create(d, &dir, "", &provenance()).err().unwrap();
+            assert!(matches!(e, MufeError::Io(ref m) if m.contains("is a directory")), "{e}");
+        });
+    }
+
+    #[test]
+    fn collect_fills_provenance() {
+        with_test_domain(|d| {
+            let p = Provenance::collect(d, 3);
+            assert_eq!(p.version, env!("CARGO_PKG_VERSION"));
+            assert_eq!((p.ranks, p.threads), (1, 3));
+            assert!(p.start_time.ends_with('Z') && p.start_time.len() == 20, "{}", p.start_time);
+            assert!(!p.command_line.is_empty());
+        });
+    }
+}

@@ -1,0 +1,205 @@
+//! Grain materials: small stateless types with a `Parameters` type and the formula in the
+//! doc comment. Per-element state (plastic strain, hardening) lives beside the element
+//! data and exists only for materials that need it.
+
+use serde::{Deserialize, Serialize};
+
+/// Isotropic linear elasticity parameters (SI units).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ElasticParameters {
+    /// Young's modulus E (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson's ratio ν (–), −1 < ν < 0.5.
+    pub poisson_ratio: f64,
+    /// Mass density ρ (kg/m³).
+    pub density: f64,
+}
+
+impl ElasticParameters {
+    /// Lamé constants (λ, μ) in Pa: λ = Eν/((1+ν)(1−2ν)), μ = G = E/(2(1+ν)).
+    pub fn lame(&self) -> (f64, f64) {
+        let e = self.youngs_modulus;
+        let nu = self.poisson_ratio;
+        (e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu)))
+    }
+
+    /// Shear modulus G = E/(2(1+ν)) (Pa).
+    pub fn shear_modulus(&self) -> f64 {
+        self.lame().1
+    }
+
+    /// Dilatational (P-wave) speed c_p = √((λ+2G)/ρ) (m/s).
+    pub fn dilatational_wave_speed(&self) -> f64 {
+        let (lambda, mu) = self.lame();
+        ((lambda + 2.0 * mu) / self.density).sqrt()
+    }
+
+    /// Bar wave speed √(E/ρ) (m/s).
+    pub fn bar_wave_speed(&self) -> f64 {
+        (self.youngs_modulus / self.density).sqrt()
+    }
+
+    /// Plane-strain modulus of a pair of identical bodies for Hertz, E/(1−ν²) (Pa).
+    pub fn plane_strain_modulus(&self) -> f64 {
+        self.youngs_modulus / (1.0 - self.poisson_ratio * self.poisson_ratio)
+    }
+}
+
+/// St Venant–Kirchhoff hyperelasticity, the large-rotation form of linear isotropic
+/// elasticity used for every elastic grain:
+///
+/// E = ½(FᵀF − I),  S = λ tr(E) I + 2μ E,  P = F S,  W = ½λ (tr E)² + μ E:E.
+///
+/// W depends on F only through FᵀF, so a rigid rotation (F = R) gives exactly zero
+/// stress and energy: the formulation is objective for arbitrarily large rotations, which
+/// rolling grains need. For the small strains of elastic grains (< 1e-2) it coincides with
+/// Hooke's law to O(ε²).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StVenantKirchhoff {
+    /// First Lamé constant λ (Pa).
+    pub lambda: f64,
+    /// Shear modulus μ (Pa).
+    pub mu: f64,
+}
+
+impl StVenantKirchhoff {
+    pub fn new(p: &ElasticParameters) -> Self {
+        let (lambda, mu) = p.lame();
+        Self { lambda, mu }
+    }
+
+    /// Returns the first Piola–Kirchhoff stress P (row-major 3×3, Pa) and the strain energy
+    /// density W (J/m³) for a deformation gradient F (row-major 3×3).
+    #[inline(always)]
+    pub fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
+        let e = green_lagrange_strain(f);
+        let s = self.second_piola(&e);
+        let tr = e[0] + e[4] + e[8];
+        let ee = e.iter().map(|v| v * v).sum::<f64>();
+        let w = 0.5 * self.lambda * tr * tr + self.mu * ee;
+        (mat_mul(f, &s), w)
+    }
+
+    /// S = λ tr(E) I + 2μ E (Pa).
+    #[inline(always)]
+    pub fn second_piola(&self, e: &[f64; 9]) -> [f64; 9] {
+        let tr = e[0] + e[4] + e[8];
+        let mut s = [0.0; 9];
+        for (si, ei) in s.iter_mut().zip(e) {
+            *si = 2.0 * self.mu * ei;
+        }
+        s[0] += self.lambda * tr;
+        s[4] += self.lambda * tr;
+        s[8] += self.lambda * tr;
+        s
+    }
+}
+
+/// Green–Lagrange strain E = ½(FᵀF − I), row-major.
+#[inline(always)]
+pub fn green_lagrange_strain(f: &[f64; 9]) -> [f64; 9] {
+    let mut e = [0.0; 9];
+    for i in 0..3 {
+        for j in i..3 {
+            let c = f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j];
+            let v = 0.5 * (c - if i == j { 1.0 } else { 0.0 });
+            e[3 * i + j] = v;
+            e[3 * j + i] = v;
+        }
+    }
+    e
+}
+
+/// Row-major 3×3 product a·b.
+#[inline(always)]
+pub fn mat_mul(a: &[f64; 9], b: &[f64; 9]) -> [f64; 9] {
+    let mut c = [0.0; 9];
+    for i in 0..3 {
+        for j in 0..3 {
+            c[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
+        }
+    }
+    c
+}
+
+/// Cauchy stress σ = J⁻¹ P Fᵀ (Pa), row-major, for output.
+pub fn cauchy_from_first_piola(p: &[f64; 9], f: &[f64; 9]) -> [f64; 9] {
+    let j = det3(f);
+    let mut sigma = [0.0; 9];
+    for i in 0..3 {
+        for k in 0..3 {
+            sigma[3 * i + k] =
+                (p[3 * i] * f[3 * k] + p[3 * i + 1] * f[3 * k + 1] + p[3 * i + 2] * f[3 * k + 2]) / j;
+        }
+    }
+    sigma
+}
+
+/// Determinant of a row-major 3×3 matrix.
+#[inline(always)]
+pub fn det3(m: &[f64; 9]) -> f64 {
+    m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6])
+        + m[2] * (m[3] * m[7] - m[4] * m[6])
+}
+
+/// von Mises equivalent of a symmetric stress (Pa).
+pub fn von_mises(s: &[f64; 9]) -> f64 {
+    let tr = (s[0] + s[4] + s[8]) / 3.0;
+    let mut j2 = 0.0;
+    for i in 0..3 {
+        for j in 0..3 {
+            let d = s[3 * i + j] - if i == j { tr } else { 0.0 };
+            j2 += d * d;
+        }
+    }
+    (1.5 * j2).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn glass() -> ElasticParameters {
+        ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 }
+    }
+
+    #[test]
+    fn rotation_gives_zero_stress_and_energy() {
+        let p = glass();
+        let m = StVenantKirchhoff::new(&p);
+        let (c, s) = (0.3_f64.cos(), 0.3_f64.sin());
+        // rotation about an oblique axis: Rz(0.3)·Rx(1.1)
+        let rz = [c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0];
+        let (c1, s1) = (1.1_f64.cos(), 1.1_f64.sin());
+        let rx = [1.0, 0.0, 0.0, 0.0, c1, -s1, 0.0, s1, c1];
+        let r = mat_mul(&rz, &rx);
+        let (pk, w) = m.first_piola_and_energy(&r);
+        assert!(pk.iter().all(|v| v.abs() < 1e-15 * p.youngs_modulus));
+        assert!(w.abs() < 1e-20 * p.youngs_modulus);
+    }
+
+    #[test]
+    fn small_uniaxial_strain_matches_hooke() {
+        let p = glass();
+        let m = StVenantKirchhoff::new(&p);
+        let eps = 1e-7;
+        let f = [1.0 + eps, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+        let (pk, w) = m.first_piola_and_energy(&f);
+        let (lambda, mu) = p.lame();
+        let expected = (lambda + 2.0 * mu) * eps;
+        assert!((pk[0] - expected).abs() < 1e-6 * expected);
+        assert!((pk[4] - lambda * eps).abs() < 1e-6 * lambda * eps);
+        let w_ref = 0.5 * (lambda + 2.0 * mu) * eps * eps;
+        assert!((w - w_ref).abs() < 1e-6 * w_ref);
+    }
+
+    #[test]
+    fn wave_speeds_follow_formulas() {
+        let p = glass();
+        let (lambda, mu) = p.lame();
+        let cp = ((lambda + 2.0 * mu) / p.density).sqrt();
+        assert!((p.dilatational_wave_speed() - cp).abs() < 1e-9 * cp);
+        assert!((mu - p.youngs_modulus / (2.0 * (1.0 + p.poisson_ratio))).abs() < 1.0);
+    }
+}

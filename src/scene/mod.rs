@@ -1,0 +1,237 @@
+//! Scene files: TOML parsed with serde (`deny_unknown_fields`), `--set PATH=VALUE`
+//! overrides applied to the TOML tree before typing (so they get the same validation),
+//! and semantic checks that name the offending field. SI units throughout.
+
+mod overrides;
+mod validate;
+
+pub use overrides::apply_override;
+
+use crate::error::InputError;
+use crate::mesh::SphereMeshSpec;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A whole scene as run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub simulation: Simulation,
+    /// Materials by name.
+    #[serde(default)]
+    pub materials: BTreeMap<String, MaterialSpec>,
+    #[serde(default)]
+    pub grains: Vec<GrainSpec>,
+    /// Prescribed motions of node sets.
+    #[serde(default)]
+    pub boundaries: Vec<BoundarySpec>,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+/// Time integration settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Simulation {
+    /// Simulated time (s).
+    pub duration: f64,
+    /// Fraction of the critical time step used (–), 0 < f ≤ 1.
+    #[serde(default = "default_dt_safety")]
+    pub dt_safety: f64,
+    /// Target time step for mass scaling (s): elements whose stable step is smaller get
+    /// their density scaled up to reach it; the added mass is reported.
+    #[serde(default)]
+    pub target_dt: Option<f64>,
+    /// Fixed time step (s), overriding the computed stable step (must not exceed it).
+    #[serde(default)]
+    pub dt: Option<f64>,
+    /// Mass-proportional damping coefficient α (1/s): f = −α m v. Its dissipation is
+    /// accounted as `damping_dissipation`.
+    #[serde(default)]
+    pub damping: f64,
+    /// Body acceleration (m/s²).
+    #[serde(default)]
+    pub gravity: [f64; 3],
+}
+
+fn default_dt_safety() -> f64 {
+    0.9
+}
+
+/// Grain material. Elastic for now; plasticity parameters will join here.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus E (Pa).
+    pub youngs_modulus: f64,
+    /// Poisson's ratio ν (–).
+    pub poisson_ratio: f64,
+    /// Density ρ (kg/m³).
+    pub density: f64,
+}
+
+/// One grain: a material, a shape to mesh, and its initial placement and motion.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GrainSpec {
+    /// Name used by boundary conditions and reports (default `grain<i>`).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Key into `materials`.
+    pub material: String,
+    pub shape: ShapeSpec,
+    /// Position of the shape's origin (m).
+    #[serde(default)]
+    pub centre: [f64; 3],
+    /// Initial rigid translation velocity (m/s).
+    #[serde(default)]
+    pub velocity: [f64; 3],
+    /// Initial rigid angular velocity about `centre` (rad/s).
+    #[serde(default)]
+    pub angular_velocity: [f64; 3],
+}
+
+/// Shape of a grain, meshed at set-up.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSpec {
+    /// Sphere mesher (uniform, graded, locally refined), centred on the grain's origin.
+    Sphere(SphereMeshSpec),
+    /// Structured box split into tetrahedra, spanning [0, size] from the grain's origin.
+    Block(BlockSpec),
+}
+
+/// A rectangular block meshed as nx×ny×nz cubes, each split into 6 tetrahedra.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BlockSpec {
+    /// Edge lengths (m).
+    pub size: [f64; 3],
+    /// Cells along each edge.
+    pub divisions: [usize; 3],
+}
+
+/// Which nodes of a grain a boundary condition drives (coordinates at t = 0, world frame).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum NodeSelector {
+    /// Every node of the grain.
+    All,
+    /// Nodes with (x − point)·normal ≥ 0.
+    BeyondPlane { point: [f64; 3], normal: [f64; 3] },
+    /// Nodes farther than `distance` (m) from `point` (e.g. far from a contact).
+    FartherThan { point: [f64; 3], distance: f64 },
+    /// Nodes within `distance` (m) of `point`.
+    Within { point: [f64; 3], distance: f64 },
+}
+
+/// A piecewise-linear vector history, held at its last value after the last time.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct History3 {
+    /// Strictly increasing times (s), first ≥ 0.
+    pub times: Vec<f64>,
+    /// One value per time (units of the quantity).
+    pub values: Vec<[f64; 3]>,
+}
+
+/// A prescribed motion of a node set of one grain: rigid (translation + rotation about a
+/// moving centre) or, with `components`, only some translation components.
+/// The reaction force and moment are recorded in `/history/<name>_*`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoundarySpec {
+    /// Used for history columns, e.g. `top_force_z`.
+    pub name: String,
+    /// Grain name.
+    pub grain: String,
+    pub select: NodeSelector,
+    /// Translation velocity history (m/s). Exactly one of velocity/displacement, or
+    /// neither (held fixed).
+    #[serde(default)]
+    pub velocity: Option<History3>,
+    /// Translation displacement history (m).
+    #[serde(default)]
+    pub displacement: Option<History3>,
+    /// Angular velocity history (rad/s) about `centre` (rigid motions only).
+    #[serde(default)]
+    pub angular_velocity: Option<History3>,
+    /// Centre of rotation at t = 0 (m); default: centroid of the selected nodes.
+    #[serde(default)]
+    pub centre: Option<[f64; 3]>,
+    /// Prescribe only these translation components (others stay free). Absent: all
+    /// three, plus rotation.
+    #[serde(default)]
+    pub components: Option<[bool; 3]>,
+}
+
+/// What is written and how often.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Interval between `/history` rows (s); default: duration/1000.
+    #[serde(default)]
+    pub history_interval: Option<f64>,
+    /// Interval between `/frames` snapshots (s); absent: first and last frame only.
+    #[serde(default)]
+    pub frame_interval: Option<f64>,
+    /// Write field snapshots at all.
+    #[serde(default = "default_true")]
+    pub frames: bool,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self { history_interval: None, frame_interval: None, frames: true }
+    }
+}
+
+fn default_true() -> bool {
+    true
+}
+
+/// Scene text plus its parsed form.
+#[derive(Debug, Clone)]
+pub struct LoadedScene {
+    pub path: String,
+    /// TOML text after overrides, as run (stored in `/scene`).
+    pub text: String,
+    pub scene: Scene,
+}
+
+/// Reads, overrides, parses and validates a scene file.
+pub fn load_scene(path: &Path, overrides: &[String]) -> Result<LoadedScene, InputError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| InputError::new(&file, "", format!("cannot read scene file: {e}")))?;
+    parse_scene(&file, &text, overrides)
+}
+
+/// Parses scene text (with `--set` overrides) into a validated [`LoadedScene`].
+pub fn parse_scene(file: &str, text: &str, overrides: &[String]) -> Result<LoadedScene, InputError> {
+    let table: toml::Table = toml::from_str(text).map_err(|e| {
+        let msg = e.message().replace('\n', " ");
+        let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+        InputError::new(file, line.map(|l| format!("line {l}")).unwrap_or_default(), format!("invalid TOML: {msg}"))
+    })?;
+    let mut value = toml::Value::Table(table);
+    for o in overrides {
+        apply_override(&mut value, o).map_err(|m| InputError::new("<command line>", format!("--set {o}"), m))?;
+    }
+    let scene: Scene = serde_path_to_error::deserialize(value.clone()).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner().message().replace('\n', " ");
+        InputError::new(file, if path == "." { String::new() } else { path }, inner)
+    })?;
+    validate::validate_scene(file, &scene)?;
+    let text = if overrides.is_empty() { text.to_string() } else { toml::to_string(&value).unwrap_or_else(|_| text.to_string()) };
+    Ok(LoadedScene { path: file.to_string(), text, scene })
+}
+
+impl GrainSpec {
+    /// The grain's name (`grain<i>` when unnamed).
+    pub fn display_name(&self, index: usize) -> String {
+        self.name.clone().unwrap_or_else(|| format!("grain{index}"))
+    }
+}

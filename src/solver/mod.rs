@@ -1,0 +1,10 @@
+//! Stable Δt, mass scaling, damping, central-difference integration: the step pipeline.
+
+pub mod forces;
+pub mod model;
+pub mod step;
+pub mod timing;
+
+pub use model::{build_model, GrainBlock, Model};
+pub use step::{Reaction, Scratch, Solver, State};
+pub use timing::{Stage, StageTimers};

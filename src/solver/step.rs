@@ -1,0 +1,331 @@
+//! The explicit central-difference step as named, timed stages:
+//! contact → internal forces → boundary (body force, damping, prescribed motions)
+//! → integrate → energy.
+//!
+//! Convention: at the start of step n the state holds x_n and v_{n−½};
+//! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
+
+use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
+use super::model::Model;
+use super::timing::{Stage, StageTimers};
+use crate::boundary::PrescribedMotion;
+use crate::energy::{EnergyLedger, WorkAccumulator};
+use crate::error::MufeError;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Reaction of a prescribed motion at the last step.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Reaction {
+    /// Force the motion exerts on the grain (N).
+    pub force: [f64; 3],
+    /// Moment about the motion's current centre (N·m).
+    pub moment: [f64; 3],
+    /// Centre displacement since t = 0 (m).
+    pub displacement: [f64; 3],
+    /// Rotation vector of the prescribed rotation (rad).
+    pub rotation: [f64; 3],
+}
+
+/// Everything that evolves during a run (a checkpoint is this plus the scene).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    /// t_n (s).
+    pub time: f64,
+    /// n.
+    pub step: u64,
+    /// x_n (m).
+    pub x: Vec<[f64; 3]>,
+    /// v_{n−½} (m/s).
+    pub v: Vec<[f64; 3]>,
+    pub energy: EnergyLedger,
+    /// Rotation of each prescribed motion at t_n.
+    pub motion_rotation: Vec<[f64; 9]>,
+    pub reactions: Vec<Reaction>,
+    /// Work done by each prescribed motion (J).
+    pub motion_work: Vec<WorkAccumulator>,
+}
+
+/// Per-step scratch buffers (never serialised).
+#[derive(Debug, Default)]
+pub struct Scratch {
+    /// Total force on each node at x_n (N).
+    pub force: Vec<[f64; 3]>,
+    /// v_{n+½} being built (m/s).
+    pub v_next: Vec<[f64; 3]>,
+    pub elements: ElementScratch,
+    node_partials: Vec<NodePartials>,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct NodePartials {
+    kinetic: f64,
+    gravity_before: f64,
+    gravity_after: f64,
+    damping_before: f64,
+    damping_after: f64,
+    bad_node: Option<usize>,
+}
+
+/// Model + motions + state + scratch: one rank's explicit solver.
+pub struct Solver {
+    pub model: Model,
+    pub motions: Vec<PrescribedMotion>,
+    pub state: State,
+    pub scratch: Scratch,
+    pub timers: StageTimers,
+    /// Energy supplied so far, for the blow-up check (J).
+    energy_scale: f64,
+}
+
+impl Solver {
+    /// Builds a solver at t = 0 with the given initial velocities.
+    pub fn new(model: Model, motions: Vec<PrescribedMotion>, v0: Vec<[f64; 3]>) -> Self {
+        let n = model.num_nodes();
+        let state = State {
+            time: 0.0,
+            step: 0,
+            x: model.x0.clone(),
+            v: v0,
+            energy: EnergyLedger::default(),
+            motion_rotation: motions.iter().map(|m| m.rotation).collect(),
+            reactions: vec![Reaction::default(); motions.len()],
+            motion_work: vec![WorkAccumulator::default(); motions.len()],
+        };
+        let scratch = Scratch {
+            force: vec![[0.0; 3]; n],
+            v_next: vec![[0.0; 3]; n],
+            elements: ElementScratch::new(&model),
+            node_partials: vec![NodePartials::default(); n.div_ceil(NODE_CHUNK)],
+        };
+        Self { model, motions, state, scratch, timers: StageTimers::default(), energy_scale: 0.0 }
+    }
+
+    /// Advances one step. Errors name time, step and the element or node that failed.
+    pub fn step(&mut self) -> Result<(), MufeError> {
+        let dt = self.model.dt;
+        let model = &self.model;
+        let state = &mut self.state;
+        let scratch = &mut self.scratch;
+        let timers = &mut self.timers;
+
+        timers.time(Stage::Contact, || {});
+
+        let summary =
+            timers.time(Stage::InternalForces, || compute_internal_forces_into(model, &state.x, &mut scratch.elements, &mut scratch.force));
+        if let Some((e, jac)) = summary.bad_element {
+            let g = &model.grains[model.grain_of_element(e)];
+            return Err(MufeError::Run(format!(
+                "blow-up at t = {:.6e} s (step {}): element {} of grain '{}' {} (det F = {:.3e}); reduce simulation.dt_safety or check the loading",
+                state.time,
+                state.step,
+                e - g.elements.start,
+                g.name,
+                if jac <= 0.0 { "inverted" } else { "has a non-finite force" },
+                jac
+            )));
+        }
+
+        timers.time(Stage::Boundary, || {
+            apply_body_and_damping_forces(model, state, scratch, dt);
+            drive_prescribed_motions(model, &self.motions, state, scratch, dt);
+        });
+
+        let partials = timers.time(Stage::Integrate, || integrate_and_sum(model, state, scratch, dt));
+        if let Some(node) = partials.bad_node {
+            let g = &model.grains[model.grains.partition_point(|g| g.nodes.end <= node)];
+            return Err(MufeError::Run(format!(
+                "blow-up at t = {:.6e} s (step {}): non-finite velocity at node {} of grain '{}'",
+                state.time,
+                state.step,
+                node - g.nodes.start,
+                g.name
+            )));
+        }
+
+        timers.time(Stage::Energy, || {
+            let e = &mut state.energy;
+            e.kinetic = partials.kinetic;
+            e.strain = summary.strain_energy;
+            e.recoverable_strain = summary.strain_energy;
+            e.body_force.record(dt, partials.gravity_before, partials.gravity_after);
+            e.damping.record(dt, partials.damping_before, partials.damping_after);
+            e.boundary_work = state.motion_work.iter().map(|w| w.work).sum();
+            if e.initial_total.is_none() {
+                e.initial_total = Some(e.total());
+            }
+        });
+
+        state.time = (state.step + 1) as f64 * dt;
+        state.step += 1;
+
+        // Exploding energy: with every force accounted for, KE + U cannot exceed the energy
+        // supplied; an unstable integration grows it exponentially past any such bound.
+        let e = &state.energy;
+        self.energy_scale = self
+            .energy_scale
+            .max(e.external_work().abs() + e.initial_total.unwrap_or(0.0).abs() + e.damping_dissipation().abs());
+        let stored = e.kinetic + e.strain;
+        if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > 1e-30) {
+            return Err(MufeError::Run(format!(
+                "blow-up at t = {:.6e} s (step {}): energy exploded (kinetic + strain = {:.3e} J, supplied {:.3e} J); reduce simulation.dt_safety",
+                state.time, state.step, stored, self.energy_scale
+            )));
+        }
+        Ok(())
+    }
+
+    /// Total linear momentum Σ m v_{n−½} (kg·m/s).
+    pub fn linear_momentum(&self) -> [f64; 3] {
+        let mut p = [0.0; 3];
+        for (m, v) in self.model.mass.iter().zip(&self.state.v) {
+            for i in 0..3 {
+                p[i] += m * v[i];
+            }
+        }
+        p
+    }
+
+    /// Angular momentum about the origin, Σ m x_n × v_{n−½} (kg·m²/s): exactly conserved
+    /// by central differences for rotation-invariant internal forces.
+    pub fn angular_momentum(&self) -> [f64; 3] {
+        let mut l = [0.0; 3];
+        for ((m, x), v) in self.model.mass.iter().zip(&self.state.x).zip(&self.state.v) {
+            l[0] += m * (x[1] * v[2] - x[2] * v[1]);
+            l[1] += m * (x[2] * v[0] - x[0] * v[2]);
+            l[2] += m * (x[0] * v[1] - x[1] * v[0]);
+        }
+        l
+    }
+}
+
+/// f ← f_int + m_phys g − α m v_{n−½}; v_{n+½} ← v_{n−½} + Δt f/m for every node (driven
+/// components are overwritten by the motions afterwards). Gravity acts on the physical
+/// mass only: mass added by scaling is numerical and must not weigh anything.
+fn apply_body_and_damping_forces(model: &Model, state: &State, scratch: &mut Scratch, dt: f64) {
+    let g = model.gravity;
+    let alpha = model.damping;
+    scratch
+        .force
+        .par_chunks_mut(NODE_CHUNK)
+        .zip(scratch.v_next.par_chunks_mut(NODE_CHUNK))
+        .enumerate()
+        .for_each(|(chunk, (f, vn))| {
+            let base = chunk * NODE_CHUNK;
+            for k in 0..f.len() {
+                let n = base + k;
+                let (m, mp, v) = (model.mass[n], model.physical_mass[n], state.v[n]);
+                for i in 0..3 {
+                    f[k][i] += mp * g[i] - alpha * m * v[i];
+                    vn[k][i] = v[i] + dt * f[k][i] / m;
+                }
+            }
+        });
+}
+
+/// Overrides the driven components of v_{n+½} so that driven nodes land exactly on their
+/// prescribed positions at t_{n+1}; records reaction force, moment and work.
+fn drive_prescribed_motions(model: &Model, motions: &[PrescribedMotion], state: &mut State, scratch: &mut Scratch, dt: f64) {
+    let t = state.time;
+    for (k, motion) in motions.iter().enumerate() {
+        let mut working = motion.clone();
+        working.rotation = state.motion_rotation[k];
+        let q_next = working.rotation_after(t, dt);
+        let c_next = working.centre_at(t + dt);
+        let c_now = working.centre_at(t);
+        let mut reaction = Reaction::default();
+        let (mut p_before, mut p_after) = (0.0, 0.0);
+        for (j, &node) in working.nodes.iter().enumerate() {
+            let n = node as usize;
+            let target = working.position(j, &c_next, &q_next);
+            let x = state.x[n];
+            let m = model.mass[n];
+            let mut r = [0.0; 3];
+            for i in 0..3 {
+                if working.components[i] {
+                    let v_new = (target[i] - x[i]) / dt;
+                    r[i] = m * (v_new - state.v[n][i]) / dt - scratch.force[n][i];
+                    scratch.v_next[n][i] = v_new;
+                    p_before += r[i] * state.v[n][i];
+                    p_after += r[i] * v_new;
+                }
+            }
+            let arm = [x[0] - c_now[0], x[1] - c_now[1], x[2] - c_now[2]];
+            for i in 0..3 {
+                reaction.force[i] += r[i];
+            }
+            reaction.moment[0] += arm[1] * r[2] - arm[2] * r[1];
+            reaction.moment[1] += arm[2] * r[0] - arm[0] * r[2];
+            reaction.moment[2] += arm[0] * r[1] - arm[1] * r[0];
+        }
+        reaction.displacement = [c_now[0] - working.centre0[0], c_now[1] - working.centre0[1], c_now[2] - working.centre0[2]];
+        reaction.rotation = rotation_vector(&state.motion_rotation[k]);
+        state.reactions[k] = reaction;
+        state.motion_work[k].record(dt, p_before, p_after);
+        state.motion_rotation[k] = q_next;
+    }
+}
+
+/// Rotation vector (axis × angle, rad) of a rotation matrix.
+pub fn rotation_vector(q: &[f64; 9]) -> [f64; 3] {
+    let cos = ((q[0] + q[4] + q[8] - 1.0) * 0.5).clamp(-1.0, 1.0);
+    let angle = cos.acos();
+    let w = [q[7] - q[5], q[2] - q[6], q[3] - q[1]];
+    let s = angle.sin();
+    if s.abs() < 1e-12 {
+        // small angle: θ ≈ ½ vee(Q − Qᵀ)
+        return [0.5 * w[0], 0.5 * w[1], 0.5 * w[2]];
+    }
+    let f = angle / (2.0 * s);
+    [f * w[0], f * w[1], f * w[2]]
+}
+
+/// Kinetic energy and power sums over nodes (fixed chunks, summed in order), then
+/// x_{n+1} = x_n + Δt v_{n+½} and v ← v_{n+½}.
+fn integrate_and_sum(model: &Model, state: &mut State, scratch: &mut Scratch, dt: f64) -> NodePartials {
+    let g = model.gravity;
+    let alpha = model.damping;
+    state
+        .x
+        .par_chunks_mut(NODE_CHUNK)
+        .zip(state.v.par_chunks_mut(NODE_CHUNK))
+        .zip(scratch.v_next.par_chunks(NODE_CHUNK))
+        .zip(scratch.node_partials.par_iter_mut())
+        .enumerate()
+        .for_each(|(chunk, (((x, v), vn), out))| {
+            let base = chunk * NODE_CHUNK;
+            let mut p = NodePartials::default();
+            for k in 0..x.len() {
+                let n = base + k;
+                let (m, mp) = (model.mass[n], model.physical_mass[n]);
+                let (a, b) = (v[k], vn[k]);
+                let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+                let aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+                p.kinetic += 0.5 * m * ab;
+                p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
+                p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
+                p.damping_before -= alpha * m * aa;
+                p.damping_after -= alpha * m * ab;
+                if p.bad_node.is_none() && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite()) {
+                    p.bad_node = Some(n);
+                }
+                for i in 0..3 {
+                    x[k][i] += dt * b[i];
+                }
+                v[k] = b;
+            }
+            *out = p;
+        });
+    let mut total = NodePartials::default();
+    for p in &scratch.node_partials {
+        total.kinetic += p.kinetic;
+        total.gravity_before += p.gravity_before;
+        total.gravity_after += p.gravity_after;
+        total.damping_before += p.damping_before;
+        total.damping_after += p.damping_after;
+        if total.bad_node.is_none() {
+            total.bad_node = p.bad_node;
+        }
+    }
+    total
+}
