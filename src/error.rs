@@ -15,8 +15,16 @@ pub struct InputError {
 }
 
 impl InputError {
-    pub fn new(file: impl Into<String>, item: impl Into<String>, message: impl Into<String>) -> Self {
-        Self { file: file.into(), item: item.into(), message: message.into() }
+    pub fn new(
+        file: impl Into<String>,
+        item: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Self {
+            file: file.into(),
+            item: item.into(),
+            message: message.into(),
+        }
     }
 }
 

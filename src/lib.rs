@@ -15,9 +15,12 @@ pub type Real = f64;
 pub type Vec3 = nalgebra::Vector3<Real>;
 /// 3×3 matrix (deformation gradients, stresses in Pa).
 pub type Mat3 = nalgebra::Matrix3<Real>;
-pub mod element;
-pub mod material;
 pub mod boundary;
+pub mod domain;
+pub mod element;
 pub mod energy;
+pub mod io;
+pub mod material;
 pub mod scene;
 pub mod solver;
+pub mod cli;

@@ -219,7 +219,9 @@ impl GrainGraph {
             entries.sort_unstable();
             for (k, &(j, w)) in entries.iter().enumerate() {
                 if j >= n {
-                    return invalid(format!("vertex {i} has neighbour {j}, but there are {n} vertices"));
+                    return invalid(format!(
+                        "vertex {i} has neighbour {j}, but there are {n} vertices"
+                    ));
                 }
                 if j == i {
                     return invalid(format!("vertex {i} has a self loop"));
@@ -244,7 +246,9 @@ impl GrainGraph {
                 match reverse.binary_search(&i) {
                     Ok(pos) if adjwgt[xadj[j] + pos] == adjwgt[k] => {}
                     Ok(_) => {
-                        return invalid(format!("edge {i}-{j} has different weights in the two directions"))
+                        return invalid(format!(
+                            "edge {i}-{j} has different weights in the two directions"
+                        ))
                     }
                     Err(_) => return invalid(format!("edge {i}-{j} has no reverse edge {j}-{i}")),
                 }
@@ -495,7 +499,12 @@ mod tests {
             .map(|k| centres.iter().map(|c| c[k]).fold(f64::INFINITY, f64::min))
             .collect();
         let hi: Vec<f64> = (0..3)
-            .map(|k| centres.iter().map(|c| c[k]).fold(f64::NEG_INFINITY, f64::max))
+            .map(|k| {
+                centres
+                    .iter()
+                    .map(|c| c[k])
+                    .fold(f64::NEG_INFINITY, f64::max)
+            })
             .collect();
         let mut interior = 0;
         for (i, c) in centres.iter().enumerate() {
@@ -518,14 +527,27 @@ mod tests {
     fn graph_is_symmetric_without_self_loops_or_duplicates() {
         let grains = polydisperse_grains(600, 7);
         let graph = GrainGraph::build(&grains, 0.05, &CostModel::default());
-        assert!(graph.n_edges() > 600, "test graph too sparse: {}", graph.n_edges());
+        assert!(
+            graph.n_edges() > 600,
+            "test graph too sparse: {}",
+            graph.n_edges()
+        );
         for i in 0..graph.n_grains() {
             let row = graph.neighbours(i);
-            assert!(row.windows(2).all(|w| w[0] < w[1]), "row {i} not strictly sorted");
+            assert!(
+                row.windows(2).all(|w| w[0] < w[1]),
+                "row {i} not strictly sorted"
+            );
             for (k, &j) in row.iter().enumerate() {
                 assert_ne!(i, j, "self loop at {i}");
-                let back = graph.neighbours(j).binary_search(&i).expect("missing reverse edge");
-                assert_eq!(graph.neighbour_weights(j)[back], graph.neighbour_weights(i)[k]);
+                let back = graph
+                    .neighbours(j)
+                    .binary_search(&i)
+                    .expect("missing reverse edge");
+                assert_eq!(
+                    graph.neighbour_weights(j)[back],
+                    graph.neighbour_weights(i)[k]
+                );
             }
         }
         // from_csr accepts what build produces.
@@ -547,7 +569,11 @@ mod tests {
                 let graph = GrainGraph::build(&grains, margin, &CostModel::default());
                 let expected = brute_force_neighbours(&grains, margin);
                 for (i, row) in expected.iter().enumerate() {
-                    assert_eq!(graph.neighbours(i), row.as_slice(), "seed {seed} margin {margin} grain {i}");
+                    assert_eq!(
+                        graph.neighbours(i),
+                        row.as_slice(),
+                        "seed {seed} margin {margin} grain {i}"
+                    );
                 }
             }
         }
@@ -563,14 +589,24 @@ mod tests {
         let graph = GrainGraph::build(&grains, 0.05, &cost);
         assert!(graph.vertex_weights().iter().all(|&w| w >= 1));
         assert!(graph.adjwgt().iter().all(|&w| w >= 1));
-        assert_eq!(graph.vertex_weights()[0], 1, "zero-cost grain still weighs 1");
+        assert_eq!(
+            graph.vertex_weights()[0],
+            1,
+            "zero-cost grain still weighs 1"
+        );
         for (i, g) in grains.iter().enumerate().skip(1) {
             let expected = cost.grain_cost(g) / graph.vertex_weight_unit();
             let got = f64::from(graph.vertex_weights()[i]);
-            assert!((got - expected).abs() <= 0.5 + 1e-9, "grain {i}: {got} vs {expected}");
+            assert!(
+                (got - expected).abs() <= 0.5 + 1e-9,
+                "grain {i}: {got} vs {expected}"
+            );
         }
         let mean = graph.total_vertex_weight() as f64 / grains.len() as f64;
-        assert!((mean - VERTEX_WEIGHT_RESOLUTION).abs() < 5.0, "mean weight {mean}");
+        assert!(
+            (mean - VERTEX_WEIGHT_RESOLUTION).abs() < 5.0,
+            "mean weight {mean}"
+        );
     }
 
     #[test]
@@ -588,7 +624,10 @@ mod tests {
         let touch_nodes = expected_contact_nodes(&a, &touching, margin);
         // Cap fraction for touching equal spheres: (2·R·h + h²) / (8 R²).
         let expected = 1000.0 * (2.0 * 0.1 + 0.01) / 8.0;
-        assert!((touch_nodes - expected).abs() < 1e-9, "{touch_nodes} vs {expected}");
+        assert!(
+            (touch_nodes - expected).abs() < 1e-9,
+            "{touch_nodes} vs {expected}"
+        );
         assert!(expected_contact_nodes(&a, &overlapping, margin) > touch_nodes);
         // A coarser partner limits the number of contact nodes.
         let coarse = make(2.0, 1.0, 100);
@@ -612,7 +651,10 @@ mod tests {
             assert!(graph.neighbours(bad).is_empty());
         }
         let err = GrainGraph::try_build(&grains, 0.1, &CostModel::default()).unwrap_err();
-        assert!(matches!(err, PartitionError::InvalidGrain { grain: 3, .. }), "{err}");
+        assert!(
+            matches!(err, PartitionError::InvalidGrain { grain: 3, .. }),
+            "{err}"
+        );
         let fine = polydisperse_grains(50, 5);
         assert!(GrainGraph::try_build(&fine, -0.1, &CostModel::default()).is_err());
         let bad_cost = CostModel {
@@ -659,7 +701,12 @@ mod tests {
             (vec![0, 2, 1], vec![1, 0], vec![1, 1], vec![1, 1]),
             (vec![0, 1, 2], vec![1, 0], vec![1, 1], vec![0, 1]),
             (vec![0, 1, 2], vec![1, 0], vec![0, 0], vec![1, 1]),
-            (vec![0, 2, 4], vec![1, 1, 0, 0], vec![1, 1, 1, 1], vec![1, 1]),
+            (
+                vec![0, 2, 4],
+                vec![1, 1, 0, 0],
+                vec![1, 1, 1, 1],
+                vec![1, 1],
+            ),
         ];
         for (xadj, adjncy, adjwgt, vwgt) in cases {
             let description = format!("{xadj:?} {adjncy:?} {adjwgt:?} {vwgt:?}");

@@ -30,18 +30,19 @@
 //! ```
 
 mod error;
-mod graph;
 mod grain;
+mod graph;
 mod metrics;
 mod packing;
 mod partition_file;
 mod partitioner;
+mod rebalance;
 #[cfg(test)]
 mod test_support;
 
 pub use error::PartitionError;
-pub use graph::{GrainGraph, EDGE_WEIGHT_RESOLUTION, MAX_TOTAL_WEIGHT, VERTEX_WEIGHT_RESOLUTION};
 pub use grain::{CostModel, GrainInfo};
+pub use graph::{GrainGraph, EDGE_WEIGHT_RESOLUTION, MAX_TOTAL_WEIGHT, VERTEX_WEIGHT_RESOLUTION};
 pub use metrics::{
     metrics, PartitionMetrics, FORWARD_BYTES_PER_GHOST_NODE, HALO_BYTES_PER_GHOST_NODE,
     REVERSE_BYTES_PER_GHOST_NODE,
@@ -49,3 +50,4 @@ pub use metrics::{
 pub use packing::{fcc_block_cells, fcc_packing, MAX_FCC_BLOCK_ASPECT, MAX_FCC_GRAINS};
 pub use partition_file::{read_partition, write_partition};
 pub use partitioner::{partition, MAX_PARTS_FOR_RECURSIVE_BISECTION};
+pub use rebalance::BALANCE_TOLERANCE;

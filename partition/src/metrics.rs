@@ -4,8 +4,8 @@
 use std::fmt;
 
 use crate::error::PartitionError;
-use crate::graph::GrainGraph;
 use crate::grain::GrainInfo;
+use crate::graph::GrainGraph;
 
 /// Bytes sent per ghost surface node per step from owner to ghost holder:
 /// position and velocity, 2 × 3 × `f64` = 48 B.
@@ -126,9 +126,7 @@ pub fn metrics(
         ));
     }
     if let Some((grain, &p)) = part.iter().enumerate().find(|(_, &p)| p as usize >= parts) {
-        return invalid(format!(
-            "grain {grain} is in part {p}, outside 0..{parts}"
-        ));
+        return invalid(format!("grain {grain} is in part {p}, outside 0..{parts}"));
     }
 
     let mut grains_per_part = vec![0usize; parts];
@@ -220,7 +218,11 @@ impl fmt::Display for PartitionMetrics {
     /// A short human-readable summary; per-part rows only for ≤ 16 parts.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let n_grains: usize = self.grains_per_part.iter().sum();
-        writeln!(f, "partition of {n_grains} grains into {} parts", self.parts)?;
+        writeln!(
+            f,
+            "partition of {n_grains} grains into {} parts",
+            self.parts
+        )?;
         writeln!(
             f,
             "  imbalance          {:>8.3} %   (max/mean part weight {:.4})",

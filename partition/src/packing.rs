@@ -36,11 +36,11 @@ fn most_compact_block(cells: usize) -> Option<[usize; 3]> {
     let mut best: Option<[usize; 3]> = None;
     let mut nx = 1;
     while nx * nx * nx <= cells {
-        if cells % nx == 0 {
+        if cells.is_multiple_of(nx) {
             let rest = cells / nx;
             let mut ny = nx;
             while ny * ny <= rest {
-                if rest % ny == 0 {
+                if rest.is_multiple_of(ny) {
                     let candidate = [nx, ny, rest / ny];
                     let better = match best {
                         None => true,
@@ -64,7 +64,7 @@ fn most_compact_block(cells: usize) -> Option<[usize; 3]> {
 
 /// Centres (m) of a face-centred cubic packing of touching spheres of radius
 /// `radius` (m): nearest-neighbour distance `2·radius`, cubic lattice constant
-/// `a = 2√2·radius`, cube axes along x, y, z (z is the [001] direction).
+/// `a = 2√2·radius`, cube axes along x, y, z (z is the `[001]` direction).
 ///
 /// The block is `[nx, ny, nz]` = [`fcc_block_cells`]`(n_target)` unit cells of
 /// 4 grains each, longest edge along z, so it holds exactly `n_target` grains

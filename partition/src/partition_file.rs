@@ -174,7 +174,13 @@ mod tests {
             ("part-nan", "0 -1\n1 0\n", 2, Some(1), "part `-1`"),
             ("range", "0 0\n1 0\n2 0\n", 2, Some(3), "out of range"),
             ("twice", "0 0\n# c\n0 1\n", 2, Some(3), "listed twice"),
-            ("missing", "0 0\n", 3, None, "grain 1 and 1 other grain(s) missing"),
+            (
+                "missing",
+                "0 0\n",
+                3,
+                None,
+                "grain 1 and 1 other grain(s) missing",
+            ),
         ];
         for (name, text, n_grains, expected_line, expected_text) in cases {
             let err = read_text(name, text, n_grains).unwrap_err();
@@ -184,7 +190,10 @@ mod tests {
             assert_eq!(line, expected_line, "{name}: {err}");
             let message = err.to_string();
             assert!(message.contains(expected_text), "{name}: {message}");
-            assert!(message.starts_with(&path.display().to_string()), "{name}: {message}");
+            assert!(
+                message.starts_with(&path.display().to_string()),
+                "{name}: {message}"
+            );
             if let Some(line) = expected_line {
                 assert!(message.contains(&format!(":{line}: ")), "{name}: {message}");
             }
@@ -199,7 +208,9 @@ mod tests {
         assert!(matches!(err, PartitionError::Io { .. }), "{err:?}");
         assert!(err.to_string().contains("does-not-exist"), "{err}");
 
-        let dir_path = std::env::temp_dir().join("mufe-no-such-dir-for-partition").join("p.txt");
+        let dir_path = std::env::temp_dir()
+            .join("mufe-no-such-dir-for-partition")
+            .join("p.txt");
         let err = write_partition(&dir_path, &[0]).unwrap_err();
         assert!(matches!(err, PartitionError::Io { .. }), "{err:?}");
     }

@@ -20,7 +20,11 @@ impl History3 {
         let k = ts.partition_point(|&x| x <= t) - 1;
         let s = (t - ts[k]) / (ts[k + 1] - ts[k]);
         let (a, b) = (self.values[k], self.values[k + 1]);
-        [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1]), a[2] + s * (b[2] - a[2])]
+        [
+            a[0] + s * (b[0] - a[0]),
+            a[1] + s * (b[1] - a[1]),
+            a[2] + s * (b[2] - a[2]),
+        ]
     }
 
     /// ∫₀ᵗ value dt, exact for the piecewise-linear history (constant before the first
@@ -122,7 +126,11 @@ impl PrescribedMotion {
     /// Centre position at time t (m).
     pub fn centre_at(&self, t: f64) -> [f64; 3] {
         let u = self.translation.displacement_at(t);
-        [self.centre0[0] + u[0], self.centre0[1] + u[1], self.centre0[2] + u[2]]
+        [
+            self.centre0[0] + u[0],
+            self.centre0[1] + u[1],
+            self.centre0[2] + u[2],
+        ]
     }
 
     /// Rotation at t_{n+1} from the one at t_n: Q ← exp(ω(t_{n+½})Δt)·Q. Returns the new
@@ -156,7 +164,10 @@ mod tests {
 
     #[test]
     fn history_integral_is_exact_for_ramps() {
-        let h = History3 { times: vec![1.0, 3.0], values: vec![[0.0, 2.0, 1.0], [2.0, 2.0, 1.0]] };
+        let h = History3 {
+            times: vec![1.0, 3.0],
+            values: vec![[0.0, 2.0, 1.0], [2.0, 2.0, 1.0]],
+        };
         // v_x: 0 until 1, ramps to 2 at 3, then 2: ∫₀⁴ = 0 + 2 + 2 = 4
         let u = h.integral_to(4.0);
         assert!((u[0] - 4.0).abs() < 1e-12);
@@ -169,10 +180,8 @@ mod tests {
     #[test]
     fn rodrigues_is_orthonormal() {
         let q = rotation_from_vector([0.3, -1.2, 0.7]);
-        let qtq = crate::material::mat_mul(
-            &[q[0], q[3], q[6], q[1], q[4], q[7], q[2], q[5], q[8]],
-            &q,
-        );
+        let qtq =
+            crate::material::mat_mul(&[q[0], q[3], q[6], q[1], q[4], q[7], q[2], q[5], q[8]], &q);
         for i in 0..3 {
             for j in 0..3 {
                 let e = if i == j { 1.0 } else { 0.0 };

@@ -501,7 +501,10 @@ impl Exchange {
     /// Returns an error if a message was shorter than its announced count (a pattern
     /// mismatch between the two ranks). A longer message is an MPI truncation error, which
     /// aborts the job.
-    pub fn end(&self, mut pending: PendingExchange<'_>) -> Result<Vec<(usize, Vec<f64>)>, MufeError> {
+    pub fn end(
+        &self,
+        mut pending: PendingExchange<'_>,
+    ) -> Result<Vec<(usize, Vec<f64>)>, MufeError> {
         let statuses = pending.wait_all();
         let mut out = Vec::with_capacity(pending.recvs.len());
         for (i, &(from, start, count)) in pending.recvs.iter().enumerate() {
@@ -570,8 +573,8 @@ pub(crate) fn with_test_domain<R>(f: impl FnOnce(&Domain) -> R) -> R {
     unsafe impl Send for Shared {}
     static SHARED: OnceLock<Mutex<Shared>> = OnceLock::new();
     let shared = SHARED.get_or_init(|| {
-        let domain = Domain::init_with(Threading::Serialized)
-            .unwrap_or_else(|e| panic!("test domain: {e}"));
+        let domain =
+            Domain::init_with(Threading::Serialized).unwrap_or_else(|e| panic!("test domain: {e}"));
         Mutex::new(Shared(domain))
     });
     let guard = shared.lock().unwrap_or_else(|p| p.into_inner());
@@ -610,7 +613,9 @@ mod tests {
     fn second_init_is_an_error_not_a_crash() {
         with_test_domain(|_| {
             let again = Domain::try_init();
-            assert!(matches!(again, Err(MufeError::Run(ref m)) if m.contains("already initialised")));
+            assert!(
+                matches!(again, Err(MufeError::Run(ref m)) if m.contains("already initialised"))
+            );
         });
     }
 

@@ -25,7 +25,10 @@ impl TetReference {
         if det.is_nan() || det <= 0.0 {
             return None;
         }
-        Some(Self { dm_inv: inverse3(&dm, det), volume: det / 6.0 })
+        Some(Self {
+            dm_inv: inverse3(&dm, det),
+            volume: det / 6.0,
+        })
     }
 
     /// Shape-function gradients ∇N_a (1/m) of the four nodes in the reference frame.
@@ -35,7 +38,11 @@ impl TetReference {
         let g1 = [d[0], d[1], d[2]];
         let g2 = [d[3], d[4], d[5]];
         let g3 = [d[6], d[7], d[8]];
-        let g0 = [-(g1[0] + g2[0] + g3[0]), -(g1[1] + g2[1] + g3[1]), -(g1[2] + g2[2] + g3[2])];
+        let g0 = [
+            -(g1[0] + g2[0] + g3[0]),
+            -(g1[1] + g2[1] + g3[1]),
+            -(g1[2] + g2[2] + g3[2]),
+        ];
         [g0, g1, g2, g3]
     }
 }
@@ -89,7 +96,11 @@ pub struct ElementForces {
 
 /// Nodal forces of one tetrahedron: f_{1,2,3} = columns of H = −V0 P Dm⁻ᵀ, f_0 = −Σ.
 #[inline(always)]
-pub fn tet_forces(x: &[[f64; 3]; 4], reference: &TetReference, material: &StVenantKirchhoff) -> ElementForces {
+pub fn tet_forces(
+    x: &[[f64; 3]; 4],
+    reference: &TetReference,
+    material: &StVenantKirchhoff,
+) -> ElementForces {
     let f = deformation_gradient(x, &reference.dm_inv);
     let (p, w) = material.first_piola_and_energy(&f);
     let d = &reference.dm_inv;
@@ -98,13 +109,18 @@ pub fn tet_forces(x: &[[f64; 3]; 4], reference: &TetReference, material: &StVena
     let mut nodal = [[0.0; 3]; 4];
     for j in 0..3 {
         for i in 0..3 {
-            nodal[j + 1][i] = -v * (p[3 * i] * d[3 * j] + p[3 * i + 1] * d[3 * j + 1] + p[3 * i + 2] * d[3 * j + 2]);
+            nodal[j + 1][i] = -v
+                * (p[3 * i] * d[3 * j] + p[3 * i + 1] * d[3 * j + 1] + p[3 * i + 2] * d[3 * j + 2]);
         }
     }
     for i in 0..3 {
         nodal[0][i] = -(nodal[1][i] + nodal[2][i] + nodal[3][i]);
     }
-    ElementForces { nodal, strain_energy: v * w, jacobian: det3(&f) }
+    ElementForces {
+        nodal,
+        strain_energy: v * w,
+        jacobian: det3(&f),
+    }
 }
 
 /// Largest eigenvalue of the small-strain element stiffness K_e = V0 Bᵀ D B (N/m).
@@ -164,7 +180,11 @@ mod tests {
 
     #[test]
     fn forces_sum_to_zero_and_are_energy_gradient() {
-        let p = ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 };
+        let p = ElasticParameters {
+            youngs_modulus: 63e9,
+            poisson_ratio: 0.22,
+            density: 2500.0,
+        };
         let m = StVenantKirchhoff::new(&p);
         let x0 = regular_tet(1e-5);
         let r = TetReference::new(x0).unwrap();
@@ -185,9 +205,15 @@ mod tests {
                 xp[a][i] += h;
                 let mut xm = x;
                 xm[a][i] -= h;
-                let du = (tet_forces(&xp, &r, &m).strain_energy - tet_forces(&xm, &r, &m).strain_energy) / (2.0 * h);
+                let du = (tet_forces(&xp, &r, &m).strain_energy
+                    - tet_forces(&xm, &r, &m).strain_energy)
+                    / (2.0 * h);
                 let f = ef.nodal[a][i];
-                assert!((f + du).abs() < 1e-5 * f.abs().max(1e-3), "node {a} dir {i}: {f} vs {}", -du);
+                assert!(
+                    (f + du).abs() < 1e-5 * f.abs().max(1e-3),
+                    "node {a} dir {i}: {f} vs {}",
+                    -du
+                );
             }
         }
     }
@@ -195,7 +221,11 @@ mod tests {
     #[test]
     fn regular_tet_stable_step_matches_theory() {
         // THEORY.md §7: regular tet, lumped mass: Δt_crit = 0.565 h / c_p (for ν = 0.22).
-        let p = ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 };
+        let p = ElasticParameters {
+            youngs_modulus: 63e9,
+            poisson_ratio: 0.22,
+            density: 2500.0,
+        };
         let (lambda, mu) = p.lame();
         let h = 1e-5;
         let r = TetReference::new(regular_tet(h)).unwrap();

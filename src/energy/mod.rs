@@ -75,7 +75,8 @@ impl EnergyLedger {
 
     /// ETOTAL = ALLKE + ALLIE + ALLVD + ALLFD − ALLWK (J).
     pub fn total(&self) -> f64 {
-        self.kinetic + self.internal() + self.damping_dissipation() + self.friction_dissipation - self.external_work()
+        self.kinetic + self.internal() + self.damping_dissipation() + self.friction_dissipation
+            - self.external_work()
     }
 
     /// Drift of ETOTAL since the first step, relative to the largest energy in play.
@@ -121,7 +122,11 @@ mod tests {
             x += dt * v_new;
             v = v_new;
         }
-        assert!(ledger.relative_balance_error() < 1e-10, "{}", ledger.relative_balance_error());
+        assert!(
+            ledger.relative_balance_error() < 1e-10,
+            "{}",
+            ledger.relative_balance_error()
+        );
         assert!(ledger.external_work().abs() > 1e-3);
     }
 }

@@ -28,8 +28,8 @@ use hdf5_sys::h5p::{
     H5FD_mpio_xfer_t, H5Pclose, H5Pcreate, H5Pset_dxpl_mpio, H5P_CLS_DATASET_XFER, H5P_DEFAULT,
 };
 use hdf5_sys::h5s::{
-    H5Sclose, H5Screate, H5Screate_simple, H5Sget_simple_extent_dims,
-    H5Sget_simple_extent_ndims, H5Sselect_hyperslab, H5Sselect_none, H5S_SCALAR, H5S_SELECT_SET,
+    H5Sclose, H5Screate, H5Screate_simple, H5Sget_simple_extent_dims, H5Sget_simple_extent_ndims,
+    H5Sselect_hyperslab, H5Sselect_none, H5S_SCALAR, H5S_SELECT_SET,
 };
 use hdf5_sys::h5t::{
     H5Tclose, H5Tcopy, H5Tget_class, H5Tget_size, H5Tis_variable_str, H5Tset_cset, H5Tset_size,
@@ -117,7 +117,11 @@ struct Owned {
 }
 
 impl Owned {
-    fn new(id: hid_t, close: unsafe extern "C" fn(hid_t) -> herr_t, what: &str) -> hdf5::Result<Self> {
+    fn new(
+        id: hid_t,
+        close: unsafe extern "C" fn(hid_t) -> herr_t,
+        what: &str,
+    ) -> hdf5::Result<Self> {
         if id < 0 {
             Err(hdf5_error(what))
         } else {
@@ -174,7 +178,11 @@ pub fn write_rows<T: Element>(
             let file_space = Owned::new(H5Dget_space(ds), H5Sclose, "H5Dget_space")?;
             let problem = validate_block(file_space.id, data.len(), columns, offset, total);
             // An invalid block still joins the collective with an empty selection.
-            let rows = if problem.is_some() { 0 } else { data.len() / columns.max(1) };
+            let rows = if problem.is_some() {
+                0
+            } else {
+                data.len() / columns.max(1)
+            };
             let n = (rows * columns) as hsize_t;
             let mem_space = Owned::new(
                 H5Screate_simple(1, &n, std::ptr::null()),
@@ -230,7 +238,9 @@ unsafe fn validate_block(
         return Some("row block with 0 columns".to_string());
     }
     if len % columns != 0 {
-        return Some(format!("{len} values are not whole rows of {columns} columns"));
+        return Some(format!(
+            "{len} values are not whole rows of {columns} columns"
+        ));
     }
     let rows = (len / columns) as u64;
     if offset.checked_add(rows).is_none_or(|end| end > total) {
@@ -253,8 +263,14 @@ unsafe fn validate_block(
     if fits {
         None
     } else {
-        let shape = if ndims == 1 { format!("({})", dims[0]) } else { format!("({}, {})", dims[0], dims[1]) };
-        Some(format!("dataset shape {shape} does not match {total} rows of {columns} columns"))
+        let shape = if ndims == 1 {
+            format!("({})", dims[0])
+        } else {
+            format!("({}, {})", dims[0], dims[1])
+        };
+        Some(format!(
+            "dataset shape {shape} does not match {total} rows of {columns} columns"
+        ))
     }
 }
 
@@ -269,14 +285,24 @@ unsafe fn write_collective(
     file_space: hid_t,
     buf: *const c_void,
 ) -> hdf5::Result<IoMode> {
-    let dxpl = Owned::new(H5Pcreate(*H5P_CLS_DATASET_XFER), H5Pclose, "H5Pcreate(dxpl)")?;
+    let dxpl = Owned::new(
+        H5Pcreate(*H5P_CLS_DATASET_XFER),
+        H5Pclose,
+        "H5Pcreate(dxpl)",
+    )?;
     check(
         H5Pset_dxpl_mpio(dxpl.id, H5FD_mpio_xfer_t::H5FD_MPIO_COLLECTIVE),
         "H5Pset_dxpl_mpio",
     )?;
-    check(H5Dwrite(ds, mem_type, mem_space, file_space, dxpl.id, buf), "H5Dwrite")?;
+    check(
+        H5Dwrite(ds, mem_type, mem_space, file_space, dxpl.id, buf),
+        "H5Dwrite",
+    )?;
     let mut raw: c_int = -1;
-    check(H5Pget_mpio_actual_io_mode(dxpl.id, &mut raw), "H5Pget_mpio_actual_io_mode")?;
+    check(
+        H5Pget_mpio_actual_io_mode(dxpl.id, &mut raw),
+        "H5Pget_mpio_actual_io_mode",
+    )?;
     Ok(IoMode::from_raw(raw))
 }
 

@@ -192,7 +192,9 @@ impl<'d> ResultsWriter<'d> {
             .map_err(|e| io_error(path, "sharing scene and provenance", e))?;
 
         let created = if path.is_dir() {
-            Err(format!("is a directory; expected a file path such as DIR/{RESULTS_FILE_NAME}"))
+            Err(format!(
+                "is a directory; expected a file path such as DIR/{RESULTS_FILE_NAME}"
+            ))
         } else {
             File::with_options()
                 .with_fapl(|p| p.mpio(domain.raw_comm(), None))
@@ -231,10 +233,17 @@ impl<'d> ResultsWriter<'d> {
         let ds = collective::create_text_dataset(&self.file, "scene", scene, is_root)
             .map_err(|e| format!("/scene: {e}"))?;
         put_str_attr(&ds, "units", "").map_err(|e| format!("/scene: {e}"))?;
-        put_str_attr(&ds, "description", "the scene file (TOML) as run, after --set overrides")
-            .map_err(|e| format!("/scene: {e}"))?;
+        put_str_attr(
+            &ds,
+            "description",
+            "the scene file (TOML) as run, after --set overrides",
+        )
+        .map_err(|e| format!("/scene: {e}"))?;
 
-        let group = self.file.create_group("provenance").map_err(|e| format!("/provenance: {e}"))?;
+        let group = self
+            .file
+            .create_group("provenance")
+            .map_err(|e| format!("/provenance: {e}"))?;
         let write = || -> hdf5::Result<()> {
             put_str_attr(&group, "version", &provenance.version)?;
             put_u64_attr(&group, "ranks", provenance.ranks as u64)?;
@@ -299,13 +308,21 @@ impl<'d> ResultsWriter<'d> {
     pub fn push_history(&mut self, values: &[f64]) -> Result<(), MufeError> {
         let path = self.path.clone();
         let Some(history) = self.history.as_mut() else {
-            return Err(io_error(&path, "history row", "define_history was not called"));
+            return Err(io_error(
+                &path,
+                "history row",
+                "define_history was not called",
+            ));
         };
         if values.len() != history.columns.len() {
             return Err(io_error(
                 &path,
                 "history row",
-                format!("{} values for {} columns", values.len(), history.columns.len()),
+                format!(
+                    "{} values for {} columns",
+                    values.len(),
+                    history.columns.len()
+                ),
             ));
         }
         history.pending.extend_from_slice(values);
@@ -374,8 +391,18 @@ impl<'d> ResultsWriter<'d> {
             local = self.same_on_all_ranks(fnv1a(&key), "mesh sizes and grain owners");
         }
         self.agree("writing /mesh", local)?;
-        self.check_blocks("/mesh/nodes", part.node_offset, part.nodes.len() as u64, part.total_nodes)?;
-        self.check_blocks("/mesh/tetrahedra", part.tet_offset, part.tets.len() as u64, part.total_tets)?;
+        self.check_blocks(
+            "/mesh/nodes",
+            part.node_offset,
+            part.nodes.len() as u64,
+            part.total_nodes,
+        )?;
+        self.check_blocks(
+            "/mesh/tetrahedra",
+            part.tet_offset,
+            part.tets.len() as u64,
+            part.total_tets,
+        )?;
 
         let is_root = self.domain.is_root();
         let owners: &[u32] = if is_root { part.grain_owner_rank } else { &[] };
@@ -385,7 +412,11 @@ impl<'d> ResultsWriter<'d> {
             let group = self.file.create_group("mesh")?;
             let ds = new_fixed::<f64>(&group, "nodes", part.total_nodes, 3)?;
             put_str_attr(&ds, "units", "m")?;
-            put_str_attr(&ds, "description", "node coordinates in the reference configuration")?;
+            put_str_attr(
+                &ds,
+                "description",
+                "node coordinates in the reference configuration",
+            )?;
             modes.push(collective::write_2d_f64(
                 &ds,
                 part.nodes.as_flattened(),
@@ -396,7 +427,11 @@ impl<'d> ResultsWriter<'d> {
 
             let ds = new_fixed::<u64>(&group, "tetrahedra", part.total_tets, 4)?;
             put_str_attr(&ds, "units", "")?;
-            put_str_attr(&ds, "description", "global node ids (0-based) of each linear tetrahedron")?;
+            put_str_attr(
+                &ds,
+                "description",
+                "global node ids (0-based) of each linear tetrahedron",
+            )?;
             modes.push(collective::write_2d_u64(
                 &ds,
                 part.tets.as_flattened(),
@@ -408,11 +443,20 @@ impl<'d> ResultsWriter<'d> {
             let ds = new_fixed::<u32>(&group, "grain_of_element", part.total_tets, 1)?;
             put_str_attr(&ds, "units", "")?;
             put_str_attr(&ds, "description", "grain id of each tetrahedron")?;
-            modes.push(collective::write_1d_u32(&ds, part.grain_of_tet, part.tet_offset, part.total_tets)?);
+            modes.push(collective::write_1d_u32(
+                &ds,
+                part.grain_of_tet,
+                part.tet_offset,
+                part.total_tets,
+            )?);
 
             let ds = new_fixed::<u32>(&group, "owner_rank_of_grain", grains, 1)?;
             put_str_attr(&ds, "units", "")?;
-            put_str_attr(&ds, "description", "MPI rank that owns each grain in this run")?;
+            put_str_attr(
+                &ds,
+                "description",
+                "MPI rank that owns each grain in this run",
+            )?;
             modes.push(collective::write_1d_u32(&ds, owners, 0, grains)?);
             Ok(())
         })();
@@ -427,7 +471,12 @@ impl<'d> ResultsWriter<'d> {
     ///
     /// All ranks must call, with the same index, time and fields (names, units,
     /// components, totals) in the same order.
-    pub fn write_frame(&mut self, index: usize, time: f64, fields: &[FieldPart]) -> Result<(), MufeError> {
+    pub fn write_frame(
+        &mut self,
+        index: usize,
+        time: f64,
+        fields: &[FieldPart],
+    ) -> Result<(), MufeError> {
         let group_name = format!("{index:06}");
         let what = format!("writing /frames/{group_name}");
         let mut local = check_names(fields.iter().map(|f| f.name)).and_then(|()| {
@@ -452,14 +501,22 @@ impl<'d> ResultsWriter<'d> {
         if local.is_ok() {
             let mut key = format!("{index}|{}|", time.to_bits());
             for f in fields {
-                key.push_str(&format!("{}|{}|{}|{}|", f.name, f.units, f.components, f.total));
+                key.push_str(&format!(
+                    "{}|{}|{}|{}|",
+                    f.name, f.units, f.components, f.total
+                ));
             }
             local = self.same_on_all_ranks(fnv1a(key.as_bytes()), "frame index, time and fields");
         }
         self.agree(&what, local)?;
         for f in fields {
             let rows = (f.data.len() / f.components) as u64;
-            self.check_blocks(&format!("/frames/{group_name}/{}", f.name), f.offset, rows, f.total)?;
+            self.check_blocks(
+                &format!("/frames/{group_name}/{}", f.name),
+                f.offset,
+                rows,
+                f.total,
+            )?;
         }
 
         let mut modes = Vec::with_capacity(fields.len());
@@ -470,11 +527,20 @@ impl<'d> ResultsWriter<'d> {
                 self.file.create_group("frames")?
             };
             let group = frames.create_group(&group_name)?;
-            group.new_attr::<f64>().create("time")?.write_scalar(&time)?;
+            group
+                .new_attr::<f64>()
+                .create("time")?
+                .write_scalar(&time)?;
             for f in fields {
                 let ds = new_fixed::<f64>(&group, f.name, f.total, f.components)?;
                 put_str_attr(&ds, "units", f.units)?;
-                modes.push(collective::write_2d_f64(&ds, f.data, f.components, f.offset, f.total)?);
+                modes.push(collective::write_2d_f64(
+                    &ds,
+                    f.data,
+                    f.components,
+                    f.offset,
+                    f.total,
+                )?);
             }
             Ok(())
         })();
@@ -488,7 +554,13 @@ impl<'d> ResultsWriter<'d> {
     /// All ranks must call.
     pub fn close(mut self) -> Result<(), MufeError> {
         self.flush_history()?;
-        let ResultsWriter { domain, path, history, file, .. } = self;
+        let ResultsWriter {
+            domain,
+            path,
+            history,
+            file,
+            ..
+        } = self;
         // Datasets first: with MPI-IO the file only closes when nothing in it is open.
         drop(history);
         let local = file.close().map_err(|e| e.to_string());
@@ -503,7 +575,12 @@ impl<'d> ResultsWriter<'d> {
                 part.tets.len()
             ));
         }
-        if let Some((i, t)) = part.tets.iter().enumerate().find(|(_, t)| t.iter().any(|&n| n >= part.total_nodes)) {
+        if let Some((i, t)) = part
+            .tets
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&n| n >= part.total_nodes))
+        {
             return Err(format!(
                 "element {}: node id out of range in {t:?} ({} nodes)",
                 part.tet_offset + i as u64,
@@ -511,15 +588,27 @@ impl<'d> ResultsWriter<'d> {
             ));
         }
         let grains = part.grain_owner_rank.len();
-        if let Some((i, g)) = part.grain_of_tet.iter().enumerate().find(|(_, &g)| g as usize >= grains) {
+        if let Some((i, g)) = part
+            .grain_of_tet
+            .iter()
+            .enumerate()
+            .find(|(_, &g)| g as usize >= grains)
+        {
             return Err(format!(
                 "element {}: grain {g} out of range ({grains} grains)",
                 part.tet_offset + i as u64
             ));
         }
         let size = self.domain.size();
-        if let Some((g, r)) = part.grain_owner_rank.iter().enumerate().find(|(_, &r)| r as usize >= size) {
-            return Err(format!("grain {g}: owner rank {r} out of range ({size} ranks)"));
+        if let Some((g, r)) = part
+            .grain_owner_rank
+            .iter()
+            .enumerate()
+            .find(|(_, &r)| r as usize >= size)
+        {
+            return Err(format!(
+                "grain {g}: owner rank {r} out of range ({size} ranks)"
+            ));
         }
         Ok(())
     }
@@ -527,12 +616,24 @@ impl<'d> ResultsWriter<'d> {
     /// Checks (on every rank, from gathered data, so every rank reaches the same verdict)
     /// that the ranks' blocks `[offset, offset + rows)` tile `[0, total)` exactly and that
     /// all ranks name the same total. All ranks must call.
-    fn check_blocks(&self, what: &str, offset: u64, rows: u64, total: u64) -> Result<(), MufeError> {
+    fn check_blocks(
+        &self,
+        what: &str,
+        offset: u64,
+        rows: u64,
+        total: u64,
+    ) -> Result<(), MufeError> {
         let offsets = self.domain.all_gather_u64(offset);
         let counts = self.domain.all_gather_u64(rows);
         let totals = self.domain.all_gather_u64(total);
         if let Some(r) = totals.iter().position(|&t| t != totals[0]) {
-            return Err(self.error(what, format!("rank {r} says {} rows, rank 0 says {}", totals[r], totals[0])));
+            return Err(self.error(
+                what,
+                format!(
+                    "rank {r} says {} rows, rank 0 says {}",
+                    totals[r], totals[0]
+                ),
+            ));
         }
         let mut blocks: Vec<(u64, u64, usize)> = offsets
             .iter()
@@ -553,7 +654,10 @@ impl<'d> ResultsWriter<'d> {
             next = o.saturating_add(n);
         }
         if next != totals[0] {
-            return Err(self.error(what, format!("the ranks write {next} rows of {}", totals[0])));
+            return Err(self.error(
+                what,
+                format!("the ranks write {next} rows of {}", totals[0]),
+            ));
         }
         Ok(())
     }
@@ -601,12 +705,21 @@ fn io_error(path: &Path, what: &str, e: impl Display) -> MufeError {
 /// Turns rank-local outcomes into one outcome on every rank: `Err` everywhere if any rank
 /// failed (a rank's own message where it failed, "failed on rank R" elsewhere), so that no
 /// rank goes on into a collective the others have abandoned. All ranks must call.
-fn agree(domain: &Domain, path: &Path, what: &str, local: Result<(), String>) -> Result<(), MufeError> {
+fn agree(
+    domain: &Domain,
+    path: &Path,
+    what: &str,
+    local: Result<(), String>,
+) -> Result<(), MufeError> {
     let failed = domain.all_gather_u64(u64::from(local.is_err()));
     match local {
         Err(m) => Err(io_error(path, what, m)),
         Ok(()) => match failed.iter().position(|&f| f != 0) {
-            Some(r) => Err(io_error(path, what, format!("failed on rank {r} (see its error)"))),
+            Some(r) => Err(io_error(
+                path,
+                what,
+                format!("failed on rank {r} (see its error)"),
+            )),
             None => Ok(()),
         },
     }
@@ -617,7 +730,9 @@ fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<(), String> {
     let mut seen = std::collections::HashSet::new();
     for name in names {
         if name.is_empty() || name.contains('/') || name == "." {
-            return Err(format!("invalid name {name:?} (must be non-empty, without '/')"));
+            return Err(format!(
+                "invalid name {name:?} (must be non-empty, without '/')"
+            ));
         }
         if !seen.insert(name) {
             return Err(format!("duplicate name {name:?}"));
@@ -627,7 +742,12 @@ fn check_names<'a>(names: impl Iterator<Item = &'a str>) -> Result<(), String> {
 }
 
 /// A fixed-size dataset of `rows` (× `columns` if > 1) elements. All ranks must call.
-fn new_fixed<T: hdf5::H5Type>(group: &Group, name: &str, rows: u64, columns: usize) -> hdf5::Result<Dataset> {
+fn new_fixed<T: hdf5::H5Type>(
+    group: &Group,
+    name: &str,
+    rows: u64,
+    columns: usize,
+) -> hdf5::Result<Dataset> {
     let rows = rows as usize;
     let builder = group.new_dataset::<T>();
     if columns == 1 {
@@ -644,7 +764,9 @@ fn put_str_attr(loc: &Location, name: &str, value: &str) -> hdf5::Result<()> {
         .replace('\0', "\u{FFFD}")
         .parse()
         .map_err(|e| hdf5::Error::from(format!("attribute {name}: {e}")))?;
-    loc.new_attr::<VarLenUnicode>().create(name)?.write_scalar(&value)
+    loc.new_attr::<VarLenUnicode>()
+        .create(name)?
+        .write_scalar(&value)
 }
 
 fn put_u64_attr(loc: &Location, name: &str, value: u64) -> hdf5::Result<()> {
@@ -722,7 +844,12 @@ mod tests {
     }
 
     fn str_attr(loc: &Location, name: &str) -> String {
-        loc.attr(name).unwrap().read_scalar::<VarLenUnicode>().unwrap().as_str().to_string()
+        loc.attr(name)
+            .unwrap()
+            .read_scalar::<VarLenUnicode>()
+            .unwrap()
+            .as_str()
+            .to_string()
     }
 
     fn provenance() -> Provenance {
@@ -772,7 +899,9 @@ mod tests {
                     w.flush_history().unwrap();
                 }
             }
-            let nodes: Vec<[f64; 3]> = (0..5).map(|i| [i as f64, 2.0 * i as f64, -(i as f64)]).collect();
+            let nodes: Vec<[f64; 3]> = (0..5)
+                .map(|i| [i as f64, 2.0 * i as f64, -(i as f64)])
+                .collect();
             let tets = [[0u64, 1, 2, 3], [1, 2, 3, 4]];
             w.write_mesh(&MeshPart {
                 nodes: &nodes,
@@ -791,8 +920,22 @@ mod tests {
                 3,
                 0.25,
                 &[
-                    FieldPart { name: "displacement", units: "m", components: 3, data: &u, offset: 0, total: 5 },
-                    FieldPart { name: "pressure", units: "Pa", components: 1, data: &p, offset: 0, total: 5 },
+                    FieldPart {
+                        name: "displacement",
+                        units: "m",
+                        components: 3,
+                        data: &u,
+                        offset: 0,
+                        total: 5,
+                    },
+                    FieldPart {
+                        name: "pressure",
+                        units: "Pa",
+                        components: 1,
+                        data: &p,
+                        offset: 0,
+                        total: 5,
+                    },
                 ],
             )
             .unwrap();
@@ -804,7 +947,10 @@ mod tests {
         assert!(stats.collective >= 6, "{stats:?}");
 
         let f = File::open(&path).unwrap();
-        assert_eq!(collective::read_text_dataset(&f.dataset("scene").unwrap()).unwrap(), scene);
+        assert_eq!(
+            collective::read_text_dataset(&f.dataset("scene").unwrap()).unwrap(),
+            scene
+        );
         assert_eq!(str_attr(&f.dataset("scene").unwrap(), "units"), "");
         let prov = f.group("provenance").unwrap();
         assert_eq!(str_attr(&prov, "version"), "9.9.9");
@@ -812,7 +958,10 @@ mod tests {
         assert_eq!(str_attr(&prov, "hostname"), "node1");
         assert_eq!(str_attr(&prov, "start_time"), "2024-01-02T03:04:05Z");
         assert_eq!(prov.attr("ranks").unwrap().read_scalar::<u64>().unwrap(), 1);
-        assert_eq!(prov.attr("threads").unwrap().read_scalar::<u64>().unwrap(), 2);
+        assert_eq!(
+            prov.attr("threads").unwrap().read_scalar::<u64>().unwrap(),
+            2
+        );
 
         let time = f.dataset("history/time").unwrap();
         let ke = f.dataset("history/kinetic_energy").unwrap();
@@ -834,17 +983,38 @@ mod tests {
         assert_eq!(str_attr(&nodes, "units"), "m");
         let xyz = nodes.read_raw::<f64>().unwrap();
         for i in 0..n_nodes {
-            assert_eq!(&xyz[3 * i..3 * i + 3], &[i as f64, 2.0 * i as f64, -(i as f64)]);
+            assert_eq!(
+                &xyz[3 * i..3 * i + 3],
+                &[i as f64, 2.0 * i as f64, -(i as f64)]
+            );
         }
         let tets = f.dataset("mesh/tetrahedra").unwrap();
         assert_eq!(tets.shape(), vec![2, 4]);
-        assert_eq!(tets.read_raw::<u64>().unwrap(), vec![0, 1, 2, 3, 1, 2, 3, 4]);
+        assert_eq!(
+            tets.read_raw::<u64>().unwrap(),
+            vec![0, 1, 2, 3, 1, 2, 3, 4]
+        );
         assert_eq!(str_attr(&tets, "units"), "");
-        assert_eq!(f.dataset("mesh/grain_of_element").unwrap().read_raw::<u32>().unwrap(), vec![0, 1]);
-        assert_eq!(f.dataset("mesh/owner_rank_of_grain").unwrap().read_raw::<u32>().unwrap(), vec![0, 0]);
+        assert_eq!(
+            f.dataset("mesh/grain_of_element")
+                .unwrap()
+                .read_raw::<u32>()
+                .unwrap(),
+            vec![0, 1]
+        );
+        assert_eq!(
+            f.dataset("mesh/owner_rank_of_grain")
+                .unwrap()
+                .read_raw::<u32>()
+                .unwrap(),
+            vec![0, 0]
+        );
 
         let frame = f.group("frames/000003").unwrap();
-        assert_eq!(frame.attr("time").unwrap().read_scalar::<f64>().unwrap(), 0.25);
+        assert_eq!(
+            frame.attr("time").unwrap().read_scalar::<f64>().unwrap(),
+            0.25
+        );
         let u = frame.dataset("displacement").unwrap();
         assert_eq!(u.shape(), vec![5, 3]);
         assert_eq!(str_attr(&u, "units"), "m");
@@ -863,18 +1033,42 @@ mod tests {
         with_test_domain(|d| {
             let mut w = ResultsWriter::create(d, &path, "", &provenance()).unwrap();
             assert!(w.push_history(&[1.0]).is_err(), "push before define");
-            let dup = [HistoryColumn::new("a", "", None, ""), HistoryColumn::new("a", "", None, "")];
+            let dup = [
+                HistoryColumn::new("a", "", None, ""),
+                HistoryColumn::new("a", "", None, ""),
+            ];
             assert!(w.define_history(&dup).is_err());
-            assert!(w.define_history(&[HistoryColumn::new("a/b", "", None, "")]).is_err());
-            w.define_history(&[HistoryColumn::new("time", "s", None, "t")]).unwrap();
-            assert!(w.define_history(&[HistoryColumn::new("x", "", None, "")]).is_err(), "twice");
+            assert!(w
+                .define_history(&[HistoryColumn::new("a/b", "", None, "")])
+                .is_err());
+            w.define_history(&[HistoryColumn::new("time", "s", None, "t")])
+                .unwrap();
+            assert!(
+                w.define_history(&[HistoryColumn::new("x", "", None, "")])
+                    .is_err(),
+                "twice"
+            );
             let e = w.push_history(&[1.0, 2.0]).unwrap_err();
             assert!(e.to_string().contains("bad.h5"), "{e}");
 
             // Rows that do not cover the field, wrong row width, node ids out of range.
-            let short = FieldPart { name: "u", units: "m", components: 3, data: &[0.0; 6], offset: 0, total: 3 };
+            let short = FieldPart {
+                name: "u",
+                units: "m",
+                components: 3,
+                data: &[0.0; 6],
+                offset: 0,
+                total: 3,
+            };
             assert!(w.write_frame(0, 0.0, &[short]).is_err());
-            let ragged = FieldPart { name: "u", units: "m", components: 3, data: &[0.0; 7], offset: 0, total: 2 };
+            let ragged = FieldPart {
+                name: "u",
+                units: "m",
+                components: 3,
+                data: &[0.0; 7],
+                offset: 0,
+                total: 2,
+            };
             assert!(w.write_frame(0, 0.0, &[ragged]).is_err());
             let bad_mesh = MeshPart {
                 nodes: &[[0.0; 3]; 4],
@@ -890,16 +1084,38 @@ mod tests {
             assert!(e.to_string().contains("element 0"), "{e}");
 
             // The writer is still usable after refused input.
-            let ok = FieldPart { name: "u", units: "m", components: 3, data: &[1.0; 6], offset: 0, total: 2 };
+            let ok = FieldPart {
+                name: "u",
+                units: "m",
+                components: 3,
+                data: &[1.0; 6],
+                offset: 0,
+                total: 2,
+            };
             w.write_frame(0, 0.5, &[ok]).unwrap();
             assert!(w.write_frame(0, 0.5, &[ok]).is_err(), "same frame twice");
             w.push_history(&[0.5]).unwrap();
             w.close().unwrap();
         });
         let f = File::open(&path).unwrap();
-        assert_eq!(collective::read_text_dataset(&f.dataset("scene").unwrap()).unwrap(), "");
-        assert_eq!(f.dataset("history/time").unwrap().read_raw::<f64>().unwrap(), vec![0.5]);
-        assert_eq!(f.dataset("frames/000000/u").unwrap().read_raw::<f64>().unwrap(), vec![1.0; 6]);
+        assert_eq!(
+            collective::read_text_dataset(&f.dataset("scene").unwrap()).unwrap(),
+            ""
+        );
+        assert_eq!(
+            f.dataset("history/time")
+                .unwrap()
+                .read_raw::<f64>()
+                .unwrap(),
+            vec![0.5]
+        );
+        assert_eq!(
+            f.dataset("frames/000000/u")
+                .unwrap()
+                .read_raw::<f64>()
+                .unwrap(),
+            vec![1.0; 6]
+        );
         std::fs::remove_file(&path).ok();
     }
 
@@ -908,8 +1124,13 @@ mod tests {
         let dir = temp_path("a-directory");
         std::fs::create_dir_all(&dir).unwrap();
         with_test_domain(|d| {
-            let e = ResultsWriter::create(d, &dir, "", &provenance()).err().unwrap();
-            assert!(matches!(e, MufeError::Io(ref m) if m.contains("is a directory")), "{e}");
+            let e = ResultsWriter::create(d, &dir, "", &provenance())
+                .err()
+                .unwrap();
+            assert!(
+                matches!(e, MufeError::Io(ref m) if m.contains("is a directory")),
+                "{e}"
+            );
         });
     }
 
@@ -919,7 +1140,11 @@ mod tests {
             let p = Provenance::collect(d, 3);
             assert_eq!(p.version, env!("CARGO_PKG_VERSION"));
             assert_eq!((p.ranks, p.threads), (1, 3));
-            assert!(p.start_time.ends_with('Z') && p.start_time.len() == 20, "{}", p.start_time);
+            assert!(
+                p.start_time.ends_with('Z') && p.start_time.len() == 20,
+                "{}",
+                p.start_time
+            );
             assert!(!p.command_line.is_empty());
         });
     }

@@ -21,7 +21,10 @@ impl ElasticParameters {
     pub fn lame(&self) -> (f64, f64) {
         let e = self.youngs_modulus;
         let nu = self.poisson_ratio;
-        (e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu)))
+        (
+            e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
+            e / (2.0 * (1.0 + nu)),
+        )
     }
 
     /// Shear modulus G = E/(2(1+ν)) (Pa).
@@ -130,7 +133,8 @@ pub fn cauchy_from_first_piola(p: &[f64; 9], f: &[f64; 9]) -> [f64; 9] {
     for i in 0..3 {
         for k in 0..3 {
             sigma[3 * i + k] =
-                (p[3 * i] * f[3 * k] + p[3 * i + 1] * f[3 * k + 1] + p[3 * i + 2] * f[3 * k + 2]) / j;
+                (p[3 * i] * f[3 * k] + p[3 * i + 1] * f[3 * k + 1] + p[3 * i + 2] * f[3 * k + 2])
+                    / j;
         }
     }
     sigma
@@ -161,7 +165,11 @@ mod tests {
     use super::*;
 
     fn glass() -> ElasticParameters {
-        ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 }
+        ElasticParameters {
+            youngs_modulus: 63e9,
+            poisson_ratio: 0.22,
+            density: 2500.0,
+        }
     }
 
     #[test]

@@ -21,7 +21,14 @@ pub fn mesh_block(size: [f64; 3], divisions: [usize; 3]) -> TetMesh {
             }
         }
     }
-    const PERMUTATIONS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    const PERMUTATIONS: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
     let mut tets = Vec::with_capacity(6 * nx * ny * nz);
     for k in 0..nz {
         for j in 0..ny {
@@ -52,9 +59,16 @@ mod tests {
     fn block_volume_and_conformity() {
         let m = mesh_block([2.0, 1.0, 0.5], [4, 3, 2]);
         assert_eq!(m.tets.len(), 6 * 24);
-        let v: f64 = m.tets.iter().map(|t| super::super::tet_volume(&t.map(|n| m.nodes[n as usize]))).sum();
+        let v: f64 = m
+            .tets
+            .iter()
+            .map(|t| super::super::tet_volume(&t.map(|n| m.nodes[n as usize])))
+            .sum();
         assert!((v - 1.0).abs() < 1e-12);
-        assert!(m.tets.iter().all(|t| super::super::tet_volume(&t.map(|n| m.nodes[n as usize])) > 0.0));
+        assert!(m
+            .tets
+            .iter()
+            .all(|t| super::super::tet_volume(&t.map(|n| m.nodes[n as usize])) > 0.0));
         // conforming: the boundary is exactly the box surface (area 2(2·1 + 2·0.5 + 1·0.5) = 7)
         let s = crate::mesh::extract_surface(&m);
         let area: f64 = s
@@ -64,7 +78,11 @@ mod tests {
                 let [a, b, c] = f.map(|n| m.nodes[n as usize]);
                 let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
                 let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-                let cr = [u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]];
+                let cr = [
+                    u[1] * w[2] - u[2] * w[1],
+                    u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0],
+                ];
                 0.5 * (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt()
             })
             .sum();

@@ -70,7 +70,11 @@ pub enum MeshError {
     NonFiniteNode { node: usize, coords: [f64; 3] },
     /// An element refers to a node id that does not exist.
     #[error("element {element}: node id {node} out of range (mesh has {nnodes} nodes)")]
-    NodeOutOfRange { element: usize, node: u32, nnodes: usize },
+    NodeOutOfRange {
+        element: usize,
+        node: u32,
+        nnodes: usize,
+    },
     /// An element lists the same node twice.
     #[error("element {element}: node {node} appears twice")]
     RepeatedNode { element: usize, node: u32 },
@@ -79,7 +83,11 @@ pub enum MeshError {
     InvertedElement { element: usize, volume: f64 },
     /// An element is flat: |volume| < 1e-12·(mean edge)³.
     #[error("element {element}: degenerate, volume {volume:e} m³ (mean edge {mean_edge:e} m)")]
-    DegenerateElement { element: usize, volume: f64, mean_edge: f64 },
+    DegenerateElement {
+        element: usize,
+        volume: f64,
+        mean_edge: f64,
+    },
 }
 
 impl MeshError {
@@ -87,7 +95,9 @@ impl MeshError {
     /// building an [`crate::error::InputError`] with the file name added by the caller.
     pub fn item(&self) -> String {
         match self {
-            MeshError::InvalidSpec { field, .. } | MeshError::TooLarge { field, .. } => field.clone(),
+            MeshError::InvalidSpec { field, .. } | MeshError::TooLarge { field, .. } => {
+                field.clone()
+            }
             MeshError::TetGen(_) | MeshError::Empty => String::new(),
             MeshError::NonFiniteNode { node, .. } => format!("node {node}"),
             MeshError::NodeOutOfRange { element, .. }
@@ -147,7 +157,11 @@ pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 #[inline]
 pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 #[inline]
@@ -161,16 +175,25 @@ mod tests {
 
     #[test]
     fn error_messages_name_the_item() {
-        let e = MeshError::InvertedElement { element: 17, volume: -1e-12 };
+        let e = MeshError::InvertedElement {
+            element: 17,
+            volume: -1e-12,
+        };
         assert_eq!(e.to_string(), "element 17: inverted, volume -1e-12 m³ < 0");
         let ie = e.to_input_error("scene.toml", "grains[2].mesh");
         assert_eq!(ie.item, "grains[2].mesh: element 17");
         assert_eq!(ie.message, "inverted, volume -1e-12 m³ < 0");
-        let e = MeshError::InvalidSpec { field: "seeding".into(), message: "must be > 0, got -1".into() };
+        let e = MeshError::InvalidSpec {
+            field: "seeding".into(),
+            message: "must be > 0, got -1".into(),
+        };
         assert_eq!(e.to_string(), "seeding: must be > 0, got -1");
         let ie = e.to_input_error("scene.toml", "grains[2].mesh");
         assert_eq!(ie.item, "grains[2].mesh.seeding");
-        assert_eq!(ie.to_string(), "scene.toml: grains[2].mesh.seeding: must be > 0, got -1");
+        assert_eq!(
+            ie.to_string(),
+            "scene.toml: grains[2].mesh.seeding: must be > 0, got -1"
+        );
         assert!(!MeshError::TetGen("x".into()).to_string().contains('\n'));
     }
 }

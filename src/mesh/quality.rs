@@ -57,7 +57,14 @@ pub fn tet_volume(x: &[[f64; 3]; 4]) -> f64 {
 }
 
 /// Edges of a tet as (node, node, first other node, second other node).
-const EDGES: [[usize; 4]; 6] = [[0, 1, 2, 3], [0, 2, 3, 1], [0, 3, 1, 2], [1, 2, 0, 3], [1, 3, 2, 0], [2, 3, 0, 1]];
+const EDGES: [[usize; 4]; 6] = [
+    [0, 1, 2, 3],
+    [0, 2, 3, 1],
+    [0, 3, 1, 2],
+    [1, 2, 0, 3],
+    [1, 3, 2, 0],
+    [2, 3, 0, 1],
+];
 
 /// The six interior dihedral angles (radians) of a tet, one per edge in the order
 /// 01, 02, 03, 12, 13, 23. Independent of orientation.
@@ -113,7 +120,11 @@ pub fn quality(mesh: &TetMesh) -> QualityReport {
             .map(|f| 0.5 * norm(cross(sub(x[f[1]], x[f[0]]), sub(x[f[2]], x[f[0]]))))
             .sum();
         let inradius = 3.0 * v.abs() / area;
-        let aspect = if inradius > 0.0 { lmax / (two_sqrt6 * inradius) } else { f64::INFINITY };
+        let aspect = if inradius > 0.0 {
+            lmax / (two_sqrt6 * inradius)
+        } else {
+            f64::INFINITY
+        };
         r.max_aspect_ratio = r.max_aspect_ratio.max(aspect);
     }
     // Each closed-surface edge appears in two facets: count it from the facet where it runs
@@ -147,24 +158,42 @@ pub fn validate(mesh: &TetMesh) -> Result<(), MeshError> {
     }
     for (i, p) in mesh.nodes.iter().enumerate() {
         if !p.iter().all(|c| c.is_finite()) {
-            return Err(MeshError::NonFiniteNode { node: i, coords: *p });
+            return Err(MeshError::NonFiniteNode {
+                node: i,
+                coords: *p,
+            });
         }
     }
     let nn = mesh.nodes.len();
     for (e, t) in mesh.tets.iter().enumerate() {
         for (k, &n) in t.iter().enumerate() {
             if n as usize >= nn {
-                return Err(MeshError::NodeOutOfRange { element: e, node: n, nnodes: nn });
+                return Err(MeshError::NodeOutOfRange {
+                    element: e,
+                    node: n,
+                    nnodes: nn,
+                });
             }
             if t[..k].contains(&n) {
-                return Err(MeshError::RepeatedNode { element: e, node: n });
+                return Err(MeshError::RepeatedNode {
+                    element: e,
+                    node: n,
+                });
             }
         }
         let x = t.map(|i| mesh.nodes[i as usize]);
         let volume = tet_volume(&x);
-        let mean_edge = EDGES.iter().map(|&[i, j, _, _]| norm(sub(x[j], x[i]))).sum::<f64>() / 6.0;
+        let mean_edge = EDGES
+            .iter()
+            .map(|&[i, j, _, _]| norm(sub(x[j], x[i])))
+            .sum::<f64>()
+            / 6.0;
         if volume.abs() < 1e-12 * mean_edge.powi(3) {
-            return Err(MeshError::DegenerateElement { element: e, volume, mean_edge });
+            return Err(MeshError::DegenerateElement {
+                element: e,
+                volume,
+                mean_edge,
+            });
         }
         if volume < 0.0 {
             return Err(MeshError::InvertedElement { element: e, volume });
@@ -180,8 +209,14 @@ mod tests {
     fn regular_tet() -> TetMesh {
         let s = 1.0 / 2f64.sqrt();
         // Alternate corners of a cube: edge √2 → scaled to edge 1.
-        let nodes = vec![[s, s, s], [s, -s, -s], [-s, s, -s], [-s, -s, s]].into_iter().map(|p| p.map(|c| c * 0.5)).collect();
-        let mut m = TetMesh { nodes, tets: vec![[0, 1, 2, 3]] };
+        let nodes = vec![[s, s, s], [s, -s, -s], [-s, s, -s], [-s, -s, s]]
+            .into_iter()
+            .map(|p| p.map(|c| c * 0.5))
+            .collect();
+        let mut m = TetMesh {
+            nodes,
+            tets: vec![[0, 1, 2, 3]],
+        };
         let x = m.tets[0].map(|i| m.nodes[i as usize]);
         if tet_volume(&x) < 0.0 {
             m.tets[0].swap(2, 3);
@@ -195,21 +230,37 @@ mod tests {
         let q = quality(&m);
         let dihedral = (1.0f64 / 3.0).acos().to_degrees();
         assert!((dihedral - 70.528_779).abs() < 1e-5);
-        assert!((q.min_dihedral_deg - dihedral).abs() < 1e-9, "{}", q.min_dihedral_deg);
+        assert!(
+            (q.min_dihedral_deg - dihedral).abs() < 1e-9,
+            "{}",
+            q.min_dihedral_deg
+        );
         assert!((q.max_dihedral_deg - dihedral).abs() < 1e-9);
-        assert!((q.max_aspect_ratio - 1.0).abs() < 1e-12, "{}", q.max_aspect_ratio);
-        let a = 0.5;
+        assert!(
+            (q.max_aspect_ratio - 1.0).abs() < 1e-12,
+            "{}",
+            q.max_aspect_ratio
+        );
+        let a = 1.0;
         assert!((q.min_edge - a).abs() < 1e-12 && (q.max_edge - a).abs() < 1e-12);
         assert!((q.min_volume - a.powi(3) / (6.0 * 2f64.sqrt())).abs() < 1e-15);
         assert!((q.mean_surface_edge - a).abs() < 1e-12);
-        assert_eq!((q.elements, q.nodes, q.surface_facets, q.surface_nodes), (1, 4, 4, 4));
+        assert_eq!(
+            (q.elements, q.nodes, q.surface_facets, q.surface_nodes),
+            (1, 4, 4, 4)
+        );
         validate(&m).unwrap();
     }
 
     #[test]
     fn dihedral_angles_of_a_corner_tet() {
         // Right-corner tet: three 90° dihedrals at the corner edges.
-        let x = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let x = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
         let a = tet_dihedral_angles(&x).map(f64::to_degrees);
         for k in 0..3 {
             assert!((a[k] - 90.0).abs() < 1e-12);
@@ -227,29 +278,51 @@ mod tests {
             Err(MeshError::InvertedElement { element: 0, volume }) => assert!(volume < 0.0),
             other => panic!("expected inverted, got {other:?}"),
         }
-        assert!(validate(&m).unwrap_err().to_string().starts_with("element 0: inverted"));
+        assert!(validate(&m)
+            .unwrap_err()
+            .to_string()
+            .starts_with("element 0: inverted"));
 
         // Degenerate: fourth node in the plane of the first three (second element).
         let mut m = regular_tet();
         let x = m.tets[0].map(|i| m.nodes[i as usize]);
-        let mid = [(x[0][0] + x[1][0] + x[2][0]) / 3.0, (x[0][1] + x[1][1] + x[2][1]) / 3.0, (x[0][2] + x[1][2] + x[2][2]) / 3.0];
+        let mid = [
+            (x[0][0] + x[1][0] + x[2][0]) / 3.0,
+            (x[0][1] + x[1][1] + x[2][1]) / 3.0,
+            (x[0][2] + x[1][2] + x[2][2]) / 3.0,
+        ];
         m.nodes.push(mid);
         let t0 = m.tets[0];
         m.tets.push([t0[0], t0[1], t0[2], 4]);
         match validate(&m) {
-            Err(MeshError::DegenerateElement { element: 1, volume, .. }) => assert!(volume.abs() < 1e-15),
+            Err(MeshError::DegenerateElement {
+                element: 1, volume, ..
+            }) => assert!(volume.abs() < 1e-15),
             other => panic!("expected degenerate, got {other:?}"),
         }
 
         let mut m = regular_tet();
         m.tets.push([0, 1, 2, 9]);
-        assert!(matches!(validate(&m), Err(MeshError::NodeOutOfRange { element: 1, node: 9, nnodes: 4 })));
+        assert!(matches!(
+            validate(&m),
+            Err(MeshError::NodeOutOfRange {
+                element: 1,
+                node: 9,
+                nnodes: 4
+            })
+        ));
         let mut m = regular_tet();
         m.tets[0][3] = m.tets[0][1];
-        assert!(matches!(validate(&m), Err(MeshError::RepeatedNode { element: 0, .. })));
+        assert!(matches!(
+            validate(&m),
+            Err(MeshError::RepeatedNode { element: 0, .. })
+        ));
         let mut m = regular_tet();
         m.nodes[2][1] = f64::NAN;
-        assert!(matches!(validate(&m), Err(MeshError::NonFiniteNode { node: 2, .. })));
+        assert!(matches!(
+            validate(&m),
+            Err(MeshError::NonFiniteNode { node: 2, .. })
+        ));
         assert_eq!(validate(&TetMesh::default()), Err(MeshError::Empty));
     }
 }

@@ -115,7 +115,9 @@ mod tests {
 
     fn unit_cube_tets() -> TetMesh {
         // Cube [0,1]³ split into 6 tets around the diagonal 0–7 (Kuhn triangulation).
-        let nodes: Vec<[f64; 3]> = (0..8).map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64]).collect();
+        let nodes: Vec<[f64; 3]> = (0..8)
+            .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+            .collect();
         let paths = [[1, 3], [1, 5], [2, 3], [2, 6], [4, 5], [4, 6]];
         let mut tets = Vec::new();
         for p in paths {
@@ -142,7 +144,11 @@ mod tests {
             let centroid = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
             assert!(super::super::dot(*n, sub(centroid, [0.5; 3])) > 0.0);
             // Axis aligned unit normal.
-            let sorted = { let mut a = n.map(f64::abs); a.sort_by(f64::total_cmp); a };
+            let sorted = {
+                let mut a = n.map(f64::abs);
+                a.sort_by(f64::total_cmp);
+                a
+            };
             assert!((sorted[2] - 1.0).abs() < 1e-12 && sorted[1] < 1e-12);
         }
         let g = surface_node_geometry(&mesh, &s);

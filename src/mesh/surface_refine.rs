@@ -14,13 +14,20 @@
 //! hashing, no allocation per step); the whole refinement is O(n) in the output size, with a
 //! deterministic processing order (same input → bitwise same output).
 
+use std::collections::HashMap;
+
 use super::{add, cross, dot, norm, scale, sub, MeshError};
 
 /// Refinement criterion: a triangle is split while its longest edge exceeds
-/// `LONGEST_EDGE_FACTOR × h(centroid)`. Calibrated so that, after the Delaunay flips, the
-/// *mean* edge length of a uniformly sized sphere is h (the longest edges of the final
-/// triangles are spread between ≈ factor·h/2 and factor·h).
+/// `LONGEST_EDGE_FACTOR × h(centroid)`. It sits above the longest edge of the geodesic base
+/// mesh (≈ 1.2 × its mean), so uniform regions keep the base mesh (mean edge ≈ h), and below
+/// 1.5 so that refined patches never have an edge longer than 1.45 h; bisection leaves
+/// their mean edge near 0.85 h.
 pub const LONGEST_EDGE_FACTOR: f64 = 1.42;
+
+/// Mean edge of the frequency-n geodesic sphere of unit radius, times n (measured; the
+/// continuum estimate is √(4π/(5√3)) ≈ 1.2046; 1.203 within 0.3 % for n ≥ 5).
+pub const GEODESIC_MEAN_EDGE: f64 = 1.203;
 
 /// Upper bound on the number of surface triangles (the volume mesh would have tens of
 /// millions of tets per grain); beyond it the spec is rejected instead of running the
@@ -36,8 +43,6 @@ pub struct SphereSurface {
     /// Triangles (vertex indices), outward orientation.
     pub triangles: Vec<[u32; 3]>,
 }
-
-const NONE: u32 = u32::MAX;
 
 /// Triangle with neighbour links: `n[i]` is the triangle across the edge opposite `v[i]`,
 /// i.e. across edge `(v[i+1], v[i+2])`.
@@ -58,16 +63,27 @@ struct Refiner {
 /// sphere (mean edge ≈ `size`). `size` must be positive and finite on the sphere.
 /// `field` names the spec field for the error returned if the triangle count would exceed
 /// [`MAX_SURFACE_TRIANGLES`].
-pub fn triangulate_sphere<F>(radius: f64, size: F, field: &str) -> Result<SphereSurface, MeshError>
+pub fn triangulate_sphere<F>(radius: f64, base_size: f64, size: F, field: &str) -> Result<SphereSurface, MeshError>
 where
     F: Fn([f64; 3]) -> f64,
 {
-    triangulate_sphere_limited(radius, size, field, MAX_SURFACE_TRIANGLES)
+    triangulate_sphere_limited(radius, base_size, size, field, MAX_SURFACE_TRIANGLES)
+}
+
+/// Frequency of the geodesic base mesh whose mean edge is closest to `base_size`.
+pub fn geodesic_frequency(radius: f64, base_size: f64) -> usize {
+    let n = (GEODESIC_MEAN_EDGE * radius / base_size).round();
+    if n.is_finite() && n >= 1.0 {
+        n.min(1e6) as usize
+    } else {
+        1
+    }
 }
 
 /// [`triangulate_sphere`] with an explicit triangle-count limit.
 pub(crate) fn triangulate_sphere_limited<F>(
     radius: f64,
+    base_size: f64,
     size: F,
     field: &str,
     limit: usize,
@@ -75,14 +91,22 @@ pub(crate) fn triangulate_sphere_limited<F>(
 where
     F: Fn([f64; 3]) -> f64,
 {
-    let mut r = Refiner::icosahedron(radius);
+    let n = geodesic_frequency(radius, base_size);
+    if 20 * n * n > limit {
+        return Err(MeshError::TooLarge { field: field.to_string(), limit });
+    }
+    let mut r = Refiner::geodesic(radius, n);
     r.refine(&size, field, limit)?;
     r.flip_to_convex();
-    Ok(SphereSurface { points: r.pts, triangles: r.tris.iter().map(|t| t.v).collect() })
+    Ok(SphereSurface {
+        points: r.pts,
+        triangles: r.tris.iter().map(|t| t.v).collect(),
+    })
 }
 
 impl Refiner {
-    fn icosahedron(radius: f64) -> Self {
+    /// The 12 unit vertices and 20 outward faces of the icosahedron.
+    fn icosahedron() -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
         let phi = (1.0 + 5f64.sqrt()) / 2.0;
         let mut raw: Vec<[f64; 3]> = Vec::with_capacity(12);
         for &a in &[-1.0, 1.0] {
@@ -92,7 +116,7 @@ impl Refiner {
                 raw.push([b, 0.0, a]);
             }
         }
-        let pts: Vec<[f64; 3]> = raw.iter().map(|&p| scale(p, radius / norm(p))).collect();
+        let pts: Vec<[f64; 3]> = raw.iter().map(|&p| scale(p, 1.0 / norm(p))).collect();
         // Faces: triples of mutually adjacent vertices (unnormalised edge length 2).
         let adjacent = |i: usize, j: usize| {
             let d = sub(raw[i], raw[j]);
@@ -114,18 +138,90 @@ impl Refiner {
             }
         }
         debug_assert_eq!(faces.len(), 20);
-        let mut tris: Vec<Tri> = faces.iter().map(|&v| Tri { v, n: [NONE; 3] }).collect();
-        for t in 0..tris.len() {
-            for i in 0..3 {
-                let (a, b) = (tris[t].v[(i + 1) % 3], tris[t].v[(i + 2) % 3]);
-                // The neighbour holds the directed edge (b, a).
-                for (u, tu) in faces.iter().enumerate() {
-                    if u != t && (0..3).any(|j| tu[j] == b && tu[(j + 1) % 3] == a) {
-                        tris[t].n[i] = u as u32;
+        (pts, faces)
+    }
+
+    /// Geodesic sphere of frequency `n`: every icosahedron face split into n² triangles on a
+    /// barycentric grid, vertices projected radially onto the sphere. Unlike repeated
+    /// bisection (whose sizes come in steps of √2), the frequency sets the edge length in
+    /// steps of 1/n, and the triangles are nearly equilateral.
+    fn geodesic(radius: f64, n: usize) -> Self {
+        let (ico, faces) = Self::icosahedron();
+        let nf = n as f64;
+        let mut pts: Vec<[f64; 3]> = ico.iter().map(|&p| scale(p, radius)).collect();
+        let project = |p: [f64; 3]| scale(p, radius / norm(p));
+        // Vertices inside icosahedron edges, generated from the smaller corner id so that
+        // both faces sharing the edge see bitwise the same points.
+        let mut edge_start: HashMap<(u32, u32), u32> = HashMap::with_capacity(30);
+        for f in &faces {
+            for k in 0..3 {
+                let (a, b) = (f[k].min(f[(k + 1) % 3]), f[k].max(f[(k + 1) % 3]));
+                if let std::collections::hash_map::Entry::Vacant(e) = edge_start.entry((a, b)) {
+                    e.insert(pts.len() as u32);
+                    let (pa, pb) = (ico[a as usize], ico[b as usize]);
+                    for i in 1..n {
+                        pts.push(project(add(pa, scale(sub(pb, pa), i as f64 / nf))));
                     }
                 }
             }
         }
+        // Point k/n of the way from corner p to corner q (0 < k < n).
+        let on_edge = |p: u32, q: u32, k: usize| -> u32 {
+            let start = edge_start[&(p.min(q), p.max(q))];
+            if p < q {
+                start + (k - 1) as u32
+            } else {
+                start + (n - k - 1) as u32
+            }
+        };
+        let mut tri_v: Vec<[u32; 3]> = Vec::with_capacity(20 * n * n);
+        let mut grid: Vec<u32> = Vec::with_capacity((n + 1) * (n + 2) / 2);
+        for f in &faces {
+            let [a, b, c] = *f;
+            let (pa, pb, pc) = (ico[a as usize], ico[b as usize], ico[c as usize]);
+            // grid[row(i) + j] = vertex at A + i/n (B−A) + j/n (C−A), i + j ≤ n.
+            grid.clear();
+            for i in 0..=n {
+                for j in 0..=(n - i) {
+                    let id = match (i, j) {
+                        (0, 0) => a,
+                        _ if i == n => b,
+                        _ if j == n => c,
+                        (_, 0) => on_edge(a, b, i),
+                        (0, _) => on_edge(a, c, j),
+                        _ if i + j == n => on_edge(b, c, j),
+                        _ => {
+                            let p = add(pa, add(scale(sub(pb, pa), i as f64 / nf), scale(sub(pc, pa), j as f64 / nf)));
+                            pts.push(project(p));
+                            (pts.len() - 1) as u32
+                        }
+                    };
+                    grid.push(id);
+                }
+            }
+            let row = |i: usize| i * (n + 1) - i * (i.saturating_sub(1)) / 2;
+            let at = |i: usize, j: usize| grid[row(i) + j];
+            for i in 0..n {
+                for j in 0..(n - i) {
+                    tri_v.push([at(i, j), at(i + 1, j), at(i, j + 1)]);
+                    if i + j + 2 <= n {
+                        tri_v.push([at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)]);
+                    }
+                }
+            }
+        }
+        // Neighbours through a directed-edge map (built once; refinement then updates the
+        // links locally).
+        let mut half: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * tri_v.len());
+        for (t, v) in tri_v.iter().enumerate() {
+            for k in 0..3 {
+                half.insert((v[(k + 1) % 3], v[(k + 2) % 3]), t as u32);
+            }
+        }
+        let tris = tri_v
+            .iter()
+            .map(|&v| Tri { v, n: [0, 1, 2].map(|k| half[&(v[(k + 2) % 3], v[(k + 1) % 3])]) })
+            .collect();
         Refiner { radius, pts, tris }
     }
 
@@ -165,14 +261,23 @@ impl Refiner {
     fn needs_split<F: Fn([f64; 3]) -> f64>(&self, t: u32, size: &F) -> bool {
         let v = self.tris[t as usize].v;
         let [a, b, c] = v.map(|i| self.pts[i as usize]);
-        let l2 = self.edge_key(v[1], v[2]).0.max(self.edge_key(v[2], v[0]).0).max(self.edge_key(v[0], v[1]).0);
+        let l2 = self
+            .edge_key(v[1], v[2])
+            .0
+            .max(self.edge_key(v[2], v[0]).0)
+            .max(self.edge_key(v[0], v[1]).0);
         let g = add(add(a, b), c);
         let x = scale(g, self.radius / norm(g));
         let h = LONGEST_EDGE_FACTOR * size(x);
         l2 > h * h
     }
 
-    fn refine<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, field: &str, limit: usize) -> Result<(), MeshError> {
+    fn refine<F: Fn([f64; 3]) -> f64>(
+        &mut self,
+        size: &F,
+        field: &str,
+        limit: usize,
+    ) -> Result<(), MeshError> {
         // Depth-first work stack; a triangle may be pushed several times, the criterion is
         // re-evaluated when popped.
         let mut stack: Vec<u32> = (0..self.tris.len() as u32).rev().collect();
@@ -195,7 +300,10 @@ impl Refiner {
                 let (t2, u2) = self.bisect_pair(cur, i, u, j);
                 stack.extend_from_slice(&[u2, u, t2, cur]);
                 if self.tris.len() > limit {
-                    return Err(MeshError::TooLarge { field: field.to_string(), limit });
+                    return Err(MeshError::TooLarge {
+                        field: field.to_string(),
+                        limit,
+                    });
                 }
                 if cur == t {
                     break;
@@ -244,10 +352,22 @@ impl Refiner {
 
         let t2 = self.tris.len() as u32;
         let u2 = t2 + 1;
-        self.tris[t as usize] = Tri { v: [a, b, m], n: [u2, t2, n_ab] };
-        self.tris.push(Tri { v: [a, m, c], n: [u, n_ca, t] });
-        self.tris[u as usize] = Tri { v: [d, c, m], n: [t2, u2, n_dc] };
-        self.tris.push(Tri { v: [d, m, b], n: [t, n_bd, u] });
+        self.tris[t as usize] = Tri {
+            v: [a, b, m],
+            n: [u2, t2, n_ab],
+        };
+        self.tris.push(Tri {
+            v: [a, m, c],
+            n: [u, n_ca, t],
+        });
+        self.tris[u as usize] = Tri {
+            v: [d, c, m],
+            n: [t2, u2, n_dc],
+        };
+        self.tris.push(Tri {
+            v: [d, m, b],
+            n: [t, n_bd, u],
+        });
         self.relink(n_ca, t, t2);
         self.relink(n_bd, u, u2);
         (t2, u2)
@@ -259,7 +379,10 @@ impl Refiner {
         let mut cur = start;
         loop {
             let tv = self.tris[cur as usize];
-            let k = tv.v.iter().position(|&x| x == a).expect("vertex not in triangle");
+            let k =
+                tv.v.iter()
+                    .position(|&x| x == a)
+                    .expect("vertex not in triangle");
             if tv.v[(k + 1) % 3] == target || tv.v[(k + 2) % 3] == target {
                 return true;
             }
@@ -302,8 +425,14 @@ impl Refiner {
                 let n_ab = tt.n[(i + 2) % 3];
                 let n_bd = tu.n[(j + 1) % 3];
                 let n_dc = tu.n[(j + 2) % 3];
-                self.tris[t as usize] = Tri { v: [a, b, d], n: [n_bd, u, n_ab] };
-                self.tris[u as usize] = Tri { v: [a, d, c], n: [n_dc, n_ca, t] };
+                self.tris[t as usize] = Tri {
+                    v: [a, b, d],
+                    n: [n_bd, u, n_ab],
+                };
+                self.tris[u as usize] = Tri {
+                    v: [a, d, c],
+                    n: [n_dc, n_ca, t],
+                };
                 self.relink(n_bd, u, t);
                 self.relink(n_ca, t, u);
                 for x in [t, u, n_ab, n_bd, n_dc, n_ca] {
@@ -335,10 +464,18 @@ mod tests {
         }
         for (&(a, b), &cnt) in &directed {
             assert_eq!(cnt, 1, "directed edge ({a},{b}) used {cnt} times");
-            assert_eq!(directed.get(&(b, a)), Some(&1), "edge ({a},{b}) has no twin");
+            assert_eq!(
+                directed.get(&(b, a)),
+                Some(&1),
+                "edge ({a},{b}) has no twin"
+            );
         }
         // Euler characteristic of a sphere: V − E + F = 2.
-        let (v, e, f) = (s.points.len() as i64, directed.len() as i64 / 2, s.triangles.len() as i64);
+        let (v, e, f) = (
+            s.points.len() as i64,
+            directed.len() as i64 / 2,
+            s.triangles.len() as i64,
+        );
         assert_eq!(v - e + f, 2);
     }
 
@@ -357,15 +494,33 @@ mod tests {
                 }
                 let e1 = sub(p[(k + 1) % 3], p[k]);
                 let e2 = sub(p[(k + 2) % 3], p[k]);
-                min_angle = min_angle.min((dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees());
+                min_angle =
+                    min_angle.min((dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees());
             }
         }
         (sum / n as f64, lo, hi, min_angle)
     }
 
     #[test]
+    fn geodesic_base_is_closed_regular_and_calibrated() {
+        for n in [1usize, 2, 5, 13, 40] {
+            let r = Refiner::geodesic(1.0, n);
+            let s = SphereSurface { points: r.pts.clone(), triangles: r.tris.iter().map(|t| t.v).collect() };
+            assert_eq!(s.triangles.len(), 20 * n * n);
+            check_closed_outward(&s);
+            let (mean, _lo, hi, min_angle) = edge_stats(&s);
+            if n >= 5 {
+                assert!((mean * n as f64 / GEODESIC_MEAN_EDGE - 1.0).abs() < 0.01, "n={n}: mean {mean}");
+            }
+            // The base mesh must never trigger refinement by itself.
+            assert!(hi < 1.11 * mean && 1.11 * 1.1 < LONGEST_EDGE_FACTOR);
+            assert!(min_angle > 53.0, "n={n}: min angle {min_angle}");
+        }
+    }
+
+    #[test]
     fn icosahedron_is_closed_and_outward() {
-        let s = triangulate_sphere(2.0, |_| 100.0, "seeding").unwrap();
+        let s = triangulate_sphere(2.0, 100.0, |_| 100.0, "seeding").unwrap();
         assert_eq!(s.triangles.len(), 20);
         assert_eq!(s.points.len(), 12);
         check_closed_outward(&s);
@@ -377,7 +532,7 @@ mod tests {
     #[test]
     fn uniform_refinement_hits_mean_edge_and_is_convex() {
         let h = 0.05;
-        let s = triangulate_sphere(1.0, |_| h, "seeding").unwrap();
+        let s = triangulate_sphere(1.0, h, |_| h, "seeding").unwrap();
         check_closed_outward(&s);
         let (mean, lo, hi, min_angle) = edge_stats(&s);
         assert!((mean / h - 1.0).abs() < 0.08, "mean edge {mean} vs {h}");
@@ -399,25 +554,31 @@ mod tests {
 
     #[test]
     fn deterministic_and_fast() {
-        let size = |x: [f64; 3]| 0.01f64.min(0.002 + 0.3 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.05).max(0.0));
+        let size = |x: [f64; 3]| {
+            0.01f64.min(0.002 + 0.3 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.05).max(0.0))
+        };
         let t0 = std::time::Instant::now();
-        let a = triangulate_sphere(1.0, size, "seeding").unwrap();
+        let a = triangulate_sphere(1.0, 0.01, size, "seeding").unwrap();
         let dt = t0.elapsed();
-        let b = triangulate_sphere(1.0, size, "seeding").unwrap();
+        let b = triangulate_sphere(1.0, 0.01, size, "seeding").unwrap();
         assert_eq!(a, b);
         check_closed_outward(&a);
-        // Uniform h = 0.0075 on the unit sphere → ≈ 2×10⁵ triangles.
+        // Uniform h = 0.012 on the unit sphere → 2×10⁵ triangles.
         let t0 = std::time::Instant::now();
-        let big = triangulate_sphere(1.0, |_| 0.0075, "seeding").unwrap();
+        let big = triangulate_sphere(1.0, 0.012, |_| 0.012, "seeding").unwrap();
         let dt_big = t0.elapsed();
         assert!(big.triangles.len() > 150_000, "{}", big.triangles.len());
-        eprintln!("graded: {} triangles in {dt:?}; uniform: {} triangles in {dt_big:?}", a.triangles.len(), big.triangles.len());
+        eprintln!(
+            "graded: {} triangles in {dt:?}; uniform: {} triangles in {dt_big:?}",
+            a.triangles.len(),
+            big.triangles.len()
+        );
         assert!(dt_big.as_secs_f64() < 2.0, "too slow: {dt_big:?}");
     }
 
     #[test]
     fn too_many_triangles_is_an_error() {
-        let e = triangulate_sphere_limited(1.0, |_| 1e-3, "seeding", 10_000).unwrap_err();
+        let e = triangulate_sphere_limited(1.0, 1e-3, |_| 1e-3, "seeding", 10_000).unwrap_err();
         assert!(matches!(e, MeshError::TooLarge { .. }));
         assert!(e.to_string().starts_with("seeding: "));
     }

@@ -38,7 +38,11 @@ pub(crate) fn tetrahedralize(
     let mut tg = tritet::Tetgen::new(
         points.len(),
         Some(vec![3; facets.len()]),
-        if regions.is_empty() { None } else { Some(regions.len()) },
+        if regions.is_empty() {
+            None
+        } else {
+            Some(regions.len())
+        },
         None,
     )
     .map_err(err)?;
@@ -52,12 +56,23 @@ pub(crate) fn tetrahedralize(
         }
     }
     for (i, r) in regions.iter().enumerate() {
-        tg.set_region(i, r.marker, r.point[0], r.point[1], r.point[2], r.max_volume).map_err(err)?;
+        tg.set_region(
+            i,
+            r.marker,
+            r.point[0],
+            r.point[1],
+            r.point[2],
+            r.max_volume,
+        )
+        .map_err(err)?;
     }
 
     let (nodes, mut tets) = {
-        let _guard = TETGEN_LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        tg.generate_mesh(false, false, None, Some(radius_edge_ratio)).map_err(err)?;
+        let _guard = TETGEN_LOCK
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        tg.generate_mesh(false, false, None, Some(radius_edge_ratio))
+            .map_err(err)?;
         let npoint = tg.out_npoint();
         let ncell = tg.out_ncell();
         if ncell == 0 || npoint < 4 {
@@ -68,17 +83,23 @@ pub(crate) fn tetrahedralize(
             )));
         }
         if tg.out_cell_npoint() != 4 {
-            return Err(MeshError::TetGen(format!("expected 4-node tets, got {}", tg.out_cell_npoint())));
+            return Err(MeshError::TetGen(format!(
+                "expected 4-node tets, got {}",
+                tg.out_cell_npoint()
+            )));
         }
-        let nodes: Vec<[f64; 3]> =
-            (0..npoint).map(|i| [tg.out_point(i, 0), tg.out_point(i, 1), tg.out_point(i, 2)]).collect();
+        let nodes: Vec<[f64; 3]> = (0..npoint)
+            .map(|i| [tg.out_point(i, 0), tg.out_point(i, 1), tg.out_point(i, 2)])
+            .collect();
         let mut tets: Vec<[u32; 4]> = Vec::with_capacity(ncell);
         for c in 0..ncell {
             let mut t = [0u32; 4];
             for (m, slot) in t.iter_mut().enumerate() {
                 let p = tg.out_cell_point(c, m);
                 if p >= npoint {
-                    return Err(MeshError::TetGen(format!("tet {c} refers to node {p} of {npoint}")));
+                    return Err(MeshError::TetGen(format!(
+                        "tet {c} refers to node {p} of {npoint}"
+                    )));
                 }
                 *slot = p as u32;
             }

@@ -183,7 +183,11 @@ pub struct OutputSpec {
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        Self { history_interval: None, frame_interval: None, frames: true }
+        Self {
+            history_interval: None,
+            frame_interval: None,
+            frames: true,
+        }
     }
 }
 
@@ -209,15 +213,26 @@ pub fn load_scene(path: &Path, overrides: &[String]) -> Result<LoadedScene, Inpu
 }
 
 /// Parses scene text (with `--set` overrides) into a validated [`LoadedScene`].
-pub fn parse_scene(file: &str, text: &str, overrides: &[String]) -> Result<LoadedScene, InputError> {
+pub fn parse_scene(
+    file: &str,
+    text: &str,
+    overrides: &[String],
+) -> Result<LoadedScene, InputError> {
     let table: toml::Table = toml::from_str(text).map_err(|e| {
         let msg = e.message().replace('\n', " ");
-        let line = e.span().map(|s| text[..s.start.min(text.len())].lines().count().max(1));
-        InputError::new(file, line.map(|l| format!("line {l}")).unwrap_or_default(), format!("invalid TOML: {msg}"))
+        let line = e
+            .span()
+            .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
+        InputError::new(
+            file,
+            line.map(|l| format!("line {l}")).unwrap_or_default(),
+            format!("invalid TOML: {msg}"),
+        )
     })?;
     let mut value = toml::Value::Table(table);
     for o in overrides {
-        apply_override(&mut value, o).map_err(|m| InputError::new("<command line>", format!("--set {o}"), m))?;
+        apply_override(&mut value, o)
+            .map_err(|m| InputError::new("<command line>", format!("--set {o}"), m))?;
     }
     let scene: Scene = serde_path_to_error::deserialize(value.clone()).map_err(|e| {
         let path = e.path().to_string();
@@ -225,8 +240,16 @@ pub fn parse_scene(file: &str, text: &str, overrides: &[String]) -> Result<Loade
         InputError::new(file, if path == "." { String::new() } else { path }, inner)
     })?;
     validate::validate_scene(file, &scene)?;
-    let text = if overrides.is_empty() { text.to_string() } else { toml::to_string(&value).unwrap_or_else(|_| text.to_string()) };
-    Ok(LoadedScene { path: file.to_string(), text, scene })
+    let text = if overrides.is_empty() {
+        text.to_string()
+    } else {
+        toml::to_string(&value).unwrap_or_else(|_| text.to_string())
+    };
+    Ok(LoadedScene {
+        path: file.to_string(),
+        text,
+        scene,
+    })
 }
 
 impl GrainSpec {

@@ -16,7 +16,9 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), St
     }
     let value = parse_value(raw.trim());
     let segments = split_path(path)?;
-    let (last, parents) = segments.split_last().expect("split_path returns at least one segment");
+    let (last, parents) = segments
+        .split_last()
+        .expect("split_path returns at least one segment");
     let mut node: &mut toml::Value = root;
     let mut walked = String::new();
     for seg in parents {
@@ -34,9 +36,13 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), St
             Ok(())
         }
         toml::Value::Array(a) => {
-            let i: usize = last.parse().map_err(|_| format!("'{walked}' is a list: '{last}' is not an index"))?;
+            let i: usize = last
+                .parse()
+                .map_err(|_| format!("'{walked}' is a list: '{last}' is not an index"))?;
             let n = a.len();
-            let slot = a.get_mut(i).ok_or_else(|| format!("'{walked}' has {n} entries, no index {i}"))?;
+            let slot = a
+                .get_mut(i)
+                .ok_or_else(|| format!("'{walked}' has {n} entries, no index {i}"))?;
             *slot = value;
             Ok(())
         }
@@ -44,14 +50,27 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), St
     }
 }
 
-fn step_into<'v>(node: &'v mut toml::Value, seg: &str, walked: &str) -> Result<&'v mut toml::Value, String> {
-    let here = if walked.is_empty() { seg.to_string() } else { format!("{walked}.{seg}") };
+fn step_into<'v>(
+    node: &'v mut toml::Value,
+    seg: &str,
+    walked: &str,
+) -> Result<&'v mut toml::Value, String> {
+    let here = if walked.is_empty() {
+        seg.to_string()
+    } else {
+        format!("{walked}.{seg}")
+    };
     match node {
-        toml::Value::Table(t) => t.get_mut(seg).ok_or_else(|| format!("no field '{here}' in the scene")),
+        toml::Value::Table(t) => t
+            .get_mut(seg)
+            .ok_or_else(|| format!("no field '{here}' in the scene")),
         toml::Value::Array(a) => {
-            let i: usize = seg.parse().map_err(|_| format!("'{walked}' is a list: '{seg}' is not an index"))?;
+            let i: usize = seg
+                .parse()
+                .map_err(|_| format!("'{walked}' is a list: '{seg}' is not an index"))?;
             let n = a.len();
-            a.get_mut(i).ok_or_else(|| format!("'{walked}' has {n} entries, no index {i}"))
+            a.get_mut(i)
+                .ok_or_else(|| format!("'{walked}' has {n} entries, no index {i}"))
         }
         _ => Err(format!("'{walked}' is a value, it has no field '{seg}'")),
     }
@@ -71,7 +90,9 @@ fn split_path(path: &str) -> Result<Vec<String>, String> {
         }
         rest = &rest[name_end..];
         while let Some(stripped) = rest.strip_prefix('[') {
-            let close = stripped.find(']').ok_or_else(|| format!("unclosed '[' in path '{path}'"))?;
+            let close = stripped
+                .find(']')
+                .ok_or_else(|| format!("unclosed '[' in path '{path}'"))?;
             out.push(stripped[..close].to_string());
             rest = &stripped[close + 1..];
         }
@@ -85,7 +106,9 @@ fn split_path(path: &str) -> Result<Vec<String>, String> {
 fn parse_value(raw: &str) -> toml::Value {
     let doc = format!("v = {raw}");
     match toml::from_str::<toml::Table>(&doc) {
-        Ok(mut t) => t.remove("v").unwrap_or(toml::Value::String(raw.to_string())),
+        Ok(mut t) => t
+            .remove("v")
+            .unwrap_or(toml::Value::String(raw.to_string())),
         Err(_) => toml::Value::String(raw.to_string()),
     }
 }
@@ -112,10 +135,18 @@ mod tests {
     #[test]
     fn bad_paths_are_explained() {
         let mut t = table("[a]\nb = 1\n[[g]]\nr = 1.0\n");
-        assert!(apply_override(&mut t, "x.y=1").unwrap_err().contains("no field 'x'"));
-        assert!(apply_override(&mut t, "g[3].r=1").unwrap_err().contains("no index 3"));
-        assert!(apply_override(&mut t, "a.b.c=1").unwrap_err().contains("has no field"));
-        assert!(apply_override(&mut t, "novalue").unwrap_err().contains("PATH=VALUE"));
+        assert!(apply_override(&mut t, "x.y=1")
+            .unwrap_err()
+            .contains("no field 'x'"));
+        assert!(apply_override(&mut t, "g[3].r=1")
+            .unwrap_err()
+            .contains("no index 3"));
+        assert!(apply_override(&mut t, "a.b.c=1")
+            .unwrap_err()
+            .contains("has no field"));
+        assert!(apply_override(&mut t, "novalue")
+            .unwrap_err()
+            .contains("PATH=VALUE"));
         // the table is intact after a failed override
         assert_eq!(t["a"]["b"].as_integer(), Some(1));
     }

@@ -66,7 +66,10 @@ impl Checker<'_> {
         for (i, t) in h.times.iter().enumerate() {
             self.non_negative(&format!("{field}.times[{i}]"), *t)?;
             if i > 0 && *t <= h.times[i - 1] {
-                return Err(self.err(format!("{field}.times[{i}]"), "times must increase strictly"));
+                return Err(self.err(
+                    format!("{field}.times[{i}]"),
+                    "times must increase strictly",
+                ));
             }
         }
         for (i, v) in h.values.iter().enumerate() {
@@ -82,7 +85,10 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     c.positive("simulation.duration", s.duration)?;
     c.positive("simulation.dt_safety", s.dt_safety)?;
     if s.dt_safety > 1.0 {
-        return Err(c.err("simulation.dt_safety", format!("must be ≤ 1, got {}", s.dt_safety)));
+        return Err(c.err(
+            "simulation.dt_safety",
+            format!("must be ≤ 1, got {}", s.dt_safety),
+        ));
     }
     if let Some(t) = s.target_dt {
         c.positive("simulation.target_dt", t)?;
@@ -99,7 +105,10 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         c.positive(&f("density"), m.density)?;
         c.finite(&f("poisson_ratio"), m.poisson_ratio)?;
         if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
-            return Err(c.err(f("poisson_ratio"), format!("must be in (−1, 0.5), got {}", m.poisson_ratio)));
+            return Err(c.err(
+                f("poisson_ratio"),
+                format!("must be in (−1, 0.5), got {}", m.poisson_ratio),
+            ));
         }
     }
 
@@ -113,7 +122,10 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
             return Err(c.err(f("material"), format!("unknown material '{}'", g.material)));
         }
         if !names.insert(g.display_name(i)) {
-            return Err(c.err(f("name"), format!("duplicate grain name '{}'", g.display_name(i))));
+            return Err(c.err(
+                f("name"),
+                format!("duplicate grain name '{}'", g.display_name(i)),
+            ));
         }
         c.vec3(&f("centre"), &g.centre)?;
         c.vec3(&f("velocity"), &g.velocity)?;
@@ -131,7 +143,10 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
                 for k in 0..3 {
                     c.positive(&format!("grains[{i}].shape.block.size[{k}]"), b.size[k])?;
                     if b.divisions[k] == 0 {
-                        return Err(c.err(format!("grains[{i}].shape.block.divisions[{k}]"), "must be ≥ 1"));
+                        return Err(c.err(
+                            format!("grains[{i}].shape.block.divisions[{k}]"),
+                            "must be ≥ 1",
+                        ));
                     }
                 }
             }
@@ -152,12 +167,30 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     Ok(())
 }
 
-fn validate_boundary(c: &Checker, scene: &Scene, i: usize, b: &BoundarySpec) -> Result<(), InputError> {
+fn validate_boundary(
+    c: &Checker,
+    scene: &Scene,
+    i: usize,
+    b: &BoundarySpec,
+) -> Result<(), InputError> {
     let f = |x: &str| format!("boundaries[{i}].{x}");
-    if b.name.is_empty() || !b.name.chars().all(|ch| ch.is_ascii_alphanumeric() || ch == '_') {
-        return Err(c.err(f("name"), "must be a non-empty identifier (letters, digits, _)"));
+    if b.name.is_empty()
+        || !b
+            .name
+            .chars()
+            .all(|ch| ch.is_ascii_alphanumeric() || ch == '_')
+    {
+        return Err(c.err(
+            f("name"),
+            "must be a non-empty identifier (letters, digits, _)",
+        ));
     }
-    if !scene.grains.iter().enumerate().any(|(k, g)| g.display_name(k) == b.grain) {
+    if !scene
+        .grains
+        .iter()
+        .enumerate()
+        .any(|(k, g)| g.display_name(k) == b.grain)
+    {
         return Err(c.err(f("grain"), format!("no grain named '{}'", b.grain)));
     }
     match &b.select {
@@ -176,7 +209,10 @@ fn validate_boundary(c: &Checker, scene: &Scene, i: usize, b: &BoundarySpec) -> 
         }
     }
     if b.velocity.is_some() && b.displacement.is_some() {
-        return Err(c.err(f("velocity"), "give either velocity or displacement, not both"));
+        return Err(c.err(
+            f("velocity"),
+            "give either velocity or displacement, not both",
+        ));
     }
     if let Some(h) = &b.velocity {
         c.history(&f("velocity"), h)?;

@@ -42,7 +42,10 @@ impl ElementScratch {
     pub fn new(model: &Model) -> Self {
         Self {
             corner_forces: vec![[[0.0; 3]; 4]; model.num_elements()],
-            chunk_results: vec![ChunkResult::default(); model.num_elements().div_ceil(ELEMENT_CHUNK)],
+            chunk_results: vec![
+                ChunkResult::default();
+                model.num_elements().div_ceil(ELEMENT_CHUNK)
+            ],
         }
     }
 }
@@ -67,34 +70,49 @@ pub fn compute_internal_forces_into(
             for (k, corner) in out.iter_mut().enumerate() {
                 let e = base + k;
                 let t = &model.tets[e];
-                let xe = [x[t[0] as usize], x[t[1] as usize], x[t[2] as usize], x[t[3] as usize]];
+                let xe = [
+                    x[t[0] as usize],
+                    x[t[1] as usize],
+                    x[t[2] as usize],
+                    x[t[3] as usize],
+                ];
                 let law = &model.laws[model.tet_law[e] as usize];
-                let ElementForces { nodal, strain_energy, jacobian } = tet_forces(&xe, &model.tet_reference[e], law);
+                let ElementForces {
+                    nodal,
+                    strain_energy,
+                    jacobian,
+                } = tet_forces(&xe, &model.tet_reference[e], law);
                 if bad.is_none() && !(jacobian > 0.0 && strain_energy.is_finite()) {
                     bad = Some((e, jacobian));
                 }
                 energy += strain_energy;
                 *corner = nodal;
             }
-            *result = ChunkResult { strain_energy: energy, bad_element: bad };
+            *result = ChunkResult {
+                strain_energy: energy,
+                bad_element: bad,
+            };
         });
 
     let corner_forces = &scratch.corner_forces;
     let inc = &model.incidence;
-    force.par_chunks_mut(NODE_CHUNK).enumerate().for_each(|(chunk, out)| {
-        let base = chunk * NODE_CHUNK;
-        for (k, f) in out.iter_mut().enumerate() {
-            let n = base + k;
-            let mut acc = [0.0; 3];
-            for &entry in &inc.entries[inc.offsets[n] as usize..inc.offsets[n + 1] as usize] {
-                let c = &corner_forces[(entry >> 2) as usize][(entry & 3) as usize];
-                acc[0] += c[0];
-                acc[1] += c[1];
-                acc[2] += c[2];
+    force
+        .par_chunks_mut(NODE_CHUNK)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let base = chunk * NODE_CHUNK;
+            for (k, f) in out.iter_mut().enumerate() {
+                let n = base + k;
+                let mut acc = [0.0; 3];
+                for &entry in &inc.entries[inc.offsets[n] as usize..inc.offsets[n + 1] as usize] {
+                    let c = &corner_forces[(entry >> 2) as usize][(entry & 3) as usize];
+                    acc[0] += c[0];
+                    acc[1] += c[1];
+                    acc[2] += c[2];
+                }
+                *f = acc;
             }
-            *f = acc;
-        }
-    });
+        });
 
     let mut strain_energy = 0.0;
     let mut bad_element = None;
@@ -104,5 +122,8 @@ pub fn compute_internal_forces_into(
             bad_element = r.bad_element;
         }
     }
-    InternalForceSummary { strain_energy, bad_element }
+    InternalForceSummary {
+        strain_energy,
+        bad_element,
+    }
 }

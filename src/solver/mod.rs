@@ -2,6 +2,8 @@
 
 pub mod forces;
 pub mod model;
+pub mod progress;
+pub mod run;
 pub mod step;
 pub mod timing;
 

@@ -99,7 +99,10 @@ pub fn mesh_shape(shape: &ShapeSpec) -> Result<TetMesh, mesh::MeshError> {
 }
 
 /// Builds the model of the given grains (all grains on one rank: `owned = 0..n`).
-pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<PrescribedMotion>), InputError> {
+pub fn build_model(
+    loaded: &LoadedScene,
+    owned: &[usize],
+) -> Result<(Model, Vec<PrescribedMotion>), InputError> {
     let scene = &loaded.scene;
     let file = &loaded.path;
     let mat_names: Vec<&String> = scene.materials.keys().collect();
@@ -125,16 +128,20 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
         let m = match cache.get(&key) {
             Some(m) => m.clone(),
             None => {
-                let m = Arc::new(
-                    mesh_shape(&g.shape)
-                        .map_err(|e| InputError::new(file, format!("grains[{gi}].shape"), e.to_string()))?,
-                );
-                mesh::validate(&m).map_err(|e| InputError::new(file, format!("grains[{gi}].shape"), e.to_string()))?;
+                let m = Arc::new(mesh_shape(&g.shape).map_err(|e| {
+                    InputError::new(file, format!("grains[{gi}].shape"), e.to_string())
+                })?);
+                mesh::validate(&m).map_err(|e| {
+                    InputError::new(file, format!("grains[{gi}].shape"), e.to_string())
+                })?;
                 cache.insert(key, m.clone());
                 m
             }
         };
-        let material = mat_names.iter().position(|n| **n == g.material).expect("validated");
+        let material = mat_names
+            .iter()
+            .position(|n| **n == g.material)
+            .expect("validated");
         let node_base = x0.len();
         let elem_base = tets.len();
         let quality = mesh::quality(&m);
@@ -147,8 +154,16 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
             tet_law.push(material as u16);
         }
         let surface = SurfaceMesh {
-            nodes: surface_local.nodes.iter().map(|n| n + node_base as u32).collect(),
-            facets: surface_local.facets.iter().map(|f| f.map(|n| n + node_base as u32)).collect(),
+            nodes: surface_local
+                .nodes
+                .iter()
+                .map(|n| n + node_base as u32)
+                .collect(),
+            facets: surface_local
+                .facets
+                .iter()
+                .map(|f| f.map(|n| n + node_base as u32))
+                .collect(),
         };
         // The bounding sphere is about the shape origin moved to `centre`; for blocks the
         // origin is a corner, so use the node centroid instead.
@@ -163,7 +178,12 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
         };
         let br = x0[node_base..]
             .iter()
-            .map(|p| ((p[0] - centroid[0]).powi(2) + (p[1] - centroid[1]).powi(2) + (p[2] - centroid[2]).powi(2)).sqrt())
+            .map(|p| {
+                ((p[0] - centroid[0]).powi(2)
+                    + (p[1] - centroid[1]).powi(2)
+                    + (p[2] - centroid[2]).powi(2))
+                .sqrt()
+            })
             .fold(0.0, f64::max);
         grains.push(GrainBlock {
             name: g.display_name(gi),
@@ -182,7 +202,14 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
     for (e, t) in tets.iter().enumerate() {
         let r = TetReference::new(t.map(|n| x0[n as usize])).ok_or_else(|| {
             let gi = grains.partition_point(|g: &GrainBlock| g.elements.end <= e);
-            InputError::new(file, format!("grains[{}]", grains[gi].global_id), format!("element {} is inverted or degenerate", e - grains[gi].elements.start))
+            InputError::new(
+                file,
+                format!("grains[{}]", grains[gi].global_id),
+                format!(
+                    "element {} is inverted or degenerate",
+                    e - grains[gi].elements.start
+                ),
+            )
         })?;
         tet_reference.push(r);
     }
@@ -199,10 +226,10 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
             2.0 / (k / m).sqrt()
         })
         .collect();
-    let (dt_critical_element, dt_crit) = elem_dt
-        .iter()
-        .enumerate()
-        .fold((0, f64::INFINITY), |acc, (e, &d)| if d < acc.1 { (e, d) } else { acc });
+    let (dt_critical_element, dt_crit) = elem_dt.iter().enumerate().fold(
+        (0, f64::INFINITY),
+        |acc, (e, &d)| if d < acc.1 { (e, d) } else { acc },
+    );
     let dt_stable = sim.dt_safety * dt_crit;
 
     // Mass scaling: raise an element's density so its own stable step reaches target_dt.
@@ -265,7 +292,14 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
     }
     if let Some(orphan) = (0..n).find(|&i| counts[i] == counts[i + 1]) {
         let gi = grains.partition_point(|g: &GrainBlock| g.nodes.end <= orphan);
-        return Err(InputError::new(file, format!("grains[{}]", grains[gi].global_id), format!("node {} belongs to no element", orphan - grains[gi].nodes.start)));
+        return Err(InputError::new(
+            file,
+            format!("grains[{}]", grains[gi].global_id),
+            format!(
+                "node {} belongs to no element",
+                orphan - grains[gi].nodes.start
+            ),
+        ));
     }
 
     // Prescribed motions
@@ -283,7 +317,10 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
                 match &b.select {
                     NodeSelector::All => true,
                     NodeSelector::BeyondPlane { point, normal } => {
-                        (p[0] - point[0]) * normal[0] + (p[1] - point[1]) * normal[1] + (p[2] - point[2]) * normal[2] >= 0.0
+                        (p[0] - point[0]) * normal[0]
+                            + (p[1] - point[1]) * normal[1]
+                            + (p[2] - point[2]) * normal[2]
+                            >= 0.0
                     }
                     NodeSelector::FartherThan { point, distance } => dist(&p, point) > *distance,
                     NodeSelector::Within { point, distance } => dist(&p, point) <= *distance,
@@ -292,13 +329,28 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
             .map(|i| i as u32)
             .collect();
         if sel.is_empty() {
-            return Err(InputError::new(file, format!("boundaries[{bi}].select"), format!("selects no node of grain '{}'", b.grain)));
+            return Err(InputError::new(
+                file,
+                format!("boundaries[{bi}].select"),
+                format!("selects no node of grain '{}'", b.grain),
+            ));
         }
         let components = b.components.unwrap_or([true; 3]);
-        let mask = components.iter().enumerate().fold(0u8, |m, (i, &c)| if c { m | (1 << i) } else { m });
+        let mask = components
+            .iter()
+            .enumerate()
+            .fold(0u8, |m, (i, &c)| if c { m | (1 << i) } else { m });
         for &i in &sel {
             if driven[i as usize] & mask != 0 {
-                return Err(InputError::new(file, format!("boundaries[{bi}]"), format!("node {} of grain '{}' is already driven by another boundary", i as usize - grain.nodes.start, b.grain)));
+                return Err(InputError::new(
+                    file,
+                    format!("boundaries[{bi}]"),
+                    format!(
+                        "node {} of grain '{}' is already driven by another boundary",
+                        i as usize - grain.nodes.start,
+                        b.grain
+                    ),
+                ));
             }
             driven[i as usize] |= mask;
         }
@@ -311,10 +363,13 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
             }
             c.map(|v| v / sel.len() as f64)
         });
-        let offsets = sel.iter().map(|&i| {
-            let p = x0[i as usize];
-            [p[0] - centre0[0], p[1] - centre0[1], p[2] - centre0[2]]
-        }).collect();
+        let offsets = sel
+            .iter()
+            .map(|&i| {
+                let p = x0[i as usize];
+                [p[0] - centre0[0], p[1] - centre0[1], p[2] - centre0[2]]
+            })
+            .collect();
         let translation = match (&b.velocity, &b.displacement) {
             (Some(v), _) => Translation::Velocity(v.clone()),
             (_, Some(d)) => Translation::Displacement(d.clone()),
@@ -343,7 +398,10 @@ pub fn build_model(loaded: &LoadedScene, owned: &[usize]) -> Result<(Model, Vec<
             tet_law,
             mass,
             physical_mass,
-            incidence: NodeIncidence { offsets: counts, entries },
+            incidence: NodeIncidence {
+                offsets: counts,
+                entries,
+            },
             driven,
             dt,
             dt_stable,

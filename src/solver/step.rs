@@ -98,7 +98,14 @@ impl Solver {
             elements: ElementScratch::new(&model),
             node_partials: vec![NodePartials::default(); n.div_ceil(NODE_CHUNK)],
         };
-        Self { model, motions, state, scratch, timers: StageTimers::default(), energy_scale: 0.0 }
+        Self {
+            model,
+            motions,
+            state,
+            scratch,
+            timers: StageTimers::default(),
+            energy_scale: 0.0,
+        }
     }
 
     /// Advances one step. Errors name time, step and the element or node that failed.
@@ -111,8 +118,9 @@ impl Solver {
 
         timers.time(Stage::Contact, || {});
 
-        let summary =
-            timers.time(Stage::InternalForces, || compute_internal_forces_into(model, &state.x, &mut scratch.elements, &mut scratch.force));
+        let summary = timers.time(Stage::InternalForces, || {
+            compute_internal_forces_into(model, &state.x, &mut scratch.elements, &mut scratch.force)
+        });
         if let Some((e, jac)) = summary.bad_element {
             let g = &model.grains[model.grain_of_element(e)];
             return Err(MufeError::Run(format!(
@@ -131,7 +139,9 @@ impl Solver {
             drive_prescribed_motions(model, &self.motions, state, scratch, dt);
         });
 
-        let partials = timers.time(Stage::Integrate, || integrate_and_sum(model, state, scratch, dt));
+        let partials = timers.time(Stage::Integrate, || {
+            integrate_and_sum(model, state, scratch, dt)
+        });
         if let Some(node) = partials.bad_node {
             let g = &model.grains[model.grains.partition_point(|g| g.nodes.end <= node)];
             return Err(MufeError::Run(format!(
@@ -148,8 +158,10 @@ impl Solver {
             e.kinetic = partials.kinetic;
             e.strain = summary.strain_energy;
             e.recoverable_strain = summary.strain_energy;
-            e.body_force.record(dt, partials.gravity_before, partials.gravity_after);
-            e.damping.record(dt, partials.damping_before, partials.damping_after);
+            e.body_force
+                .record(dt, partials.gravity_before, partials.gravity_after);
+            e.damping
+                .record(dt, partials.damping_before, partials.damping_after);
             e.boundary_work = state.motion_work.iter().map(|w| w.work).sum();
             if e.initial_total.is_none() {
                 e.initial_total = Some(e.total());
@@ -162,9 +174,11 @@ impl Solver {
         // Exploding energy: with every force accounted for, KE + U cannot exceed the energy
         // supplied; an unstable integration grows it exponentially past any such bound.
         let e = &state.energy;
-        self.energy_scale = self
-            .energy_scale
-            .max(e.external_work().abs() + e.initial_total.unwrap_or(0.0).abs() + e.damping_dissipation().abs());
+        self.energy_scale = self.energy_scale.max(
+            e.external_work().abs()
+                + e.initial_total.unwrap_or(0.0).abs()
+                + e.damping_dissipation().abs(),
+        );
         let stored = e.kinetic + e.strain;
         if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > 1e-30) {
             return Err(MufeError::Run(format!(
@@ -225,7 +239,13 @@ fn apply_body_and_damping_forces(model: &Model, state: &State, scratch: &mut Scr
 
 /// Overrides the driven components of v_{n+½} so that driven nodes land exactly on their
 /// prescribed positions at t_{n+1}; records reaction force, moment and work.
-fn drive_prescribed_motions(model: &Model, motions: &[PrescribedMotion], state: &mut State, scratch: &mut Scratch, dt: f64) {
+fn drive_prescribed_motions(
+    model: &Model,
+    motions: &[PrescribedMotion],
+    state: &mut State,
+    scratch: &mut Scratch,
+    dt: f64,
+) {
     let t = state.time;
     for (k, motion) in motions.iter().enumerate() {
         let mut working = motion.clone();
@@ -258,7 +278,11 @@ fn drive_prescribed_motions(model: &Model, motions: &[PrescribedMotion], state: 
             reaction.moment[1] += arm[2] * r[0] - arm[0] * r[2];
             reaction.moment[2] += arm[0] * r[1] - arm[1] * r[0];
         }
-        reaction.displacement = [c_now[0] - working.centre0[0], c_now[1] - working.centre0[1], c_now[2] - working.centre0[2]];
+        reaction.displacement = [
+            c_now[0] - working.centre0[0],
+            c_now[1] - working.centre0[1],
+            c_now[2] - working.centre0[2],
+        ];
         reaction.rotation = rotation_vector(&state.motion_rotation[k]);
         state.reactions[k] = reaction;
         state.motion_work[k].record(dt, p_before, p_after);
@@ -282,7 +306,12 @@ pub fn rotation_vector(q: &[f64; 9]) -> [f64; 3] {
 
 /// Kinetic energy and power sums over nodes (fixed chunks, summed in order), then
 /// x_{n+1} = x_n + Δt v_{n+½} and v ← v_{n+½}.
-fn integrate_and_sum(model: &Model, state: &mut State, scratch: &mut Scratch, dt: f64) -> NodePartials {
+fn integrate_and_sum(
+    model: &Model,
+    state: &mut State,
+    scratch: &mut Scratch,
+    dt: f64,
+) -> NodePartials {
     let g = model.gravity;
     let alpha = model.damping;
     state
@@ -306,7 +335,9 @@ fn integrate_and_sum(model: &Model, state: &mut State, scratch: &mut Scratch, dt
                 p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
                 p.damping_before -= alpha * m * aa;
                 p.damping_after -= alpha * m * ab;
-                if p.bad_node.is_none() && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite()) {
+                if p.bad_node.is_none()
+                    && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite())
+                {
                     p.bad_node = Some(n);
                 }
                 for i in 0..3 {

@@ -14,8 +14,14 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 6] =
-        [Stage::Contact, Stage::InternalForces, Stage::Boundary, Stage::Integrate, Stage::Energy, Stage::Output];
+    pub const ALL: [Stage; 6] = [
+        Stage::Contact,
+        Stage::InternalForces,
+        Stage::Boundary,
+        Stage::Integrate,
+        Stage::Energy,
+        Stage::Output,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -45,6 +51,11 @@ impl StageTimers {
         r
     }
 
+    /// Charges an externally measured duration to `stage`.
+    pub fn add(&mut self, stage: Stage, d: Duration) {
+        self.totals[stage as usize] += d;
+    }
+
     pub fn seconds(&self, stage: Stage) -> f64 {
         self.totals[stage as usize].as_secs_f64()
     }
@@ -66,7 +77,10 @@ impl StageTimers {
     /// The end-of-run table: stage, seconds, share, time per step.
     pub fn table(&self, steps: u64) -> String {
         let total = self.total_seconds();
-        let mut s = format!("{:<16} {:>10} {:>7} {:>12}\n", "stage", "wall s", "share", "µs/step");
+        let mut s = format!(
+            "{:<16} {:>10} {:>7} {:>12}\n",
+            "stage", "wall s", "share", "µs/step"
+        );
         for st in Stage::ALL {
             let t = self.seconds(st);
             s += &format!(
@@ -74,7 +88,11 @@ impl StageTimers {
                 st.name(),
                 t,
                 if total > 0.0 { 100.0 * t / total } else { 0.0 },
-                if steps > 0 { 1e6 * t / steps as f64 } else { 0.0 }
+                if steps > 0 {
+                    1e6 * t / steps as f64
+                } else {
+                    0.0
+                }
             );
         }
         s += &format!(
@@ -82,7 +100,11 @@ impl StageTimers {
             "total",
             total,
             100.0,
-            if steps > 0 { 1e6 * total / steps as f64 } else { 0.0 }
+            if steps > 0 {
+                1e6 * total / steps as f64
+            } else {
+                0.0
+            }
         );
         s
     }

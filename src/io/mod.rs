@@ -1,0 +1,13 @@
+//! Output: the parallel HDF5 results file (`results.h5`) and the collective-write layer
+//! under it. Later: XDMF for ParaView, checkpoints and restart.
+//!
+//! MPI itself stays in [`crate::domain`]; this module only hands the Domain's communicator
+//! to HDF5's MPI-IO driver and relies on the Domain's collectives to keep ranks in step.
+
+pub mod collective;
+pub mod results;
+
+pub use collective::IoMode;
+pub use results::{
+    FieldPart, HistoryColumn, IoStats, MeshPart, Provenance, ResultsWriter, RESULTS_FILE_NAME,
+};

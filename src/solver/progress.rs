@@ -1,0 +1,92 @@
+//! Progress reporting: a live bar with ETA on a terminal, plain periodic log lines
+//! otherwise (batch jobs, CI logs).
+
+use std::io::{IsTerminal, Write};
+use std::time::{Duration, Instant};
+
+pub struct Progress {
+    enabled: bool,
+    terminal: bool,
+    start: Instant,
+    last: Instant,
+    last_fraction: f64,
+    label: String,
+}
+
+impl Progress {
+    /// `enabled` is false on non-root ranks and in quiet runs.
+    pub fn new(enabled: bool, label: &str) -> Self {
+        let now = Instant::now();
+        Self {
+            enabled,
+            terminal: std::io::stdout().is_terminal(),
+            start: now,
+            last: now,
+            last_fraction: 0.0,
+            label: label.to_string(),
+        }
+    }
+
+    /// Reports that `fraction` (0..1) of the run is done at simulated time `time` (s).
+    pub fn update(&mut self, fraction: f64, step: u64, time: f64) {
+        if !self.enabled {
+            return;
+        }
+        let now = Instant::now();
+        let since = now.duration_since(self.last);
+        let elapsed = now.duration_since(self.start).as_secs_f64();
+        let eta = if fraction > 0.0 { elapsed * (1.0 - fraction) / fraction } else { f64::NAN };
+        if self.terminal {
+            if since < Duration::from_millis(200) {
+                return;
+            }
+            let width = 30;
+            let filled = ((fraction * width as f64) as usize).min(width);
+            print!(
+                "\r{} [{}{}] {:5.1}%  t = {:.4e} s  step {}  elapsed {}  ETA {}   ",
+                self.label,
+                "#".repeat(filled),
+                "-".repeat(width - filled),
+                100.0 * fraction,
+                time,
+                step,
+                format_secs(elapsed),
+                format_secs(eta)
+            );
+            let _ = std::io::stdout().flush();
+            self.last = now;
+        } else if fraction - self.last_fraction >= 0.1 || since >= Duration::from_secs(30) {
+            println!(
+                "{}: {:5.1}% t = {:.4e} s step {} elapsed {} ETA {}",
+                self.label,
+                100.0 * fraction,
+                time,
+                step,
+                format_secs(elapsed),
+                format_secs(eta)
+            );
+            self.last = now;
+            self.last_fraction = fraction;
+        }
+    }
+
+    /// Ends the live line.
+    pub fn finish(&mut self) {
+        if self.enabled && self.terminal {
+            println!();
+        }
+    }
+}
+
+pub fn format_secs(s: f64) -> String {
+    if !s.is_finite() {
+        return "--".into();
+    }
+    if s < 60.0 {
+        format!("{s:.1}s")
+    } else if s < 3600.0 {
+        format!("{}m{:02}s", (s / 60.0) as u64, (s % 60.0) as u64)
+    } else {
+        format!("{}h{:02}m", (s / 3600.0) as u64, ((s % 3600.0) / 60.0) as u64)
+    }
+}

@@ -1,0 +1,317 @@
+//! `mufe run`: builds the model of a scene, integrates it, and writes `DIR/results.h5`.
+//! Input is validated (and every mesh built) before anything is written, so a bad scene
+//! never touches an existing output directory.
+
+use super::model::build_model;
+use super::progress::Progress;
+use super::step::Solver;
+use super::timing::Stage;
+use crate::domain::Domain;
+use crate::error::{MufeError, Result};
+use crate::io::results::{FieldPart, HistoryColumn, MeshPart, Provenance, ResultsWriter};
+use crate::material::{cauchy_from_first_piola, von_mises};
+use crate::scene::LoadedScene;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Options of one run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Output directory (created if missing).
+    pub out: PathBuf,
+    /// Threads per rank (rayon pool size).
+    pub threads: usize,
+    /// Stop after this many steps from t = 0.
+    pub max_steps: Option<u64>,
+    /// No progress or summary printing.
+    pub quiet: bool,
+}
+
+/// What a finished run reports.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    pub steps: u64,
+    pub time: f64,
+    pub dt: f64,
+    pub wall_s: f64,
+    pub elements: usize,
+    pub nodes: usize,
+    pub energy: crate::energy::EnergyLedger,
+    pub timing_table: String,
+    pub results: PathBuf,
+}
+
+/// Initial velocity field: each grain's rigid translation + rotation about its centre.
+pub fn initial_velocities(solver_model: &super::Model, loaded: &LoadedScene) -> Vec<[f64; 3]> {
+    let mut v = vec![[0.0; 3]; solver_model.num_nodes()];
+    for g in &solver_model.grains {
+        let spec = &loaded.scene.grains[g.global_id as usize];
+        let (u, w, c) = (spec.velocity, spec.angular_velocity, spec.centre);
+        for n in g.nodes.clone() {
+            let x = solver_model.x0[n];
+            let r = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
+            v[n] = [u[0] + w[1] * r[2] - w[2] * r[1], u[1] + w[2] * r[0] - w[0] * r[2], u[2] + w[0] * r[1] - w[1] * r[0]];
+        }
+    }
+    v
+}
+
+/// Builds the solver for a scene (all grains on this rank).
+pub fn build_solver(loaded: &LoadedScene) -> Result<Solver> {
+    let owned: Vec<usize> = (0..loaded.scene.grains.len()).collect();
+    let (model, motions) = build_model(loaded, &owned)?;
+    let v0 = initial_velocities(&model, loaded);
+    Ok(Solver::new(model, motions, v0))
+}
+
+/// The `/history` columns of a solver: energies, then one group per prescribed motion.
+pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
+    let mut c = vec![
+        HistoryColumn::new("time", "s", None, "simulated time t_n"),
+        HistoryColumn::new("step", "", None, "step number n"),
+        HistoryColumn::new("kinetic_energy", "J", Some("ALLKE"), "½ v(n−½)·M v(n+½), consistent with central differences"),
+        HistoryColumn::new("strain_energy", "J", Some("ALLSE"), "elastic strain energy Σ V0 W(F)"),
+        HistoryColumn::new("recoverable_strain_energy", "J", None, "recoverable part of the strain energy"),
+        HistoryColumn::new("internal_energy", "J", Some("ALLIE"), "strain + plastic dissipation + contact spring energy"),
+        HistoryColumn::new("plastic_dissipation", "J", Some("ALLPD"), "energy dissipated by plastic flow"),
+        HistoryColumn::new("friction_dissipation", "J", Some("ALLFD"), "energy dissipated by Coulomb friction, Σ f_t·Δslip"),
+        HistoryColumn::new("external_work", "J", Some("ALLWK"), "work of prescribed motions, walls and body forces"),
+        HistoryColumn::new("damping_dissipation", "J", Some("ALLVD"), "energy removed by mass-proportional damping"),
+        HistoryColumn::new("energy_balance", "J", Some("ETOTAL"), "ALLKE + ALLIE + ALLVD + ALLFD − ALLWK"),
+    ];
+    for m in &solver.motions {
+        for (what, units, desc) in [
+            ("force", "N", "reaction force the prescribed motion exerts on the grain"),
+            ("moment", "N*m", "reaction moment about the motion's current centre"),
+            ("displacement", "m", "displacement of the motion's centre"),
+            ("rotation", "rad", "rotation vector of the prescribed rotation"),
+        ] {
+            for axis in ["x", "y", "z"] {
+                c.push(HistoryColumn::new(&format!("{}_{what}_{axis}", m.name), units, None, desc));
+            }
+        }
+    }
+    c
+}
+
+/// One history row matching [`history_columns`].
+pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
+    let s = &solver.state;
+    let e = &s.energy;
+    row.clear();
+    row.extend_from_slice(&[
+        s.time,
+        s.step as f64,
+        e.kinetic,
+        e.strain,
+        e.recoverable_strain,
+        e.internal(),
+        e.plastic_dissipation,
+        e.friction_dissipation,
+        e.external_work(),
+        e.damping_dissipation(),
+        e.total(),
+    ]);
+    for r in &s.reactions {
+        row.extend_from_slice(&r.force);
+        row.extend_from_slice(&r.moment);
+        row.extend_from_slice(&r.displacement);
+        row.extend_from_slice(&r.rotation);
+    }
+}
+
+/// Per-element Cauchy stress (xx, yy, zz, yz, xz, xy; Pa) and von Mises stress.
+pub fn element_stresses(solver: &Solver) -> (Vec<f64>, Vec<f64>) {
+    let m = &solver.model;
+    let mut stress = Vec::with_capacity(6 * m.num_elements());
+    let mut vm = Vec::with_capacity(m.num_elements());
+    for (e, t) in m.tets.iter().enumerate() {
+        let xe = t.map(|n| solver.state.x[n as usize]);
+        let f = crate::element::deformation_gradient(&xe, &m.tet_reference[e].dm_inv);
+        let (p, _) = m.laws[m.tet_law[e] as usize].first_piola_and_energy(&f);
+        let s = cauchy_from_first_piola(&p, &f);
+        stress.extend_from_slice(&[s[0], s[4], s[8], s[5], s[2], s[1]]);
+        vm.push(von_mises(&s));
+    }
+    (stress, vm)
+}
+
+fn write_frame(writer: &mut ResultsWriter, solver: &Solver, index: usize, root_writes: bool) -> Result<()> {
+    let m = &solver.model;
+    let n = m.num_nodes();
+    let disp: Vec<f64> = solver.state.x.iter().zip(&m.x0).flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]]).collect();
+    let vel: Vec<f64> = solver.state.v.iter().flatten().copied().collect();
+    let (stress, vm) = element_stresses(solver);
+    let ne = m.num_elements();
+    // Until grains are distributed, every rank holds the whole model and rank 0 writes it.
+    let (rows_n, rows_e) = if root_writes { (n, ne) } else { (0, 0) };
+    let fields = [
+        FieldPart { name: "displacement", units: "m", components: 3, data: &disp[..3 * rows_n], offset: 0, total: n as u64 },
+        FieldPart { name: "velocity", units: "m/s", components: 3, data: &vel[..3 * rows_n], offset: 0, total: n as u64 },
+        FieldPart { name: "stress", units: "Pa", components: 6, data: &stress[..6 * rows_e], offset: 0, total: ne as u64 },
+        FieldPart { name: "von_mises_stress", units: "Pa", components: 1, data: &vm[..rows_e], offset: 0, total: ne as u64 },
+    ];
+    writer.write_frame(index, solver.state.time, &fields)
+}
+
+/// Runs a scene to its duration (or `max_steps`) and writes the results.
+pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<RunSummary> {
+    let wall0 = Instant::now();
+    let mut solver = build_solver(loaded)?;
+    let root = domain.is_root();
+    let talk = root && !opts.quiet;
+    let scene = &loaded.scene;
+    let dt = solver.model.dt;
+    let total_steps = (scene.simulation.duration / dt).ceil() as u64;
+    let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
+    if talk {
+        print_model_summary(&solver, loaded, total_steps);
+    }
+
+    std::fs::create_dir_all(&opts.out)
+        .map_err(|e| MufeError::Io(format!("{}: cannot create output directory: {e}", opts.out.display())))?;
+    let results = opts.out.join(crate::io::results::RESULTS_FILE_NAME);
+    let provenance = Provenance::collect(domain, opts.threads);
+    let mut writer = ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
+    let m = &solver.model;
+    let tets64: Vec<[u64; 4]> = m.tets.iter().map(|t| t.map(u64::from)).collect();
+    let grain_of_tet: Vec<u32> = m.grains.iter().flat_map(|g| g.elements.clone().map(move |_| g.global_id)).collect();
+    let owner = vec![0u32; scene.grains.len()];
+    let (rn, re) = if root { (m.num_nodes(), m.num_elements()) } else { (0, 0) };
+    writer.write_mesh(&MeshPart {
+        nodes: &m.x0[..rn],
+        node_offset: 0,
+        total_nodes: m.num_nodes() as u64,
+        tets: &tets64[..re],
+        tet_offset: 0,
+        total_tets: m.num_elements() as u64,
+        grain_of_tet: &grain_of_tet[..re],
+        grain_owner_rank: &owner,
+    })?;
+    writer.define_history(&history_columns(&solver))?;
+
+    let history_interval = scene.output.history_interval.unwrap_or(scene.simulation.duration / 1000.0);
+    let history_every = ((history_interval / dt).round() as u64).max(1);
+    let frame_every = scene.output.frame_interval.map(|f| ((f / dt).round() as u64).max(1));
+    let mut frame_index = 0;
+    if scene.output.frames {
+        write_frame(&mut writer, &solver, frame_index, root)?;
+        frame_index += 1;
+    }
+    let mut progress = Progress::new(talk, "run");
+    let mut row = Vec::new();
+    let mut failure = None;
+    while solver.state.step < last_step {
+        if let Err(e) = solver.step() {
+            failure = Some(e);
+            break;
+        }
+        let n = solver.state.step;
+        let t_out = Instant::now();
+        if n % history_every == 0 || n == last_step {
+            history_row(&solver, &mut row);
+            writer.push_history(&row)?;
+        }
+        if let Some(fe) = frame_every {
+            if n % fe == 0 && n != last_step && scene.output.frames {
+                write_frame(&mut writer, &solver, frame_index, root)?;
+                frame_index += 1;
+                writer.flush_history()?;
+            }
+        }
+        solver.timers.add(Stage::Output, t_out.elapsed());
+        progress.update(n as f64 / last_step as f64, n, solver.state.time);
+    }
+    progress.finish();
+    // Keep what was computed up to a failure: history and a last frame help diagnose it.
+    history_row(&solver, &mut row);
+    writer.push_history(&row)?;
+    if scene.output.frames {
+        write_frame(&mut writer, &solver, frame_index, root)?;
+    }
+    writer.close()?;
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    let summary = RunSummary {
+        steps: solver.state.step,
+        time: solver.state.time,
+        dt,
+        wall_s: wall0.elapsed().as_secs_f64(),
+        elements: solver.model.num_elements(),
+        nodes: solver.model.num_nodes(),
+        energy: solver.state.energy.clone(),
+        timing_table: solver.timers.table(solver.state.step),
+        results: results.clone(),
+    };
+    if talk {
+        let e = &summary.energy;
+        println!("{}", summary.timing_table);
+        println!(
+            "done: {} steps to t = {:.6e} s in {:.2} s wall ({:.3e} element updates/s)",
+            summary.steps,
+            summary.time,
+            summary.wall_s,
+            summary.elements as f64 * summary.steps as f64 / solver.timers.total_seconds().max(1e-9)
+        );
+        println!(
+            "energy: kinetic {:.4e} J, strain {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
+            e.kinetic,
+            e.strain,
+            e.external_work(),
+            e.damping_dissipation(),
+            e.relative_balance_error()
+        );
+        println!("results: {}", results.display());
+    }
+    Ok(summary)
+}
+
+/// The `mufe check`/`run` header: grains, elements, nodes, Δt, mass scaling, memory.
+pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u64) {
+    let m = &solver.model;
+    println!("scene: {}", loaded.path);
+    println!("{:<12} {:>10} {:>10} {:>9} {:>9} {:>10} {:>10}", "grain", "elements", "nodes", "facets", "min dih°", "max aspect", "min edge m");
+    for g in m.grains.iter().take(20) {
+        let q = &g.quality;
+        println!(
+            "{:<12} {:>10} {:>10} {:>9} {:>9.2} {:>10.2} {:>10.3e}",
+            g.name, q.elements, q.nodes, q.surface_facets, q.min_dihedral_deg, q.max_aspect_ratio, q.min_edge
+        );
+    }
+    if m.grains.len() > 20 {
+        println!("... {} more grains", m.grains.len() - 20);
+    }
+    let phys = m.total_physical_mass();
+    println!(
+        "totals: {} grains, {} elements, {} nodes; mass {:.4e} kg",
+        m.grains.len(),
+        m.num_elements(),
+        m.num_nodes(),
+        phys
+    );
+    println!(
+        "time step: stable {:.4e} s (element {}, safety {}), used {:.4e} s; {} steps for {:.4e} s",
+        m.dt_stable, m.dt_critical_element, loaded.scene.simulation.dt_safety, m.dt, total_steps, loaded.scene.simulation.duration
+    );
+    if m.scaled_elements > 0 {
+        println!(
+            "mass scaling: {} elements scaled, added mass {:.4e} kg ({:.3}% of {:.4e} kg)",
+            m.scaled_elements,
+            m.added_mass,
+            100.0 * m.added_mass / phys,
+            phys
+        );
+    }
+    let bytes = estimate_memory_bytes(m);
+    println!("memory estimate: {:.1} MiB ({:.0} bytes/element)", bytes as f64 / 1048576.0, bytes as f64 / m.num_elements().max(1) as f64);
+}
+
+/// Bytes held by the model, state and scratch arrays.
+pub fn estimate_memory_bytes(m: &super::Model) -> usize {
+    let ne = m.num_elements();
+    let nn = m.num_nodes();
+    let per_element = 16 /* tets */ + 80 /* reference */ + 2 /* law */ + 96 /* corner forces */ + 16 /* incidence */;
+    let per_node = 24 * 5 /* x0, x, v, v_next, force */ + 16 /* masses */ + 1 + 4;
+    ne * per_element + nn * per_node
+}
