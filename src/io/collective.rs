@@ -237,7 +237,7 @@ unsafe fn validate_block(
     if columns == 0 {
         return Some("row block with 0 columns".to_string());
     }
-    if len % columns != 0 {
+    if !len.is_multiple_of(columns) {
         return Some(format!(
             "{len} values are not whole rows of {columns} columns"
         ));

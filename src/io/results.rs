@@ -205,7 +205,7 @@ impl<'d> ResultsWriter<'d> {
         agree(domain, path, "creating results file", local)?;
         let file = created.map_err(|e| io_error(path, "creating results file", e))?;
 
-        let mut writer = ResultsWriter {
+        let writer = ResultsWriter {
             domain,
             path: path.to_path_buf(),
             history: None,
@@ -228,17 +228,13 @@ impl<'d> ResultsWriter<'d> {
         self.io
     }
 
-    fn write_header(&mut self, scene: &str, provenance: &Provenance) -> Result<(), String> {
+    fn write_header(&self, scene: &str, provenance: &Provenance) -> Result<(), String> {
         let is_root = self.domain.is_root();
         let ds = collective::create_text_dataset(&self.file, "scene", scene, is_root)
             .map_err(|e| format!("/scene: {e}"))?;
         put_str_attr(&ds, "units", "").map_err(|e| format!("/scene: {e}"))?;
-        put_str_attr(
-            &ds,
-            "description",
-            "the scene file (TOML) as run, after --set overrides",
-        )
-        .map_err(|e| format!("/scene: {e}"))?;
+        put_str_attr(&ds, "description", "the scene (TOML) as run")
+            .map_err(|e| format!("/scene: {e}"))?;
 
         let group = self
             .file
@@ -359,12 +355,13 @@ impl<'d> ResultsWriter<'d> {
             let written = ds
                 .resize(end as usize)
                 .and_then(|()| collective::write_1d_f64(ds, &column, start, end));
+            // Keep going after an error: the other ranks are in the same collective calls.
             match written {
                 Ok(mode) => modes.push(mode),
-                Err(e) => {
+                Err(e) if result.is_ok() => {
                     result = Err(format!("/history/{}: {e}", history.columns[j].name));
-                    break;
                 }
+                Err(_) => {}
             }
         }
         history.pending.clear();

@@ -7,24 +7,37 @@ use super::surface_refine::triangulate_sphere;
 use super::tetgen::{tetrahedralize, Region};
 use super::{norm, scale, sub, validate, MeshError, TetMesh};
 
-/// TetGen's maximum radius–edge ratio (`-q`). 1.5 gives well-shaped tets without the
-/// element-count blow-up of tighter bounds; TetGen's optimisation pass then removes most
-/// slivers (which the radius–edge bound alone does not catch).
+/// TetGen's maximum radius–edge ratio (`-q`). With the interior seeded by a lattice TetGen
+/// rarely needs to refine; 1.5 keeps the transition zones (skin, band/core gap, refinement
+/// patches) well shaped.
 pub(crate) const RADIUS_EDGE_RATIO: f64 = 1.5;
 
-/// Volume of a regular tet of edge `h` is h³/(6√2); TetGen's Delaunay tets of nominal size h
-/// are smaller than regular ones, so the bound is relaxed by this factor.
-const VOLUME_SLACK: f64 = 1.5;
+/// BCC lattice constant in units of the nominal edge length: the Delaunay tets of a BCC
+/// lattice (Sommerville tets, dihedral angles 60° and 90°) have edges a and a·√3/2, so
+/// a = 1.07 h gives a mean edge ≈ h.
+const LATTICE_FACTOR: f64 = 1.07;
 
-/// Depth of the skin layer (no volume bound) under the surface, in seeding units: about the
-/// height of one regular tet (0.82 s).
-const SKIN_DEPTH: f64 = 0.8;
+/// No lattice point closer than `SKIN_DEPTH × seeding` to the surface: the layer of tets on
+/// the surface triangles is left to TetGen (a regular tet is 0.82 h high). Interior points
+/// much closer than that would sit inside the surface triangles' diametral balls, where
+/// TetGen would split the surface instead of keeping the requested seeding.
+const SKIN_DEPTH: f64 = 0.7;
 
-/// Maximum tet volume for a zone of nominal edge length `h`.
-fn max_tet_volume(h: f64) -> f64 {
-    let slack = std::env::var("MUFE_SLACK").ok().and_then(|v| v.parse().ok()).unwrap_or(VOLUME_SLACK);
-    if slack <= 0.0 { return 1e3; }
-    slack * h * h * h / (6.0 * std::f64::consts::SQRT_2)
+/// Gap between the fine band lattice and the coarse core lattice, in core-seeding units,
+/// where TetGen grades from one to the other.
+const CORE_GAP: f64 = 0.5;
+
+/// Safety bound on tet volume (× the regular tet of the coarsest nominal size): never
+/// active on a lattice-seeded ball, it only prevents huge elements should TetGen leave a gap.
+const VOLUME_SAFETY: f64 = 4.0;
+
+/// Volume of a regular tet of edge `h`.
+fn regular_tet_volume(h: f64) -> f64 {
+    h * h * h / (6.0 * std::f64::consts::SQRT_2)
+}
+
+fn tuning(name: &str, default: f64) -> f64 {
+    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
 }
 
 /// A tet mesh of a sphere centred at the origin (grain frame). All lengths in metres.
@@ -256,11 +269,23 @@ impl SphereMeshSpec {
 }
 
 /// Meshes the sphere described by `spec` (validated first). Deterministic: the same spec
-/// gives a bitwise identical mesh. Tets are positively oriented; TetGen may add Steiner
-/// points on the (flat) surface facets.
+/// gives a bitwise identical mesh. Tets are positively oriented.
 ///
-/// The work is done at unit radius (TetGen's tolerances are relative and its volume bounds
-/// go through text) and scaled back by R.
+/// 1. The surface is triangulated by [`triangulate_sphere`] with the spec's sizing function.
+/// 2. The interior is seeded with points of a body-centred cubic lattice (spacing ≈ seeding;
+///    for graded meshes a fine lattice in the band and a coarse one in the core), kept
+///    `SKIN_DEPTH·s` below the surface.
+/// 3. TetGen tetrahedralises surface + points (the points are isolated PLC vertices) and only
+///    refines where the radius–edge bound requires it: in the skin, in the band/core gap
+///    and under refinement patches, where the interior grades naturally from the surface.
+///
+/// Seeding the interior ourselves instead of giving TetGen volume bounds keeps the surface
+/// exactly as triangulated (volume-driven Steiner points near the surface make TetGen split
+/// surface triangles, ≈ 3× the requested facets at MR 0.045), gives well-shaped lattice tets
+/// inside, and is ~2× faster.
+///
+/// The work is done at unit radius (TetGen's tolerances are relative and its volume bounds go
+/// through text) and scaled back by R.
 pub fn mesh_sphere(spec: &SphereMeshSpec) -> Result<TetMesh, MeshError> {
     mesh_sphere_with_ratio(spec, RADIUS_EDGE_RATIO)
 }
@@ -271,18 +296,11 @@ pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f
     let big_r = spec.radius;
     let inv = 1.0 / big_r;
 
-    // Unit-sphere sizing function: same formula with all lengths divided by R.
+    // Unit-sphere sizing function: the spec's formula with all lengths divided by R.
     let refine: Vec<([f64; 3], f64, f64, f64)> = spec
         .refine
         .iter()
-        .map(|r| {
-            (
-                scale(r.direction, 1.0 / norm(r.direction)),
-                r.seeding * inv,
-                r.radius * inv,
-                r.growth,
-            )
-        })
+        .map(|r| (scale(r.direction, 1.0 / norm(r.direction)), r.seeding * inv, r.radius * inv, r.growth))
         .collect();
     let s = spec.seeding * inv;
     let size = |x: [f64; 3]| {
@@ -292,109 +310,109 @@ pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f
         }
         h
     };
-    let outer = triangulate_sphere(1.0, s, size, "seeding")?;
+    let surface = triangulate_sphere(1.0, s, size, "seeding")?;
+    if std::env::var("MUFE_DEBUG").is_ok() {
+        let mut lo = f64::MAX;
+        let mut hmin = f64::MAX;
+        for t in &surface.triangles {
+            for k in 0..3 {
+                let l = norm(sub(surface.points[t[k] as usize], surface.points[t[(k + 1) % 3] as usize]));
+                lo = lo.min(l);
+            }
+        }
+        for p in &surface.points { hmin = hmin.min(size(*p)); }
+        let mut maxang: f64 = 0.0; let mut nobt = 0; let mut nenc = 0;
+        for t in &surface.triangles {
+            let p = t.map(|i| surface.points[i as usize]);
+            for k in 0..3 {
+                let e1 = sub(p[(k + 1) % 3], p[k]);
+                let e2 = sub(p[(k + 2) % 3], p[k]);
+                let a = (super::dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees();
+                maxang = maxang.max(a);
+                if a > 89.0 { nobt += 1; }
+                if a > 90.0 { nenc += 1; }
+            }
+        }
+        eprintln!("max angle {maxang:.2}, >89: {nobt}, >90: {nenc}");
+        eprintln!("surface: {} tris, {} pts, min edge {:.3e} (unit), min size {:.3e}", surface.triangles.len(), surface.points.len(), lo, hmin);
+    }
+    let mut points = surface.points;
+    let facets = surface.triangles;
 
-    // Nested internal spheres (facets of the PLC) split the ball into regions, outermost
-    // first: (shell radius, max tet volume of the region inside that shell).
-    //
-    // The skin between the surface and the first internal shell gets no volume bound:
-    // volume-driven Steiner points within ~0.6 s of the surface encroach on the surface
-    // triangles' diametral balls and TetGen would split them (measured: ≈ 3× the requested
-    // surface facets), so the skin is shaped by the surface and the radius–edge bound only.
-    let skin = skin_depth() * s;
-    let mut shells: Vec<(f64, f64, Option<f64>, &str)> = Vec::new(); // (radius, size, vol inside, field)
-    match &spec.graded {
-        None => shells.push((1.0 - skin, s, Some(max_tet_volume(s)), "seeding")),
+    let lattice = tuning("MUFE_LF", LATTICE_FACTOR);
+    let skin = tuning("MUFE_SKIN", SKIN_DEPTH);
+    let whole: Vec<Aabb> = vec![([-1.0; 3], [1.0; 3])];
+    // Fine lattice region: r ∈ [band_inner, 1); graded meshes add a coarse core lattice.
+    let (band_inner, coarsest) = match &spec.graded {
+        None => (0.0, s),
         Some(g) => {
             let band = g.band_depth * inv;
             let core = g.core_seeding * inv;
-            if band > 2.0 * skin {
-                shells.push((1.0 - skin, s, Some(max_tet_volume(s)), "graded.band_depth"));
-            }
-            // Band/core interface at a size between the two zones.
-            let r_in = 1.0 - band;
-            let h_in = (s * core).sqrt().min(r_in);
-            shells.push((r_in, h_in, Some(max_tet_volume(core)), "graded.band_depth"));
+            let r_core = 1.0 - band - tuning("MUFE_GAP", CORE_GAP) * core;
+            add_nested_bcc(lattice * core, &[whole.clone()], |p| (norm(p) <= r_core).then_some(0), &mut points);
+            (1.0 - band, core)
         }
+    };
+    // Interior size field: the surface sizing formula with 3D distances. Nested BCC
+    // lattices of constant a₀/2^ℓ fill the places where the size is near s/2^ℓ.
+    let levels = refine
+        .iter()
+        .map(|&(_, sr, _, _)| (s / sr).log2().round().max(0.0) as u32)
+        .max()
+        .unwrap_or(0);
+    let rot_t = transpose(&rotation(1));
+    let mut boxes = vec![whole.clone()];
+    for l in 1..=levels {
+        // Where the size is below the level's threshold: balls around the patches.
+        let threshold = s * 2f64.powf(0.5 - l as f64);
+        let mut level_boxes = Vec::new();
+        for &(p, sr, rr, g) in &refine {
+            if sr > threshold {
+                continue;
+            }
+            if g == 0.0 {
+                level_boxes = whole.clone();
+                break;
+            }
+            let reach = rr + (threshold - sr) / g;
+            let c = mat_vec(&rot_t, p);
+            level_boxes.push((c.map(|x| (x - reach).max(-1.0)), c.map(|x| (x + reach).min(1.0))));
+        }
+        boxes.push(level_boxes);
+    }
+    add_nested_bcc(
+        lattice * s,
+        &boxes,
+        |p| {
+            let r = norm(p);
+            let h = size(p);
+            if r < band_inner || 1.0 - r < skin * h {
+                return None;
+            }
+            // Level whose nominal size s/2^ℓ is within √2 of h.
+            Some((s / h).log2().round().clamp(0.0, levels as f64) as u32)
+        },
+        &mut points,
+    );
+    // Interior points must stay out of the surface triangles' diametral balls: TetGen
+    // (with -q) splits any subface whose ball holds a vertex, and the splits cascade.
+    let n_surface = facets.iter().flatten().map(|&i| i as usize + 1).max().unwrap_or(0);
+    let guard = DiametralBalls::new(&points[..n_surface], &facets, tuning("MUFE_MARGIN", BALL_MARGIN));
+    let mut k = n_surface;
+    for i in n_surface..points.len() {
+        if !guard.encroaches(points[i]) {
+            points[k] = points[i];
+            k += 1;
+        }
+    }
+    points.truncate(k);
+    if std::env::var("MUFE_NOLAT").is_ok() {
+        points.truncate(n_surface);
     }
 
-    let outer_count = outer.points.len();
-    let mut points = outer.points;
-    let mut facets = outer.triangles;
-    let mut regions = Vec::with_capacity(shells.len() + 1);
-    // Polyhedron just outside the next shell: its first vertex (exactly on its sphere) and
-    // the radius of the largest ball it contains.
-    let mut outer_vertex = points[0];
-    let mut outer_radius = 1.0;
-    let mut outer_inscribed = inscribed_radius(&points, &facets);
-    for (k, &(r, h, vol_inside, field)) in shells.iter().enumerate() {
-        if r >= outer_inscribed * (1.0 - 1e-9) {
-            return Err(invalid(field, "too thin a layer for the surface chords at this seeding"));
-        }
-        // Each shell is rotated so its vertices do not line up radially with the ones
-        // outside (aligned points make cospherical prisms, i.e. slivers).
-        let shell = triangulate_sphere(r, h, |_| h, field)?;
-        let rot = rotation(k + 1);
-        let off = points.len() as u32;
-        let shell_points: Vec<[f64; 3]> = shell.points.iter().map(|&p| mat_vec(&rot, p)).collect();
-        // Region between the previous polyhedron and this shell: along the ray to the outer
-        // polyhedron's vertex, halfway between the two spheres.
-        let volume_above = if k == 0 { None } else { shells[k - 1].2 };
-        regions.push(Region {
-            point: scale(outer_vertex, 0.5 * (outer_radius + r) / outer_radius),
-            marker: k as i32 + 1,
-            max_volume: volume_above,
-        });
-        let shell_facets: Vec<[u32; 3]> = shell.triangles.clone();
-        outer_inscribed = inscribed_radius(&shell_points, &shell_facets);
-        outer_vertex = shell_points[0];
-        outer_radius = r;
-        points.extend_from_slice(&shell_points);
-        facets.extend(shell_facets.iter().map(|t| t.map(|i| i + off)));
-        let _ = vol_inside;
-    }
-    // Innermost region, around the centre.
-    regions.push(Region {
-        point: [0.0; 3],
-        marker: shells.len() as i32 + 1,
-        max_volume: shells.last().and_then(|x| x.2),
-    });
+    let regions =
+        [Region { point: [0.0; 3], marker: 1, max_volume: Some(VOLUME_SAFETY * regular_tet_volume(coarsest)) }];
 
-    if std::env::var("MUFE_MODE").map(|m| m == "lattice").unwrap_or(false) {
-        let nsurf = outer_count;
-        points.truncate(nsurf);
-        facets.retain(|t| (t[0] as usize) < nsurf);
-        regions.clear();
-        let rot = rotation(1);
-        let mut add_lattice = |a: f64, rmin: f64, rmax: f64, points: &mut Vec<[f64; 3]>| {
-            let m = (rmax / a).ceil() as i64 + 1;
-            for i in -m..=m {
-                for j in -m..=m {
-                    for k in -m..=m {
-                        for off in [0.0, 0.5] {
-                            let p = [(i as f64 + off) * a, (j as f64 + off) * a, (k as f64 + off) * a];
-                            let p = mat_vec(&rot, p);
-                            let r = norm(p);
-                            if r <= rmax && r >= rmin {
-                                points.push(p);
-                            }
-                        }
-                    }
-                }
-            }
-        };
-        let lf: f64 = std::env::var("MUFE_LF").ok().and_then(|v| v.parse().ok()).unwrap_or(1.07);
-        match &spec.graded {
-            None => add_lattice(lf * s, 0.0, 1.0 - skin, &mut points),
-            Some(g) => {
-                let band = g.band_depth * inv;
-                let core = g.core_seeding * inv;
-                add_lattice(lf * s, 1.0 - band, 1.0 - skin, &mut points);
-                add_lattice(lf * core, 0.0, 1.0 - band - 0.5 * core, &mut points);
-            }
-        }
-        regions.push(Region { point: [0.0; 3], marker: 1, max_volume: None });
-    }
     let mut mesh = tetrahedralize(&points, &facets, &regions, radius_edge_ratio)?;
     for p in mesh.nodes.iter_mut() {
         *p = scale(*p, big_r);
@@ -403,25 +421,132 @@ pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f
     Ok(mesh)
 }
 
-/// Radius of the largest ball about the origin inside the convex polyhedron `facets`
-/// (vertices on a sphere about the origin): the smallest facet-plane distance.
-fn inscribed_radius(points: &[[f64; 3]], facets: &[[u32; 3]]) -> f64 {
-    facets
-        .iter()
-        .map(|t| {
-            let p = t.map(|i| points[i as usize]);
-            let n = super::cross(sub(p[1], p[0]), sub(p[2], p[0]));
-            super::dot(n, p[0]).abs() / norm(n)
-        })
-        .fold(f64::INFINITY, f64::min)
+/// Relative margin around the surface triangles' diametral balls kept free of lattice points.
+const BALL_MARGIN: f64 = 0.15;
+
+/// The diametral balls (circumscribed balls centred in the triangle's plane) of the surface
+/// triangles, bucketed on a uniform grid of cell ≥ the largest inflated radius so that a
+/// query checks 27 cells.
+struct DiametralBalls {
+    cell: f64,
+    grid: std::collections::HashMap<[i64; 3], Vec<u32>>,
+    balls: Vec<([f64; 3], f64)>,
 }
 
-/// Depth of the unconstrained skin layer, in units of the seeding.
-fn skin_depth() -> f64 {
-    std::env::var("MUFE_SKIN").ok().and_then(|v| v.parse().ok()).unwrap_or(SKIN_DEPTH)
+impl DiametralBalls {
+    fn new(points: &[[f64; 3]], facets: &[[u32; 3]], margin: f64) -> Self {
+        let balls: Vec<([f64; 3], f64)> = facets
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| points[i as usize]);
+                let (ab, ac) = (sub(b, a), sub(c, a));
+                let n = super::cross(ab, ac);
+                let num = super::add(
+                    scale(super::cross(n, ab), super::dot(ac, ac)),
+                    scale(super::cross(ac, n), super::dot(ab, ab)),
+                );
+                let off = scale(num, 0.5 / super::dot(n, n));
+                let r = (1.0 + margin) * norm(off);
+                (super::add(a, off), r * r)
+            })
+            .collect();
+        let cell = balls.iter().map(|b| b.1).fold(0.0, f64::max).sqrt().max(1e-9);
+        let mut grid: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
+        for (i, b) in balls.iter().enumerate() {
+            grid.entry(b.0.map(|x| (x / cell).floor() as i64)).or_default().push(i as u32);
+        }
+        Self { cell, grid, balls }
+    }
+
+    /// True if `p` lies inside an (inflated) diametral ball.
+    fn encroaches(&self, p: [f64; 3]) -> bool {
+        let c = p.map(|x| (x / self.cell).floor() as i64);
+        for di in -1..=1 {
+            for dj in -1..=1 {
+                for dk in -1..=1 {
+                    if let Some(list) = self.grid.get(&[c[0] + di, c[1] + dj, c[2] + dk]) {
+                        for &i in list {
+                            let (centre, r2) = self.balls[i as usize];
+                            let d = sub(p, centre);
+                            if super::dot(d, d) < r2 {
+                                return true;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        false
+    }
 }
 
-/// A fixed rotation for internal shell `k`: angle 0.7·k rad about an irrational axis.
+/// Axis-aligned box (min corner, max corner) in the lattice frame.
+type Aabb = ([f64; 3], [f64; 3]);
+
+/// Appends points of nested body-centred cubic lattices inside the unit ball. The lattices
+/// are rotated by a fixed rotation so that no lattice plane lines up with the icosahedral
+/// surface.
+///
+/// Level ℓ has lattice constant `a0`/2^ℓ and is visited only inside `boxes[ℓ]` (lattice
+/// frame; level 0 should cover the ball). `want(p)` rejects a point (`None`) or gives the
+/// level of detail wanted at p; a point is kept if it is wanted at a level ≥ the coarsest
+/// lattice it belongs to. Since BCC(a) ⊂ BCC(a/2), each point is examined once, at its
+/// coarsest level, so the levels form one conforming point set with no duplicates; the
+/// BCC Delaunay tets (Sommerville tets) are well shaped and TetGen only repairs the level
+/// transitions. Deterministic order.
+fn add_nested_bcc<F: Fn([f64; 3]) -> Option<u32>>(
+    a0: f64,
+    boxes: &[Vec<Aabb>],
+    want: F,
+    points: &mut Vec<[f64; 3]>,
+) {
+    let rot = rotation(1);
+    let inside = |b: &Aabb, x: [f64; 3]| (0..3).all(|d| x[d] >= b.0[d] && x[d] <= b.1[d]);
+    for (l, level_boxes) in boxes.iter().enumerate() {
+        // Half-lattice integer coordinates q: lattice-frame point = q · half; BCC points have
+        // q all even (cube corners) or all odd (cube centres).
+        let half = 0.5 * a0 / (1u64 << l) as f64;
+        for (b, bx) in level_boxes.iter().enumerate() {
+            let lo = bx.0.map(|c| (c / half).floor() as i64);
+            let hi = bx.1.map(|c| (c / half).ceil() as i64);
+            for qi in lo[0]..=hi[0] {
+                for qj in lo[1]..=hi[1] {
+                    for qk in lo[2]..=hi[2] {
+                        let q = [qi, qj, qk];
+                        let parity = qi.rem_euclid(2);
+                        if q.iter().any(|c| c.rem_euclid(2) != parity) {
+                            continue;
+                        }
+                        // Member of the next coarser lattice: q/2 integer with uniform parity.
+                        if l > 0 && parity == 0 {
+                            let p2 = (qi / 2).rem_euclid(2);
+                            if q.iter().all(|c| (c / 2).rem_euclid(2) == p2) {
+                                continue;
+                            }
+                        }
+                        let x = q.map(|c| c as f64 * half);
+                        if !inside(bx, x) || level_boxes[..b].iter().any(|other| inside(other, x)) {
+                            continue;
+                        }
+                        let p = mat_vec(&rot, x);
+                        if super::dot(p, p) >= 1.0 {
+                            continue;
+                        }
+                        if want(p).is_some_and(|w| w as usize >= l) {
+                            points.push(p);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn transpose(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    [[m[0][0], m[1][0], m[2][0]], [m[0][1], m[1][1], m[2][1]], [m[0][2], m[1][2], m[2][2]]]
+}
+
+/// A fixed rotation: angle 0.7·k rad about an irrational axis.
 fn rotation(k: usize) -> [[f64; 3]; 3] {
     let axis = [1.0, (1.0 + 5f64.sqrt()) / 2.0, std::f64::consts::E];
     let l = norm(axis);
@@ -449,13 +574,17 @@ mod tests {
     fn explore() {
         let r = 1.1e-3;
         let qs: Vec<f64> = std::env::var("MUFE_Q").unwrap().split(',').map(|x| x.parse().unwrap()).collect();
-        for mr in [0.09, 0.045] {
+        let mrs: Vec<f64> = std::env::var("MUFE_MR").unwrap_or("0.09,0.045".into()).split(',').map(|x| x.parse().unwrap()).collect();
+        for mr in mrs {
             for &q in &qs {
-                for graded in [false, true] {
+                for graded in [0, 1, 2] {
                     let s = mr * 2.0 * r;
                     let mut spec = SphereMeshSpec::uniform(r, s);
-                    if graded {
+                    if graded == 1 {
                         spec = spec.with_graded(3.0 * s, r / 4.0);
+                    }
+                    if graded == 2 {
+                        spec = spec.with_refinement([0.0, 0.0, 1.0], s / 4.0, 2.0 * s);
                     }
                     let t0 = std::time::Instant::now();
                     let m = mesh_sphere_with_ratio(&spec, q).unwrap();

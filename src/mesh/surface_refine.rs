@@ -25,6 +25,10 @@ use super::{add, cross, dot, norm, scale, sub, MeshError};
 /// their mean edge near 0.85 h.
 pub const LONGEST_EDGE_FACTOR: f64 = 1.42;
 
+/// Smoothing sweeps applied after refinement (none when no triangle was bisected: the
+/// geodesic base is already acute).
+pub const SMOOTHING_ITERATIONS: usize = 20;
+
 /// Mean edge of the frequency-n geodesic sphere of unit radius, times n (measured; the
 /// continuum estimate is √(4π/(5√3)) ≈ 1.2046; 1.203 within 0.3 % for n ≥ 5).
 pub const GEODESIC_MEAN_EDGE: f64 = 1.203;
@@ -96,8 +100,13 @@ where
         return Err(MeshError::TooLarge { field: field.to_string(), limit });
     }
     let mut r = Refiner::geodesic(radius, n);
+    let base = r.tris.len();
     r.refine(&size, field, limit)?;
     r.flip_to_convex();
+    if r.tris.len() > base {
+        let iters: usize = std::env::var("MUFE_SMOOTH").ok().and_then(|v| v.parse().ok()).unwrap_or(SMOOTHING_ITERATIONS);
+        if std::env::var("MUFE_LLOYD").is_ok() { r.lloyd(&size, iters); } else { r.smooth(&size, iters); }
+    }
     Ok(SphereSurface {
         points: r.pts,
         triangles: r.tris.iter().map(|t| t.v).collect(),
@@ -373,6 +382,99 @@ impl Refiner {
         (t2, u2)
     }
 
+    /// Spring smoothing in the manner of DistMesh (Persson & Strang): every edge pushes its
+    /// ends apart while shorter than its rest length `FSCALE·κ·h(midpoint)` (κ normalises
+    /// the rest lengths to the current mesh, so the vertex count and hence the overall size
+    /// stay fixed), vertices move by `DT·force` and are projected back onto the sphere, and
+    /// edges are re-flipped to the convex hull after each sweep. Bisection leaves right and
+    /// obtuse triangles in graded zones; TetGen treats every surface edge as a segment and
+    /// splits any whose diametral ball holds the opposite vertex (angle ≥ 90°), cascading
+    /// into tiny edges, so the surface is smoothed until nearly all angles are acute.
+    fn smooth<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, iterations: usize) {
+        const FSCALE: f64 = 1.2;
+        const DT: f64 = 0.2;
+        let np = self.pts.len();
+        let mut force = vec![[0.0; 3]; np];
+        let mut edges: Vec<(u32, u32, f64)> = Vec::with_capacity(self.tris.len() * 3 / 2);
+        for _ in 0..iterations {
+            edges.clear();
+            let (mut sum_l2, mut sum_h2) = (0.0, 0.0);
+            for t in &self.tris {
+                for k in 0..3 {
+                    let (a, b) = (t.v[k], t.v[(k + 1) % 3]);
+                    if a < b {
+                        let (pa, pb) = (self.pts[a as usize], self.pts[b as usize]);
+                        let mid = add(pa, pb);
+                        let h = size(scale(mid, self.radius / norm(mid)));
+                        let d = sub(pa, pb);
+                        sum_l2 += dot(d, d);
+                        sum_h2 += h * h;
+                        edges.push((a, b, h));
+                    }
+                }
+            }
+            let kappa = FSCALE * (sum_l2 / sum_h2).sqrt();
+            force.iter_mut().for_each(|f| *f = [0.0; 3]);
+            for &(a, b, h) in &edges {
+                let d = sub(self.pts[a as usize], self.pts[b as usize]);
+                let l = norm(d);
+                let push = (kappa * h - l).max(0.0) / l;
+                let f = scale(d, push);
+                force[a as usize] = add(force[a as usize], f);
+                force[b as usize] = sub(force[b as usize], f);
+            }
+            for (p, f) in self.pts.iter_mut().zip(&force) {
+                let q = add(*p, scale(*f, DT));
+                *p = scale(q, self.radius / norm(q));
+            }
+            self.flip_to_convex();
+        }
+    }
+
+    /// Lloyd iterations towards a centroidal Voronoi tessellation with density h⁻⁴: every
+    /// vertex moves to the density-weighted centroid of its Voronoi cell (then back onto the
+    /// sphere) and edges are re-flipped. The cell is assembled per triangle corner from the
+    /// two kites (v, edge midpoint, circumcentre) with signed areas, so no fan ordering is
+    /// needed.
+    fn lloyd<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, iterations: usize) {
+        let np = self.pts.len();
+        let mut acc = vec![([0.0; 3], 0.0); np];
+        for _ in 0..iterations {
+            acc.iter_mut().for_each(|a| *a = ([0.0; 3], 0.0));
+            for t in &self.tris {
+                let p = t.v.map(|i| self.pts[i as usize]);
+                let (ab, ac) = (sub(p[1], p[0]), sub(p[2], p[0]));
+                let n = cross(ab, ac);
+                let nn = dot(n, n);
+                let num = add(scale(cross(n, ab), dot(ac, ac)), scale(cross(ac, n), dot(ab, ab)));
+                let cc = add(p[0], scale(num, 0.5 / nn));
+                let nhat = scale(n, 1.0 / nn.sqrt());
+                for k in 0..3 {
+                    let v = p[k];
+                    for (w, first) in [(p[(k + 1) % 3], true), (p[(k + 2) % 3], false)] {
+                        let m = scale(add(v, w), 0.5);
+                        // Signed area of (v, m, cc) for the next vertex, (v, cc, m) for the previous.
+                        let (q1, q2) = if first { (m, cc) } else { (cc, m) };
+                        let area = 0.5 * dot(cross(sub(q1, v), sub(q2, v)), nhat);
+                        let g = scale(add(add(v, q1), q2), 1.0 / 3.0);
+                        let h = size(scale(g, self.radius / norm(g)));
+                        let wgt = area / (h * h * h * h);
+                        let a = &mut acc[t.v[k] as usize];
+                        a.0 = add(a.0, scale(g, wgt));
+                        a.1 += wgt;
+                    }
+                }
+            }
+            for (p, a) in self.pts.iter_mut().zip(&acc) {
+                if a.1 > 0.0 {
+                    let c = scale(a.0, 1.0 / a.1);
+                    *p = scale(c, self.radius / norm(c));
+                }
+            }
+            self.flip_to_convex();
+        }
+    }
+
     /// True if vertex `target` is adjacent to `a` (walks the triangle fan of `a` starting at
     /// triangle `start`, which must contain `a`).
     fn fan_contains(&self, start: u32, a: u32, target: u32) -> bool {
@@ -581,5 +683,61 @@ mod tests {
         let e = triangulate_sphere_limited(1.0, 1e-3, |_| 1e-3, "seeding", 10_000).unwrap_err();
         assert!(matches!(e, MeshError::TooLarge { .. }));
         assert!(e.to_string().starts_with("seeding: "));
+    }
+}
+
+#[cfg(test)]
+mod explore_tests {
+    use super::*;
+
+    fn angles(s: &SphereSurface) -> (f64, usize, usize) {
+        let mut val = vec![0usize; s.points.len()];
+        for t in &s.triangles { for &v in t { val[v as usize] += 1; } }
+        let mut hist = std::collections::BTreeMap::new();
+        for t in &s.triangles {
+            let p = t.map(|i| s.points[i as usize]);
+            for k in 0..3 {
+                let e1 = sub(p[(k + 1) % 3], p[k]);
+                let e2 = sub(p[(k + 2) % 3], p[k]);
+                if (dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees() > 90.0 {
+                    *hist.entry((val[t[k] as usize], val[t[(k+1)%3] as usize].min(val[t[(k+2)%3] as usize]), val[t[(k+1)%3] as usize].max(val[t[(k+2)%3] as usize]))).or_insert(0) += 1;
+                }
+            }
+        }
+        let mut vh = std::collections::BTreeMap::new();
+        for v in &val { *vh.entry(*v).or_insert(0) += 1; }
+        eprintln!("valences {vh:?}\n obtuse (apex val, edge vals) {hist:?}");
+        let (mut maxa, mut obt, mut n) = (0f64, 0, 0);
+        for t in &s.triangles {
+            let p = t.map(|i| s.points[i as usize]);
+            let mut m: f64 = 0.0;
+            for k in 0..3 {
+                let e1 = sub(p[(k + 1) % 3], p[k]);
+                let e2 = sub(p[(k + 2) % 3], p[k]);
+                m = m.max((dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees());
+            }
+            maxa = maxa.max(m);
+            if m > 90.0 {
+                obt += 1;
+            }
+            n += 1;
+        }
+        (maxa, obt, n)
+    }
+
+    #[test]
+    #[ignore]
+    fn explore_smoothing() {
+        for it in [0usize, 50] {
+            std::env::set_var("MUFE_SMOOTH", it.to_string());
+            // uniform via LEPP from coarse base
+            let s = triangulate_sphere(1.0, 0.5, |_| 0.05, "x").unwrap();
+            let (m, o, n) = angles(&s);
+            eprintln!("it {it} uniform-LEPP: max {m:.1} obtuse {o}/{n}");
+            let size = |x: [f64; 3]| 0.1f64.min(0.025 + 0.3 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.1).max(0.0));
+            let s = triangulate_sphere(1.0, 0.1, size, "x").unwrap();
+            let (m, o, n) = angles(&s);
+            eprintln!("it {it} patch: max {m:.1} obtuse {o}/{n}");
+        }
     }
 }

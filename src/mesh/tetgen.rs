@@ -35,27 +35,22 @@ pub(crate) fn tetrahedralize(
     radius_edge_ratio: f64,
 ) -> Result<TetMesh, MeshError> {
     let err = |e: &str| MeshError::TetGen(e.to_string());
-    let mut tg = tritet::Tetgen::new(
-        points.len(),
-        Some(vec![3; facets.len()]),
-        if regions.is_empty() {
-            None
-        } else {
-            Some(regions.len())
-        },
-        None,
-    )
-    .map_err(err)?;
+    let delaunay = std::env::var("MUFE_DELAUNAY").is_ok();
+    let mut tg = if delaunay {
+        tritet::Tetgen::new(points.len(), None, None, None).map_err(err)?
+    } else {
+        tritet::Tetgen::new(points.len(), Some(vec![3; facets.len()]), Some(regions.len()), None).map_err(err)?
+    };
     for (i, p) in points.iter().enumerate() {
         // Marker 1 is reserved by TetGen for boundary points; 0 = none.
         tg.set_point(i, 0, p[0], p[1], p[2]).map_err(err)?;
     }
-    for (f, tri) in facets.iter().enumerate() {
+    for (f, tri) in facets.iter().enumerate().filter(|_| !delaunay) {
         for (m, &p) in tri.iter().enumerate() {
             tg.set_facet_point(f, m, p as usize).map_err(err)?;
         }
     }
-    for (i, r) in regions.iter().enumerate() {
+    for (i, r) in regions.iter().enumerate().filter(|_| !delaunay) {
         tg.set_region(
             i,
             r.marker,

@@ -1,5 +1,6 @@
 //! Stable Δt, mass scaling, damping, central-difference integration: the step pipeline.
 
+pub mod diagnose;
 pub mod forces;
 pub mod model;
 pub mod progress;

@@ -181,9 +181,17 @@ impl Solver {
         );
         let stored = e.kinetic + e.strain;
         if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > 1e-30) {
+            let (e, density) = super::diagnose::most_strained_element(&self.model, &state.x);
+            let g = &self.model.grains[self.model.grain_of_element(e)];
             return Err(MufeError::Run(format!(
-                "blow-up at t = {:.6e} s (step {}): energy exploded (kinetic + strain = {:.3e} J, supplied {:.3e} J); reduce simulation.dt_safety",
-                state.time, state.step, stored, self.energy_scale
+                "blow-up at t = {:.6e} s (step {}): energy exploded (kinetic + strain = {:.3e} J, supplied {:.3e} J); most strained: element {} of grain '{}' ({:.3e} J/m³); reduce simulation.dt_safety",
+                state.time,
+                state.step,
+                stored,
+                self.energy_scale,
+                e - g.elements.start,
+                g.name,
+                density
             )));
         }
         Ok(())

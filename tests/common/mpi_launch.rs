@@ -1,0 +1,162 @@
+//! Running a test's MPI part under `mpirun` from `cargo test`.
+//!
+//! A multi-rank test relaunches its own test executable under `mpirun -n K`, filtered to
+//! itself (`--exact NAME`), with `MUFE_MPI_CHILD=1` set: the child branch does the MPI work
+//! on every rank, the parent (plain `cargo test`, no MPI) checks the exit status and the
+//! files the child wrote. A timeout kills the launcher so a deadlock fails the test instead
+//! of hanging CI. Runs are serialised within a test binary (the machine has few cores).
+//!
+//! Use from a test file with `#[path = "common/mpi_launch.rs"] mod mpi_launch;`.
+//!
+//! Settings go through the environment so the code stays MPI-implementation neutral:
+//! `MPIEXEC` overrides the launcher (default `mpirun`); the OpenMPI variables below allow
+//! running as root, more ranks than cores, and unbound ranks (rayon threads).
+#![allow(dead_code)]
+
+use std::io::Read;
+use std::os::unix::process::CommandExt;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::sync::Mutex;
+use std::thread;
+use std::time::{Duration, Instant};
+
+/// Set in the children's environment; `is_mpi_child()` tells the two branches apart.
+pub const CHILD_ENV: &str = "MUFE_MPI_CHILD";
+
+/// Default time limit of an MPI test run.
+pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Whether this process is a rank started by [`relaunch_test`] (then do the MPI work).
+pub fn is_mpi_child() -> bool {
+    std::env::var_os(CHILD_ENV).is_some_and(|v| v == "1")
+}
+
+/// One MPI job at a time per test binary.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+/// Environment every launch gets (harmless for MPICH, which ignores OMPI_*).
+const LAUNCH_ENV: [(&str, &str); 4] = [
+    ("OMPI_ALLOW_RUN_AS_ROOT", "1"),
+    ("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1"),
+    ("OMPI_MCA_rmaps_base_oversubscribe", "1"),
+    ("OMPI_MCA_hwloc_base_binding_policy", "none"),
+];
+
+/// Runs `exe args...` under `$MPIEXEC` (or `mpirun`) with `ranks` ranks and the extra
+/// `env`, and returns its output. Panics (failing the test) if the launcher cannot be
+/// started or does not finish within `timeout`; then the whole process group of the
+/// launcher is killed and the output so far is shown.
+pub fn run_under_mpirun(
+    ranks: usize,
+    exe: &Path,
+    args: &[&str],
+    env: &[(&str, &str)],
+    timeout: Duration,
+) -> Output {
+    let _serial = SERIAL.lock().unwrap_or_else(|p| p.into_inner());
+    let launcher = std::env::var("MPIEXEC").unwrap_or_else(|_| "mpirun".to_string());
+    let mut cmd = Command::new(&launcher);
+    cmd.arg("-n").arg(ranks.to_string()).arg(exe).args(args);
+    for (k, v) in LAUNCH_ENV.iter().chain(env) {
+        cmd.env(k, v);
+    }
+    // Own process group: on timeout the launcher and every rank it started are killed
+    // together, not just the launcher.
+    cmd.process_group(0)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let mut child = cmd
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start MPI launcher {launcher:?}: {e}"));
+    let pgid = child.id();
+    let stdout = drain(child.stdout.take());
+    let stderr = drain(child.stderr.take());
+
+    let start = Instant::now();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(status)) => break Some(status),
+            Ok(None) if start.elapsed() < timeout => thread::sleep(Duration::from_millis(50)),
+            Ok(None) => break None,
+            Err(e) => panic!("waiting for {launcher}: {e}"),
+        }
+    };
+    let Some(status) = status else {
+        kill_group(pgid, "TERM");
+        thread::sleep(Duration::from_secs(2));
+        kill_group(pgid, "KILL");
+        let _ = child.wait();
+        let out = String::from_utf8_lossy(&join(stdout)).into_owned();
+        let err = String::from_utf8_lossy(&join(stderr)).into_owned();
+        panic!(
+            "{launcher} -n {ranks} {} did not finish within {timeout:?} (deadlock?); killed.\n\
+             --- stdout ---\n{out}\n--- stderr ---\n{err}",
+            exe.display()
+        );
+    };
+    // A rank left behind by the launcher would keep the pipes open; make sure none is.
+    kill_group(pgid, "KILL");
+    Output {
+        status,
+        stdout: join(stdout),
+        stderr: join(stderr),
+    }
+}
+
+/// Relaunches the current test executable under MPI, running only `test_name` in every
+/// rank with `MUFE_MPI_CHILD=1` plus `env`.
+pub fn relaunch_test(
+    test_name: &str,
+    ranks: usize,
+    env: &[(&str, &str)],
+    timeout: Duration,
+) -> Output {
+    let exe = std::env::current_exe().expect("path of the test executable");
+    let mut all_env: Vec<(&str, &str)> = vec![(CHILD_ENV, "1")];
+    all_env.extend_from_slice(env);
+    run_under_mpirun(
+        ranks,
+        &exe,
+        &["--exact", test_name, "--nocapture", "--test-threads=1"],
+        &all_env,
+        timeout,
+    )
+}
+
+/// Panics with the job's output unless it exited successfully.
+pub fn assert_success(out: &Output) {
+    assert!(
+        out.status.success(),
+        "MPI job failed ({}).\n--- stdout ---\n{}\n--- stderr ---\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn drain(pipe: Option<impl Read + Send + 'static>) -> thread::JoinHandle<Vec<u8>> {
+    thread::spawn(move || {
+        let mut buf = Vec::new();
+        if let Some(mut p) = pipe {
+            let _ = p.read_to_end(&mut buf);
+        }
+        buf
+    })
+}
+
+fn join(handle: thread::JoinHandle<Vec<u8>>) -> Vec<u8> {
+    handle.join().unwrap_or_default()
+}
+
+/// Signals the process group we created for the launcher (no libc dependency: `kill`).
+fn kill_group(pgid: u32, signal: &str) {
+    let _ = Command::new("kill")
+        .arg(format!("-{signal}"))
+        .arg("--")
+        .arg(format!("-{pgid}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status();
+}

@@ -1,0 +1,422 @@
+//! Two-rank tests of the MPI layer (`mufe::domain`) and the collective results writer
+//! (`mufe::io`), spawned under `mpirun -n 2` from `cargo test`.
+//!
+//! How to run: `cargo test --test mpi_io` (needs `mpirun` on PATH, or `MPIEXEC`). Each test
+//! relaunches this executable under MPI filtered to itself; the `MUFE_MPI_CHILD` branch
+//! runs on every rank, the parent checks the exit status and what the ranks wrote.
+
+#[path = "common/mpi_launch.rs"]
+mod mpi_launch;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use hdf5::types::VarLenUnicode;
+use mpi_launch::{assert_success, is_mpi_child, relaunch_test, DEFAULT_TIMEOUT};
+use mufe::domain::{Domain, Exchange};
+use mufe::io::{FieldPart, HistoryColumn, MeshPart, Provenance, ResultsWriter};
+
+const OUT_ENV: &str = "MUFE_TEST_OUT";
+
+// The written data are functions of the global index, so every value can be checked.
+const TOTAL_NODES: u64 = 11;
+const TOTAL_TETS: u64 = 7;
+const GRAIN_OWNERS: [u32; 3] = [0, 1, 1];
+const HISTORY_ROWS: usize = 5;
+const SCENE: &str = "# two-rank io test\n[run]\nend_time = 1.0\n";
+
+fn node(i: u64) -> [f64; 3] {
+    let x = i as f64;
+    [0.5 * x, -x, 1e-3 * x + 7.0]
+}
+
+fn tet(e: u64) -> [u64; 4] {
+    [e, e + 1, e + 2, (e + 3) % TOTAL_NODES]
+}
+
+fn grain(e: u64) -> u32 {
+    (e % 3) as u32
+}
+
+fn velocity(i: u64) -> [f64; 3] {
+    let x = i as f64;
+    [x.sin(), x.cos(), -2.0 * x]
+}
+
+fn pressure(i: u64) -> f64 {
+    1.0e5 + i as f64
+}
+
+/// Probe rows: all on rank 0, so rank 1 takes part with an empty selection.
+const PROBE: [f64; 2] = [4.5, -4.5];
+
+fn history_row(k: usize) -> [f64; 2] {
+    let t = k as f64 * 0.1;
+    [t, 3.0 * t * t]
+}
+
+/// Splits `total` rows unevenly: rank 0 gets the larger half.
+fn block(total: u64, rank: usize, size: usize) -> (u64, u64) {
+    let size = size as u64;
+    let rank = rank as u64;
+    let base = total / size;
+    let extra = total % size;
+    let rows = base + u64::from(rank < extra);
+    let offset = rank * base + rank.min(extra);
+    (offset, rows)
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn two_ranks_write_results_collectively() {
+    if is_mpi_child() {
+        child_write_results();
+        return;
+    }
+    let path = out_dir("mpi_io").join("results.h5");
+    let _ = std::fs::remove_file(&path);
+    let out = relaunch_test(
+        "two_ranks_write_results_collectively",
+        2,
+        &[(OUT_ENV, path.to_str().unwrap())],
+        DEFAULT_TIMEOUT,
+    );
+    assert_success(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for r in 0..2 {
+        assert!(
+            stdout.contains(&format!("rank {r} wrote results")),
+            "{stdout}"
+        );
+    }
+    check_results_file(&path);
+
+    // h5dump must be able to read the file too (when installed).
+    if Command::new("h5dump").arg("--version").output().is_ok() {
+        let dump = Command::new("h5dump")
+            .arg("-H")
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            dump.status.success(),
+            "h5dump -H failed: {}",
+            String::from_utf8_lossy(&dump.stderr)
+        );
+        let header = String::from_utf8_lossy(&dump.stdout);
+        assert!(
+            header.contains("frames") && header.contains("owner_rank_of_grain"),
+            "{header}"
+        );
+    }
+}
+
+fn child_write_results() {
+    let domain = Domain::init();
+    let (rank, size) = (domain.rank(), domain.size());
+    assert_eq!(size, 2);
+    let path = PathBuf::from(std::env::var(OUT_ENV).expect("output path"));
+    // Provenance differs per rank (hostname, clock); the writer must store rank 0's.
+    let mut provenance = Provenance::collect(&domain, 1);
+    provenance.hostname = format!("host-of-rank-{rank}");
+    let mut w = ResultsWriter::create(&domain, &path, SCENE, &provenance).unwrap();
+
+    w.define_history(&[
+        HistoryColumn::new("time", "s", None, "output time"),
+        HistoryColumn::new("kinetic_energy", "J", Some("ALLKE"), "kinetic energy"),
+    ])
+    .unwrap();
+    // Two flushes: the second extends the datasets.
+    for k in 0..3 {
+        w.push_history(&history_row(k)).unwrap();
+    }
+    w.flush_history().unwrap();
+    for k in 3..HISTORY_ROWS {
+        w.push_history(&history_row(k)).unwrap();
+    }
+
+    let (node_offset, n_nodes) = block(TOTAL_NODES, rank, size);
+    let (tet_offset, n_tets) = block(TOTAL_TETS, rank, size);
+    let nodes: Vec<[f64; 3]> = (node_offset..node_offset + n_nodes).map(node).collect();
+    let tets: Vec<[u64; 4]> = (tet_offset..tet_offset + n_tets).map(tet).collect();
+    let grains: Vec<u32> = (tet_offset..tet_offset + n_tets).map(grain).collect();
+    w.write_mesh(&MeshPart {
+        nodes: &nodes,
+        node_offset,
+        total_nodes: TOTAL_NODES,
+        tets: &tets,
+        tet_offset,
+        total_tets: TOTAL_TETS,
+        grain_of_tet: &grains,
+        grain_owner_rank: &GRAIN_OWNERS,
+    })
+    .unwrap();
+
+    let v: Vec<f64> = (node_offset..node_offset + n_nodes)
+        .flat_map(velocity)
+        .collect();
+    let p: Vec<f64> = (node_offset..node_offset + n_nodes).map(pressure).collect();
+    let probe: &[f64] = if rank == 0 { &PROBE } else { &[] };
+    w.write_frame(
+        7,
+        0.125,
+        &[
+            FieldPart {
+                name: "velocity",
+                units: "m/s",
+                components: 3,
+                data: &v,
+                offset: node_offset,
+                total: TOTAL_NODES,
+            },
+            FieldPart {
+                name: "pressure",
+                units: "Pa",
+                components: 1,
+                data: &p,
+                offset: node_offset,
+                total: TOTAL_NODES,
+            },
+            FieldPart {
+                name: "probe",
+                units: "N",
+                components: 1,
+                data: probe,
+                offset: 0,
+                total: PROBE.len() as u64,
+            },
+        ],
+    )
+    .unwrap();
+
+    // A frame whose blocks overlap is refused on both ranks alike (no deadlock).
+    let bad = FieldPart {
+        name: "u",
+        units: "m",
+        components: 1,
+        data: &[0.0; 2],
+        offset: 0,
+        total: 4,
+    };
+    let e = w.write_frame(8, 0.25, &[bad]).unwrap_err();
+    assert!(e.to_string().contains(path.to_str().unwrap()), "{e}");
+
+    let stats = w.io_stats();
+    // Every bulk write (mesh, frame, history) must really have been collective.
+    assert_eq!(stats.not_collective, 0, "rank {rank}: {stats:?}");
+    assert!(stats.collective >= 9, "rank {rank}: {stats:?}");
+    w.close().unwrap();
+    println!("rank {rank} wrote results ({stats:?})");
+}
+
+fn str_attr(loc: &hdf5::Location, name: &str) -> String {
+    loc.attr(name)
+        .unwrap_or_else(|e| panic!("attribute {name}: {e}"))
+        .read_scalar::<VarLenUnicode>()
+        .unwrap()
+        .as_str()
+        .to_string()
+}
+
+fn check_results_file(path: &Path) {
+    let f = hdf5::File::open(path).unwrap();
+    let scene = mufe::io::collective::read_text_dataset(&f.dataset("scene").unwrap()).unwrap();
+    assert_eq!(scene, SCENE);
+    let prov = f.group("provenance").unwrap();
+    assert_eq!(str_attr(&prov, "hostname"), "host-of-rank-0");
+    assert_eq!(str_attr(&prov, "version"), env!("CARGO_PKG_VERSION"));
+    assert_eq!(prov.attr("ranks").unwrap().read_scalar::<u64>().unwrap(), 2);
+
+    let time = f.dataset("history/time").unwrap();
+    let ke = f.dataset("history/kinetic_energy").unwrap();
+    let (tv, kv) = (
+        time.read_raw::<f64>().unwrap(),
+        ke.read_raw::<f64>().unwrap(),
+    );
+    assert_eq!(tv.len(), HISTORY_ROWS);
+    for k in 0..HISTORY_ROWS {
+        assert_eq!([tv[k], kv[k]], history_row(k), "history row {k}");
+    }
+    assert_eq!(str_attr(&time, "units"), "s");
+    assert!(time.attr("abaqus").is_err());
+    assert_eq!(str_attr(&ke, "units"), "J");
+    assert_eq!(str_attr(&ke, "abaqus"), "ALLKE");
+
+    let nodes = f.dataset("mesh/nodes").unwrap();
+    assert_eq!(nodes.shape(), vec![TOTAL_NODES as usize, 3]);
+    assert_eq!(str_attr(&nodes, "units"), "m");
+    let xyz = nodes.read_raw::<f64>().unwrap();
+    for i in 0..TOTAL_NODES {
+        let i_ = i as usize;
+        assert_eq!(xyz[3 * i_..3 * i_ + 3], node(i), "node {i}");
+    }
+    let tets = f.dataset("mesh/tetrahedra").unwrap();
+    assert_eq!(tets.shape(), vec![TOTAL_TETS as usize, 4]);
+    let conn = tets.read_raw::<u64>().unwrap();
+    for e in 0..TOTAL_TETS {
+        let e_ = e as usize;
+        assert_eq!(conn[4 * e_..4 * e_ + 4], tet(e), "element {e}");
+    }
+    let g = f
+        .dataset("mesh/grain_of_element")
+        .unwrap()
+        .read_raw::<u32>()
+        .unwrap();
+    assert_eq!(g, (0..TOTAL_TETS).map(grain).collect::<Vec<_>>());
+    let owners = f.dataset("mesh/owner_rank_of_grain").unwrap();
+    assert_eq!(owners.read_raw::<u32>().unwrap(), GRAIN_OWNERS);
+    for name in ["tetrahedra", "grain_of_element", "owner_rank_of_grain"] {
+        assert_eq!(
+            str_attr(&f.dataset(&format!("mesh/{name}")).unwrap(), "units"),
+            ""
+        );
+    }
+
+    let frame = f.group("frames/000007").unwrap();
+    assert_eq!(
+        frame.attr("time").unwrap().read_scalar::<f64>().unwrap(),
+        0.125
+    );
+    let v = frame.dataset("velocity").unwrap();
+    assert_eq!(v.shape(), vec![TOTAL_NODES as usize, 3]);
+    assert_eq!(str_attr(&v, "units"), "m/s");
+    let vv = v.read_raw::<f64>().unwrap();
+    for i in 0..TOTAL_NODES {
+        let i_ = i as usize;
+        assert_eq!(vv[3 * i_..3 * i_ + 3], velocity(i), "velocity {i}");
+    }
+    let p = frame.dataset("pressure").unwrap();
+    assert_eq!(p.shape(), vec![TOTAL_NODES as usize]);
+    assert_eq!(str_attr(&p, "units"), "Pa");
+    assert_eq!(
+        p.read_raw::<f64>().unwrap(),
+        (0..TOTAL_NODES).map(pressure).collect::<Vec<_>>()
+    );
+    let probe = frame.dataset("probe").unwrap();
+    assert_eq!(probe.read_raw::<f64>().unwrap(), PROBE);
+    assert!(
+        !f.link_exists("frames/000008"),
+        "refused frame must not be written"
+    );
+}
+
+#[test]
+fn two_rank_collectives_and_exchange() {
+    if is_mpi_child() {
+        child_collectives();
+        return;
+    }
+    let out = relaunch_test("two_rank_collectives_and_exchange", 2, &[], DEFAULT_TIMEOUT);
+    assert_success(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for r in 0..2 {
+        assert!(
+            stdout.contains(&format!("rank {r} collectives ok")),
+            "{stdout}"
+        );
+    }
+}
+
+fn child_collectives() {
+    let d = Domain::init();
+    let (rank, size) = (d.rank(), d.size());
+    assert_eq!(size, 2);
+    assert_eq!(d.is_root(), rank == 0);
+    let r = rank as f64;
+
+    // Small (stack) and large (heap) reductions; expected values from the per-rank inputs.
+    let mut v = [r + 1.0, 2.0 * r, -r];
+    d.sum_in_place(&mut v);
+    assert_eq!(v, [1.0 + 2.0, 2.0, -1.0]);
+    let mut big: Vec<f64> = (0..100).map(|i| i as f64 * (r + 1.0)).collect();
+    d.sum_in_place(&mut big);
+    assert!(big.iter().enumerate().all(|(i, &x)| x == 3.0 * i as f64));
+    let mut m = [r, -r, 10.0 - r];
+    d.max_in_place(&mut m);
+    assert_eq!(m, [1.0, 0.0, 10.0]);
+    let mut m = [r, -r, 10.0 - r];
+    d.min_in_place(&mut m);
+    assert_eq!(m, [0.0, -1.0, 9.0]);
+
+    assert_eq!(d.sum_u64(rank as u64 + 5), 5 + 6);
+    let local = 10 * (rank as u64 + 1);
+    let (offset, total) = d.exclusive_scan_u64(local);
+    assert_eq!((offset, total), (if rank == 0 { 0 } else { 10 }, 30));
+    assert_eq!(d.all_gather_u64(rank as u64 * 7), vec![0, 7]);
+
+    let mut bytes = if rank == 0 {
+        b"from root".to_vec()
+    } else {
+        vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]
+    };
+    d.broadcast_bytes(&mut bytes);
+    assert_eq!(bytes, b"from root");
+
+    // Variable counts: rank r contributes r + 1 values r*10 + j.
+    let mine: Vec<f64> = (0..=rank).map(|j| (rank * 10 + j) as f64).collect();
+    match d.gather_f64_to_root(&mine) {
+        Some(all) => {
+            assert_eq!(rank, 0);
+            assert_eq!(all, vec![0.0, 10.0, 11.0]);
+        }
+        None => assert_eq!(rank, 1),
+    }
+
+    // Exchange: each rank sends 3 + rank values to the other and one value to itself;
+    // two exchanges with different tags in flight at once, begun in opposite orders.
+    let other = 1 - rank;
+    let to_other: Vec<f64> = (0..3 + rank).map(|j| (100 * rank + j) as f64).collect();
+    let forward = Exchange::new(1);
+    let reverse = Exchange::new(2);
+    let sends = vec![(other, to_other), (rank, vec![-(r + 1.0)])];
+    let recvs = [(other, 3 + other), (rank, 1)];
+    let (pf, pr) = if rank == 0 {
+        let pf = forward.begin(&d, &sends, &recvs).unwrap();
+        let pr = reverse
+            .begin(&d, &[(other, vec![r; 2])], &[(other, 2)])
+            .unwrap();
+        (pf, pr)
+    } else {
+        let pr = reverse
+            .begin(&d, &[(other, vec![r; 2])], &[(other, 2)])
+            .unwrap();
+        let pf = forward.begin(&d, &sends, &recvs).unwrap();
+        (pf, pr)
+    };
+    // (Work would overlap here.)
+    let got_r = reverse.end(pr).unwrap();
+    let got_f = forward.end(pf).unwrap();
+    let expect_other: Vec<f64> = (0..3 + other).map(|j| (100 * other + j) as f64).collect();
+    assert_eq!(got_f, vec![(other, expect_other), (rank, vec![-(r + 1.0)])]);
+    assert_eq!(got_r, vec![(other, vec![other as f64; 2])]);
+
+    d.barrier();
+    println!("rank {rank} collectives ok");
+}
+
+#[test]
+fn panic_on_one_rank_ends_the_job() {
+    if is_mpi_child() {
+        let d = Domain::init();
+        d.barrier();
+        if d.rank() == 1 {
+            panic!("deliberate test panic");
+        }
+        // Rank 0 would wait here forever without the abort hook.
+        d.barrier();
+        println!("rank 0 passed the barrier: the abort hook did not work");
+        return;
+    }
+    // run_under_mpirun panics (failing the test) if the job is still running at the timeout.
+    let out = relaunch_test("panic_on_one_rank_ends_the_job", 2, &[], DEFAULT_TIMEOUT);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "job must fail: {stderr}");
+    assert!(stderr.contains("rank 1: panicked"), "{stderr}");
+    assert!(stderr.contains("deliberate test panic"), "{stderr}");
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("passed the barrier"));
+}
