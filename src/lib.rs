@@ -24,3 +24,4 @@ pub mod material;
 pub mod scene;
 pub mod solver;
 pub mod cli;
+pub mod validate;

@@ -435,7 +435,7 @@ struct DiametralBalls {
 
 impl DiametralBalls {
     fn new(points: &[[f64; 3]], facets: &[[u32; 3]], margin: f64) -> Self {
-        let balls: Vec<([f64; 3], f64)> = facets
+        let mut balls: Vec<([f64; 3], f64)> = facets
             .iter()
             .map(|t| {
                 let [a, b, c] = t.map(|i| points[i as usize]);
@@ -450,6 +450,17 @@ impl DiametralBalls {
                 (super::add(a, off), r * r)
             })
             .collect();
+        // Segment (edge) diametral balls: each edge once, from the facet where it ascends.
+        for t in facets {
+            for k in 0..3 {
+                let (i, j) = (t[k], t[(k + 1) % 3]);
+                if i < j {
+                    let (a, b) = (points[i as usize], points[j as usize]);
+                    let r = 0.5 * (1.0 + margin) * norm(sub(b, a));
+                    balls.push((scale(super::add(a, b), 0.5), r * r));
+                }
+            }
+        }
         let cell = balls.iter().map(|b| b.1).fold(0.0, f64::max).sqrt().max(1e-9);
         let mut grid: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
         for (i, b) in balls.iter().enumerate() {

@@ -25,9 +25,12 @@ use super::{add, cross, dot, norm, scale, sub, MeshError};
 /// their mean edge near 0.85 h.
 pub const LONGEST_EDGE_FACTOR: f64 = 1.42;
 
-/// Smoothing sweeps applied after refinement (none when no triangle was bisected: the
-/// geodesic base is already acute).
-pub const SMOOTHING_ITERATIONS: usize = 20;
+/// Target largest angle of the surface triangles after refinement (degrees): below 90° with
+/// a margin (see `Refiner::make_acute`). The geodesic base mesh has at most 72°.
+pub const MAX_ANGLE_DEG: f64 = 85.0;
+const LLOYD_ITERATIONS: usize = 40;
+const REPAIR_ROUNDS: usize = 10;
+const ACUTE_PASSES: usize = 3;
 
 /// Mean edge of the frequency-n geodesic sphere of unit radius, times n (measured; the
 /// continuum estimate is √(4π/(5√3)) ≈ 1.2046; 1.203 within 0.3 % for n ≥ 5).
@@ -100,12 +103,11 @@ where
         return Err(MeshError::TooLarge { field: field.to_string(), limit });
     }
     let mut r = Refiner::geodesic(radius, n);
-    let base = r.tris.len();
+    let base_vertices = r.pts.len();
     r.refine(&size, field, limit)?;
     r.flip_to_convex();
-    if r.tris.len() > base {
-        let iters: usize = std::env::var("MUFE_SMOOTH").ok().and_then(|v| v.parse().ok()).unwrap_or(SMOOTHING_ITERATIONS);
-        if std::env::var("MUFE_LLOYD").is_ok() { r.lloyd(&size, iters); } else { r.smooth(&size, iters); }
+    if r.pts.len() > base_vertices {
+        r.make_acute(&size, base_vertices);
     }
     Ok(SphereSurface {
         points: r.pts,
@@ -219,8 +221,12 @@ impl Refiner {
                 }
             }
         }
-        // Neighbours through a directed-edge map (built once; refinement then updates the
-        // links locally).
+        Self::from_triangles(radius, pts, &tri_v)
+    }
+
+    /// Builds the neighbour links of a closed oriented triangulation through a directed-edge
+    /// map (used once per construction; refinement and flips then update links locally).
+    fn from_triangles(radius: f64, pts: Vec<[f64; 3]>, tri_v: &[[u32; 3]]) -> Self {
         let mut half: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * tri_v.len());
         for (t, v) in tri_v.iter().enumerate() {
             for k in 0..3 {
@@ -382,66 +388,20 @@ impl Refiner {
         (t2, u2)
     }
 
-    /// Spring smoothing in the manner of DistMesh (Persson & Strang): every edge pushes its
-    /// ends apart while shorter than its rest length `FSCALE·κ·h(midpoint)` (κ normalises
-    /// the rest lengths to the current mesh, so the vertex count and hence the overall size
-    /// stay fixed), vertices move by `DT·force` and are projected back onto the sphere, and
-    /// edges are re-flipped to the convex hull after each sweep. Bisection leaves right and
-    /// obtuse triangles in graded zones; TetGen treats every surface edge as a segment and
-    /// splits any whose diametral ball holds the opposite vertex (angle ≥ 90°), cascading
-    /// into tiny edges, so the surface is smoothed until nearly all angles are acute.
-    fn smooth<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, iterations: usize) {
-        const FSCALE: f64 = 1.2;
-        const DT: f64 = 0.2;
-        let np = self.pts.len();
-        let mut force = vec![[0.0; 3]; np];
-        let mut edges: Vec<(u32, u32, f64)> = Vec::with_capacity(self.tris.len() * 3 / 2);
-        for _ in 0..iterations {
-            edges.clear();
-            let (mut sum_l2, mut sum_h2) = (0.0, 0.0);
-            for t in &self.tris {
-                for k in 0..3 {
-                    let (a, b) = (t.v[k], t.v[(k + 1) % 3]);
-                    if a < b {
-                        let (pa, pb) = (self.pts[a as usize], self.pts[b as usize]);
-                        let mid = add(pa, pb);
-                        let h = size(scale(mid, self.radius / norm(mid)));
-                        let d = sub(pa, pb);
-                        sum_l2 += dot(d, d);
-                        sum_h2 += h * h;
-                        edges.push((a, b, h));
-                    }
-                }
-            }
-            let kappa = FSCALE * (sum_l2 / sum_h2).sqrt();
-            force.iter_mut().for_each(|f| *f = [0.0; 3]);
-            for &(a, b, h) in &edges {
-                let d = sub(self.pts[a as usize], self.pts[b as usize]);
-                let l = norm(d);
-                let push = (kappa * h - l).max(0.0) / l;
-                let f = scale(d, push);
-                force[a as usize] = add(force[a as usize], f);
-                force[b as usize] = sub(force[b as usize], f);
-            }
-            for (p, f) in self.pts.iter_mut().zip(&force) {
-                let q = add(*p, scale(*f, DT));
-                *p = scale(q, self.radius / norm(q));
-            }
-            self.flip_to_convex();
-        }
-    }
-
     /// Lloyd iterations towards a centroidal Voronoi tessellation with density h⁻⁴: every
     /// vertex moves to the density-weighted centroid of its Voronoi cell (then back onto the
     /// sphere) and edges are re-flipped. The cell is assembled per triangle corner from the
     /// two kites (v, edge midpoint, circumcentre) with signed areas, so no fan ordering is
     /// needed.
-    fn lloyd<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, iterations: usize) {
+    fn lloyd<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, iterations: usize, movable: &[bool]) {
         let np = self.pts.len();
         let mut acc = vec![([0.0; 3], 0.0); np];
         for _ in 0..iterations {
             acc.iter_mut().for_each(|a| *a = ([0.0; 3], 0.0));
             for t in &self.tris {
+                if !t.v.iter().any(|&i| movable[i as usize]) {
+                    continue;
+                }
                 let p = t.v.map(|i| self.pts[i as usize]);
                 let (ab, ac) = (sub(p[1], p[0]), sub(p[2], p[0]));
                 let n = cross(ab, ac);
@@ -465,14 +425,271 @@ impl Refiner {
                     }
                 }
             }
-            for (p, a) in self.pts.iter_mut().zip(&acc) {
-                if a.1 > 0.0 {
+            for ((p, a), &m) in self.pts.iter_mut().zip(&acc).zip(movable) {
+                if m && a.1 > 0.0 {
                     let c = scale(a.0, 1.0 / a.1);
                     *p = scale(c, self.radius / norm(c));
                 }
             }
             self.flip_to_convex();
         }
+    }
+
+    /// Largest angle (as its cosine's negative: larger = worse) over triangles `fan` when
+    /// vertex `v` sits at `x`; `None` if a triangle flips over.
+    fn fan_worst(&self, fan: &[u32], v: u32, x: [f64; 3]) -> Option<f64> {
+        let mut worst = f64::NEG_INFINITY;
+        for &t in fan {
+            let p = self.tris[t as usize].v.map(|i| if i == v { x } else { self.pts[i as usize] });
+            let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            if dot(n, add(add(p[0], p[1]), p[2])) <= 0.0 {
+                return None;
+            }
+            for k in 0..3 {
+                let e1 = sub(p[(k + 1) % 3], p[k]);
+                let e2 = sub(p[(k + 2) % 3], p[k]);
+                let c = -dot(e1, e2) / (norm(e1) * norm(e2));
+                worst = worst.max(c);
+            }
+        }
+        Some(worst)
+    }
+
+    /// Moves the vertices of triangles with an angle above `max_deg` (pattern search on the
+    /// largest angle of their fans, in the tangent plane, re-projected onto the sphere),
+    /// re-flipping after each round. Returns the number of such angles left.
+    fn repair_obtuse(&mut self, max_deg: f64, rounds: usize, movable: &[bool]) -> usize {
+        let cmax = -max_deg.to_radians().cos();
+        let mut left = 0;
+        for _ in 0..rounds {
+            let mut vt = vec![u32::MAX; self.pts.len()];
+            let mut bad: Vec<u32> = Vec::new();
+            for (t, tri) in self.tris.iter().enumerate() {
+                let p = tri.v.map(|i| self.pts[i as usize]);
+                for k in 0..3 {
+                    vt[tri.v[k] as usize] = t as u32;
+                    let e1 = sub(p[(k + 1) % 3], p[k]);
+                    let e2 = sub(p[(k + 2) % 3], p[k]);
+                    if -dot(e1, e2) / (norm(e1) * norm(e2)) > cmax {
+                        bad.extend_from_slice(&tri.v);
+                    }
+                }
+            }
+            left = bad.len() / 3;
+            if bad.is_empty() {
+                return 0;
+            }
+            bad.retain(|&v| movable[v as usize]);
+            bad.sort_unstable();
+            bad.dedup();
+            let mut fan: Vec<u32> = Vec::new();
+            for &v in &bad {
+                // Fan of v.
+                fan.clear();
+                let start = vt[v as usize];
+                let mut cur = start;
+                loop {
+                    fan.push(cur);
+                    let tv = self.tris[cur as usize];
+                    let k = tv.v.iter().position(|&x| x == v).unwrap();
+                    cur = tv.n[(k + 1) % 3];
+                    if cur == start {
+                        break;
+                    }
+                }
+                let x0 = self.pts[v as usize];
+                let nrm = scale(x0, 1.0 / norm(x0));
+                let a = if nrm[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+                let u = cross(nrm, a);
+                let u = scale(u, 1.0 / norm(u));
+                let w = cross(nrm, u);
+                let mean_edge = fan
+                    .iter()
+                    .map(|&t| {
+                        let tv = self.tris[t as usize].v;
+                        let k = tv.iter().position(|&x| x == v).unwrap();
+                        norm(sub(self.pts[tv[(k + 1) % 3] as usize], x0))
+                    })
+                    .sum::<f64>()
+                    / fan.len() as f64;
+                let mut x = x0;
+                let mut best = self.fan_worst(&fan, v, x).unwrap_or(f64::INFINITY);
+                let mut step = 0.1 * mean_edge;
+                for _ in 0..30 {
+                    let mut improved = false;
+                    for d in 0..8 {
+                        let ang = d as f64 * std::f64::consts::FRAC_PI_4;
+                        let dir = add(scale(u, ang.cos()), scale(w, ang.sin()));
+                        let y = add(x, scale(dir, step));
+                        let y = scale(y, self.radius / norm(y));
+                        if let Some(f) = self.fan_worst(&fan, v, y) {
+                            if f < best - 1e-12 {
+                                best = f;
+                                x = y;
+                                improved = true;
+                            }
+                        }
+                    }
+                    if !improved {
+                        step *= 0.5;
+                        if step < 1e-3 * mean_edge {
+                            break;
+                        }
+                    }
+                }
+                self.pts[v as usize] = x;
+            }
+            self.flip_to_convex();
+        }
+        left
+    }
+
+    /// Number of triangle angles above `max_deg`.
+    fn count_angles_above(&self, max_deg: f64) -> usize {
+        let cmax = -max_deg.to_radians().cos();
+        let mut n = 0;
+        for tri in &self.tris {
+            let p = tri.v.map(|i| self.pts[i as usize]);
+            for k in 0..3 {
+                let e1 = sub(p[(k + 1) % 3], p[k]);
+                let e2 = sub(p[(k + 2) % 3], p[k]);
+                if -dot(e1, e2) / (norm(e1) * norm(e2)) > cmax {
+                    n += 1;
+                }
+            }
+        }
+        n
+    }
+
+    /// Vertices with index ≥ `first`, dilated by `rings` rings of neighbours.
+    fn zone(&self, first: usize, rings: usize) -> Vec<bool> {
+        let mut m: Vec<bool> = (0..self.pts.len()).map(|i| i >= first).collect();
+        for _ in 0..rings {
+            let prev = m.clone();
+            for t in &self.tris {
+                if t.v.iter().any(|&i| prev[i as usize]) {
+                    for &i in &t.v {
+                        m[i as usize] = true;
+                    }
+                }
+            }
+        }
+        m
+    }
+
+    /// Removes movable vertices of valence 3 or 4 (no two adjacent ones in one pass): their
+    /// angles average ≥ 90°, so no smoothing can make their triangles acute. The hole is
+    /// re-triangulated from the ring (flips restore convexity afterwards), and the structure
+    /// is rebuilt with compacted vertex ids; `movable` is compacted alongside. Returns the
+    /// number of vertices removed.
+    fn remove_low_valence(&mut self, movable: &mut Vec<bool>) -> usize {
+        let np = self.pts.len();
+        let mut valence = vec![0u32; np];
+        let mut vt = vec![u32::MAX; np];
+        for (t, tri) in self.tris.iter().enumerate() {
+            for &v in &tri.v {
+                valence[v as usize] += 1;
+                vt[v as usize] = t as u32;
+            }
+        }
+        let mut dead_tri = vec![false; self.tris.len()];
+        let mut locked = vec![false; np];
+        let mut removed = vec![false; np];
+        let mut new_tris: Vec<[u32; 3]> = Vec::new();
+        let mut ring: Vec<u32> = Vec::with_capacity(4);
+        let mut fan: Vec<u32> = Vec::with_capacity(4);
+        for v in 0..np {
+            if !movable[v] || locked[v] || valence[v] > 4 {
+                continue;
+            }
+            ring.clear();
+            fan.clear();
+            let start = vt[v];
+            let mut cur = start;
+            loop {
+                let tv = self.tris[cur as usize];
+                let k = tv.v.iter().position(|&x| x as usize == v).expect("fan");
+                ring.push(tv.v[(k + 1) % 3]);
+                fan.push(cur);
+                cur = tv.n[(k + 1) % 3];
+                if cur == start {
+                    break;
+                }
+            }
+            if fan.iter().any(|&t| dead_tri[t as usize]) || ring.iter().any(|&r| removed[r as usize]) {
+                continue;
+            }
+            removed[v] = true;
+            for &t in &fan {
+                dead_tri[t as usize] = true;
+            }
+            for &r in &ring {
+                locked[r as usize] = true;
+            }
+            // Ring order follows the fan walk; orient each new triangle outward.
+            let mut push = |a: u32, b: u32, c: u32| {
+                let [pa, pb, pc] = [a, b, c].map(|i| self.pts[i as usize]);
+                if dot(cross(sub(pb, pa), sub(pc, pa)), add(add(pa, pb), pc)) > 0.0 {
+                    new_tris.push([a, b, c]);
+                } else {
+                    new_tris.push([a, c, b]);
+                }
+            };
+            push(ring[0], ring[1], ring[2]);
+            if ring.len() == 4 {
+                push(ring[0], ring[2], ring[3]);
+            }
+        }
+        let count = removed.iter().filter(|&&r| r).count();
+        if count == 0 {
+            return 0;
+        }
+        let mut new_id = vec![u32::MAX; np];
+        let mut pts = Vec::with_capacity(np - count);
+        let mut mov = Vec::with_capacity(np - count);
+        for v in 0..np {
+            if !removed[v] {
+                new_id[v] = pts.len() as u32;
+                pts.push(self.pts[v]);
+                mov.push(movable[v]);
+            }
+        }
+        let tri_v: Vec<[u32; 3]> = self
+            .tris
+            .iter()
+            .zip(&dead_tri)
+            .filter(|(_, &d)| !d)
+            .map(|(t, _)| t.v)
+            .chain(new_tris)
+            .map(|t| t.map(|i| new_id[i as usize]))
+            .collect();
+        *self = Self::from_triangles(self.radius, pts, &tri_v);
+        *movable = mov;
+        self.flip_to_convex();
+        count
+    }
+
+    /// Makes a bisection-refined triangulation acute where it was refined: removes
+    /// valence-3/4 vertices, relaxes the refined zone (plus two rings of the base mesh) by
+    /// Lloyd iterations, and moves the vertices of any remaining angle above `MAX_ANGLE_DEG`.
+    /// TetGen treats every surface edge as a segment and splits any whose diametral ball
+    /// holds a vertex, i.e. every edge opposite an angle ≥ 90°; such splits cascade through
+    /// the neighbouring segments into edges many times shorter than requested, so the surface
+    /// handed to TetGen must be acute. Returns the number of angles still above 90°.
+    fn make_acute<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, first_new_vertex: usize) -> usize {
+        let mut movable = self.zone(first_new_vertex, 2);
+        for _ in 0..ACUTE_PASSES {
+            self.remove_low_valence(&mut movable);
+            self.lloyd(size, LLOYD_ITERATIONS, &movable);
+            while self.remove_low_valence(&mut movable) > 0 {
+                self.lloyd(size, 5, &movable);
+            }
+            self.repair_obtuse(MAX_ANGLE_DEG, REPAIR_ROUNDS, &movable);
+            if self.count_angles_above(MAX_ANGLE_DEG + 3.0) == 0 {
+                break;
+            }
+        }
+        self.count_angles_above(90.0)
     }
 
     /// True if vertex `target` is adjacent to `a` (walks the triangle fan of `a` starting at

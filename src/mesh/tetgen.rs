@@ -66,8 +66,11 @@ pub(crate) fn tetrahedralize(
         let _guard = TETGEN_LOCK
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        tg.generate_mesh(false, false, None, Some(radius_edge_ratio))
-            .map_err(err)?;
+        if delaunay {
+            tg.generate_delaunay(false).map_err(err)?;
+        } else {
+            tg.generate_mesh(false, false, None, Some(radius_edge_ratio)).map_err(err)?;
+        }
         let npoint = tg.out_npoint();
         let ncell = tg.out_ncell();
         if ncell == 0 || npoint < 4 {

@@ -26,6 +26,12 @@ pub struct Scene {
     /// Prescribed motions of node sets.
     #[serde(default)]
     pub boundaries: Vec<BoundarySpec>,
+    /// Grain–grain contact settings (`[contact]`); defaults apply when absent.
+    #[serde(default)]
+    pub contact: ContactSpec,
+    /// Rigid plane walls (`[[walls]]`).
+    #[serde(default)]
+    pub walls: Vec<WallSpec>,
     #[serde(default)]
     pub output: OutputSpec,
 }
@@ -166,6 +172,65 @@ pub struct BoundarySpec {
     pub components: Option<[bool; 3]>,
 }
 
+/// Contact between grain surfaces (`[contact]`). Grains always interact through their
+/// surfaces; this table only tunes how. See `crate::contact` for the method.
+///
+/// ```toml
+/// [contact]
+/// friction = 0.22        # Coulomb μ between grains (default 0: frictionless)
+/// penalty_factor = 10.0  # ε_n = factor × E'/h (default `contact::DEFAULT_PENALTY_FACTOR`)
+/// margin = 5e-6          # broad-phase margin (m); default ½ × smallest surface edge
+/// ```
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSpec {
+    /// Coulomb friction coefficient μ between grains (–), ≥ 0.
+    #[serde(default)]
+    pub friction: f64,
+    /// Penalty stiffness factor (–), > 0: ε_n = factor · E' / h with E' = E/(1−ν²) of the
+    /// stiffer side and h the local surface edge length. Default
+    /// [`crate::contact::DEFAULT_PENALTY_FACTOR`].
+    #[serde(default)]
+    pub penalty_factor: Option<f64>,
+    /// Broad-phase margin (m), > 0: candidate lists are rebuilt when a surface node has
+    /// moved more than margin/2. Default ½ × the smallest surface edge of the scene.
+    #[serde(default)]
+    pub margin: Option<f64>,
+}
+
+/// A rigid plane wall (`[[walls]]`), enforced kinematically (grains land exactly on it).
+/// Its force on the grains and its displacement are recorded in
+/// `/history/<name>_force_{x,y,z}` and `/history/<name>_displacement_{x,y,z}`.
+///
+/// ```toml
+/// [[walls]]
+/// name = "bottom"
+/// point = [0.0, 0.0, 0.0]
+/// normal = [0.0, 0.0, 1.0]   # points into the region where the grains are
+/// friction = 0.0
+/// velocity = { times = [0.0], values = [[0.0, 0.0, 0.0]] }
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallSpec {
+    /// Used for history columns, e.g. `bottom_force_z`.
+    pub name: String,
+    /// A point of the plane at t = 0 (m).
+    pub point: [f64; 3],
+    /// Plane normal pointing into the region where the grains are (normalised on use).
+    pub normal: [f64; 3],
+    /// Coulomb friction coefficient μ between wall and grains (–), default 0.
+    #[serde(default)]
+    pub friction: f64,
+    /// Translation velocity history (m/s). At most one of velocity/displacement; neither
+    /// means the wall is fixed.
+    #[serde(default)]
+    pub velocity: Option<History3>,
+    /// Translation displacement history (m).
+    #[serde(default)]
+    pub displacement: Option<History3>,
+}
+
 /// What is written and how often.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -234,12 +299,14 @@ pub fn parse_scene(
         apply_override(&mut value, o)
             .map_err(|m| InputError::new("<command line>", format!("--set {o}"), m))?;
     }
-    let scene: Scene = serde_path_to_error::deserialize(value.clone()).map_err(|e| {
-        let path = e.path().to_string();
-        let inner = e.into_inner().message().replace('\n', " ");
-        InputError::new(file, if path == "." { String::new() } else { path }, inner)
-    })?;
-    validate::validate_scene(file, &scene)?;
+    let scene: Scene = serde_path_to_error::deserialize(value.clone())
+        .map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner().message().replace('\n', " ");
+            InputError::new(file, if path == "." { String::new() } else { path }, inner)
+        })
+        .map_err(|e| blame_override(e, overrides))?;
+    validate::validate_scene(file, &scene).map_err(|e| blame_override(e, overrides))?;
     let text = if overrides.is_empty() {
         text.to_string()
     } else {
@@ -250,6 +317,25 @@ pub fn parse_scene(
         text,
         scene,
     })
+}
+
+/// When the field an error names was set (or replaced) by a `--set`, says so: the value
+/// in the message is then not the one in the file.
+fn blame_override(mut e: InputError, overrides: &[String]) -> InputError {
+    let Some(item) = overrides::path_segments(&e.item) else {
+        return e;
+    };
+    let culprit = overrides.iter().rev().find(|o| {
+        let path = o.split_once('=').map_or(o.as_str(), |(p, _)| p).trim();
+        overrides::path_segments(path).is_some_and(|set| {
+            let n = set.len().min(item.len());
+            n > 0 && set[..n] == item[..n]
+        })
+    });
+    if let Some(o) = culprit {
+        e.message = format!("{} (value from --set {o})", e.message);
+    }
+    e
 }
 
 impl GrainSpec {

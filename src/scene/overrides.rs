@@ -42,7 +42,7 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), St
             let n = a.len();
             let slot = a
                 .get_mut(i)
-                .ok_or_else(|| format!("'{walked}' has {n} entries, no index {i}"))?;
+                .ok_or_else(|| format!("'{walked}' has {n} {}, no index {i}", entries(n)))?;
             *slot = value;
             Ok(())
         }
@@ -70,10 +70,19 @@ fn step_into<'v>(
                 .map_err(|_| format!("'{walked}' is a list: '{seg}' is not an index"))?;
             let n = a.len();
             a.get_mut(i)
-                .ok_or_else(|| format!("'{walked}' has {n} entries, no index {i}"))
+                .ok_or_else(|| format!("'{walked}' has {n} {}, no index {i}", entries(n)))
         }
         _ => Err(format!("'{walked}' is a value, it has no field '{seg}'")),
     }
+}
+
+/// Segments of a dotted field path (`grains[0].centre` and `grains.0.centre` give the
+/// same), or `None` if it is not one.
+pub(super) fn path_segments(path: &str) -> Option<Vec<String>> {
+    if path.is_empty() || path.contains(char::is_whitespace) {
+        return None;
+    }
+    split_path(path).ok()
 }
 
 /// `a.b[2].c` → ["a", "b", "2", "c"].
@@ -101,6 +110,14 @@ fn split_path(path: &str) -> Result<Vec<String>, String> {
         }
     }
     Ok(out)
+}
+
+fn entries(n: usize) -> &'static str {
+    if n == 1 {
+        "entry"
+    } else {
+        "entries"
+    }
 }
 
 fn parse_value(raw: &str) -> toml::Value {

@@ -1,6 +1,6 @@
 //! Semantic checks of a typed scene. Each failure names the file and the dotted field.
 
-use super::{BoundarySpec, History3, NodeSelector, Scene, ShapeSpec};
+use super::{BoundarySpec, History3, NodeSelector, Scene, ShapeSpec, WallSpec};
 use crate::error::InputError;
 
 struct Checker<'a> {
@@ -68,7 +68,10 @@ impl Checker<'_> {
             if i > 0 && *t <= h.times[i - 1] {
                 return Err(self.err(
                     format!("{field}.times[{i}]"),
-                    "times must increase strictly",
+                    format!(
+                        "times must increase strictly, got {t} after {}",
+                        h.times[i - 1]
+                    ),
                 ));
             }
         }
@@ -157,6 +160,18 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         validate_boundary(&c, scene, i, b)?;
     }
 
+    let ct = &scene.contact;
+    c.non_negative("contact.friction", ct.friction)?;
+    if let Some(f) = ct.penalty_factor {
+        c.positive("contact.penalty_factor", f)?;
+    }
+    if let Some(m) = ct.margin {
+        c.positive("contact.margin", m)?;
+    }
+    for (i, w) in scene.walls.iter().enumerate() {
+        validate_wall(&c, scene, i, w)?;
+    }
+
     let o = &scene.output;
     if let Some(h) = o.history_interval {
         c.positive("output.history_interval", h)?;
@@ -233,6 +248,46 @@ fn validate_boundary(
         if !m.iter().any(|x| *x) {
             return Err(c.err(f("components"), "constrains no component"));
         }
+    }
+    Ok(())
+}
+
+fn validate_wall(c: &Checker, scene: &Scene, i: usize, w: &WallSpec) -> Result<(), InputError> {
+    let f = |x: &str| format!("walls[{i}].{x}");
+    if w.name.is_empty()
+        || !w
+            .name
+            .chars()
+            .all(|ch| ch.is_ascii_alphanumeric() || ch == '_')
+    {
+        return Err(c.err(
+            f("name"),
+            "must be a non-empty identifier (letters, digits, _)",
+        ));
+    }
+    if scene.walls[..i].iter().any(|o| o.name == w.name) {
+        return Err(c.err(f("name"), format!("duplicate wall name '{}'", w.name)));
+    }
+    if scene.boundaries.iter().any(|b| b.name == w.name) {
+        return Err(c.err(
+            f("name"),
+            format!("'{}' is already the name of a boundary", w.name),
+        ));
+    }
+    c.vec3(&f("point"), &w.point)?;
+    c.nonzero_vec3(&f("normal"), &w.normal)?;
+    c.non_negative(&f("friction"), w.friction)?;
+    if w.velocity.is_some() && w.displacement.is_some() {
+        return Err(c.err(
+            f("velocity"),
+            "give either velocity or displacement, not both",
+        ));
+    }
+    if let Some(h) = &w.velocity {
+        c.history(&f("velocity"), h)?;
+    }
+    if let Some(h) = &w.displacement {
+        c.history(&f("displacement"), h)?;
     }
     Ok(())
 }

@@ -1,0 +1,135 @@
+//! PNG line plots (plotters): FE curves over theory curves, speed against error.
+
+use plotters::prelude::*;
+use std::path::Path;
+
+/// One curve of a plot.
+#[derive(Debug, Clone)]
+pub struct Series {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+    /// Theory curves are drawn as thick black lines, FE curves as coloured markers+lines.
+    pub theory: bool,
+}
+
+/// Axis scaling.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Scale {
+    Linear,
+    Log,
+}
+
+/// A 2-D plot description.
+#[derive(Debug, Clone)]
+pub struct Plot<'a> {
+    pub title: &'a str,
+    pub x_label: &'a str,
+    pub y_label: &'a str,
+    pub x_scale: Scale,
+    pub y_scale: Scale,
+    pub series: Vec<Series>,
+}
+
+const PALETTE: [RGBColor; 6] = [RGBColor(31, 119, 180), RGBColor(214, 39, 40), RGBColor(44, 160, 44), RGBColor(148, 103, 189), RGBColor(255, 127, 14), RGBColor(23, 190, 207)];
+
+fn bounds(series: &[Series], scale: Scale, pick: impl Fn(&(f64, f64)) -> f64) -> (f64, f64) {
+    let vals = series.iter().flat_map(|s| s.points.iter().map(&pick)).filter(|v| v.is_finite() && (scale == Scale::Linear || *v > 0.0));
+    let (mut lo, mut hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    if lo == hi {
+        lo -= 0.5 * lo.abs().max(1e-30);
+        hi += 0.5 * hi.abs().max(1e-30);
+    }
+    match scale {
+        Scale::Linear => {
+            let pad = 0.05 * (hi - lo);
+            (lo - pad, hi + pad)
+        }
+        Scale::Log => (lo / 1.2, hi * 1.2),
+    }
+}
+
+/// Draws the plot into a PNG of 1000×700 pixels.
+pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
+    let root = BitMapBackend::new(path, (1000, 700)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (x0, x1) = bounds(&plot.series, plot.x_scale, |p| p.0);
+    let (y0, y1) = bounds(&plot.series, plot.y_scale, |p| p.1);
+    let mut builder = ChartBuilder::on(&root);
+    builder.caption(plot.title, ("sans-serif", 26)).margin(20).x_label_area_size(55).y_label_area_size(90);
+    macro_rules! body {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart
+                .configure_mesh()
+                .x_desc(plot.x_label)
+                .y_desc(plot.y_label)
+                .label_style(("sans-serif", 16))
+                .axis_desc_style(("sans-serif", 20))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            let mut colour = 0;
+            for s in &plot.series {
+                let pts: Vec<(f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .filter(|p| p.0.is_finite() && p.1.is_finite())
+                    .filter(|p| (plot.x_scale == Scale::Linear || p.0 > 0.0) && (plot.y_scale == Scale::Linear || p.1 > 0.0))
+                    .collect();
+                if s.theory {
+                    chart
+                        .draw_series(LineSeries::new(pts, BLACK.stroke_width(3)))
+                        .map_err(|e| e.to_string())?
+                        .label(s.label.clone())
+                        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
+                } else {
+                    let c = PALETTE[colour % PALETTE.len()];
+                    colour += 1;
+                    chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2))).map_err(|e| e.to_string())?;
+                    chart
+                        .draw_series(pts.iter().map(|p| Circle::new(*p, 3, c.filled())))
+                        .map_err(|e| e.to_string())?
+                        .label(s.label.clone())
+                        .legend(move |(x, y)| Circle::new((x + 10, y), 4, c.filled()));
+                }
+            }
+            chart
+                .configure_series_labels()
+                .label_font(("sans-serif", 16))
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::UpperLeft)
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }};
+    }
+    match (plot.x_scale, plot.y_scale) {
+        (Scale::Linear, Scale::Linear) => body!(builder.build_cartesian_2d(x0..x1, y0..y1).map_err(|e| e.to_string())?),
+        (Scale::Log, Scale::Log) => body!(builder.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale()).map_err(|e| e.to_string())?),
+        (Scale::Log, Scale::Linear) => body!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1).map_err(|e| e.to_string())?),
+        (Scale::Linear, Scale::Log) => body!(builder.build_cartesian_2d(x0..x1, (y0..y1).log_scale()).map_err(|e| e.to_string())?),
+    }
+    root.present().map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn draws_a_png_with_theory_and_fe_curves() {
+        let dir = std::env::temp_dir().join(format!("mufe_plot_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("p.png");
+        let theory = Series { label: "theory".into(), points: (1..50).map(|i| (i as f64, (i as f64).powf(1.5))).collect(), theory: true };
+        let fe = Series { label: "FE".into(), points: (1..50).step_by(5).map(|i| (i as f64, 1.02 * (i as f64).powf(1.5))).collect(), theory: false };
+        draw(&path, &Plot { title: "test", x_label: "x", y_label: "y", x_scale: Scale::Log, y_scale: Scale::Log, series: vec![theory, fe] }).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[1..4], b"PNG");
+        assert!(bytes.len() > 5000);
+    }
+}
