@@ -53,7 +53,7 @@ pub enum Command {
         out: Option<PathBuf>,
         /// Contact margin (m): grains whose bounding spheres come closer than this are
         /// neighbours. Default: 0.1 × the median bounding radius.
-        #[arg(long, value_name = "M", allow_negative_numbers = true)]
+        #[arg(long, value_name = "M", allow_hyphen_values = true)]
         margin: Option<f64>,
         /// Mesh every distinct grain shape (once) to count elements and surface nodes
         /// exactly, instead of estimating them from the shape.

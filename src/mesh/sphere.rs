@@ -23,9 +23,9 @@ const LATTICE_FACTOR: f64 = 1.07;
 /// TetGen would split the surface instead of keeping the requested seeding.
 const SKIN_DEPTH: f64 = 0.7;
 
-/// Gap between the fine band lattice and the coarse core lattice, in core-seeding units,
-/// where TetGen grades from one to the other.
-const CORE_GAP: f64 = 0.5;
+/// Graded meshes: below the band the interior size grows by this much per unit depth until
+/// it reaches the core size (a gentle ramp keeps the 2:1 lattice transitions well shaped).
+const CORE_GROWTH: f64 = 0.5;
 
 /// Safety bound on tet volume (× the regular tet of the coarsest nominal size): never
 /// active on a lattice-seeded ball, it only prevents huge elements should TetGen leave a gap.
@@ -341,28 +341,34 @@ pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f
 
     let lattice = tuning("MUFE_LF", LATTICE_FACTOR);
     let skin = tuning("MUFE_SKIN", SKIN_DEPTH);
-    let whole: Vec<Aabb> = vec![([-1.0; 3], [1.0; 3])];
-    // Fine lattice region: r ∈ [band_inner, 1); graded meshes add a coarse core lattice.
-    let (band_inner, coarsest) = match &spec.graded {
-        None => (0.0, s),
-        Some(g) => {
-            let band = g.band_depth * inv;
-            let core = g.core_seeding * inv;
-            let r_core = 1.0 - band - tuning("MUFE_GAP", CORE_GAP) * core;
-            add_nested_bcc(lattice * core, &[whole.clone()], |p| (norm(p) <= r_core).then_some(0), &mut points);
-            (1.0 - band, core)
-        }
+    let growth = tuning("MUFE_GROWTH", CORE_GROWTH);
+    // Interior size field H(p): the patches' formula with 3D distances, under a background
+    // of s (uniform) or s in the band growing to the core size below it (graded). Nested
+    // BCC lattices of constant a·2^(C−ℓ) fill the places where H ≈ s·2^(C−ℓ): level 0 is the
+    // core (C = log₂(core/s) rounded, 0 if not graded), level C the seeding, levels above
+    // C the refinement patches.
+    let (band, coarse_levels) = match &spec.graded {
+        None => (1.0, 0u32),
+        Some(g) => (g.band_depth * inv, (g.core_seeding / spec.seeding).log2().round().max(0.0) as u32),
     };
-    // Interior size field: the surface sizing formula with 3D distances. Nested BCC
-    // lattices of constant a₀/2^ℓ fill the places where the size is near s/2^ℓ.
-    let levels = refine
+    let core = s * (1u64 << coarse_levels) as f64;
+    let fine_levels = refine
         .iter()
         .map(|&(_, sr, _, _)| (s / sr).log2().round().max(0.0) as u32)
         .max()
         .unwrap_or(0);
+    let field = |p: [f64; 3]| {
+        let depth = 1.0 - norm(p);
+        let mut h = core.min(s + growth * (depth - band).max(0.0));
+        for &(c, sr, rr, g) in &refine {
+            h = h.min(sr + g * (norm(sub(p, c)) - rr).max(0.0));
+        }
+        h
+    };
+    let whole: Vec<Aabb> = vec![([-1.0; 3], [1.0; 3])];
+    let mut boxes = vec![whole.clone(); coarse_levels as usize + 1];
     let rot_t = transpose(&rotation(1));
-    let mut boxes = vec![whole.clone()];
-    for l in 1..=levels {
+    for l in 1..=fine_levels {
         // Where the size is below the level's threshold: balls around the patches.
         let threshold = s * 2f64.powf(0.5 - l as f64);
         let mut level_boxes = Vec::new();
@@ -380,20 +386,21 @@ pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f
         }
         boxes.push(level_boxes);
     }
+    let top = (coarse_levels + fine_levels) as f64;
     add_nested_bcc(
-        lattice * s,
+        lattice * core,
         &boxes,
         |p| {
-            let r = norm(p);
-            let h = size(p);
-            if r < band_inner || 1.0 - r < skin * h {
+            let h = field(p);
+            if 1.0 - norm(p) < skin * h {
                 return None;
             }
-            // Level whose nominal size s/2^ℓ is within √2 of h.
-            Some((s / h).log2().round().clamp(0.0, levels as f64) as u32)
+            Some((coarse_levels as f64 + (s / h).log2().round()).clamp(0.0, top) as u32)
         },
         &mut points,
     );
+    let coarsest = core;
+
     // Interior points must stay out of the surface triangles' diametral balls: TetGen
     // (with -q) splits any subface whose ball holds a vertex, and the splits cascade.
     let n_surface = facets.iter().flatten().map(|&i| i as usize + 1).max().unwrap_or(0);

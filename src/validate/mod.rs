@@ -5,3 +5,5 @@
 
 pub mod plot;
 pub mod reference;
+pub mod hertz;
+pub mod runner;

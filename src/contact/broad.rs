@@ -1,0 +1,227 @@
+//! Broad phase: which grain pairs, which slave nodes and which facets can touch before the
+//! next rebuild (a Verlet-list scheme).
+//!
+//! At a rebuild, every grain's box (over its current surface nodes) is inflated by
+//! r_g = margin + ½ h_max(g); grain pairs whose inflated boxes overlap are found by sweep and
+//! prune along x. For each pair and each direction (slave → master) the slave surface nodes
+//! inside the master's inflated box query the master's facet [`Bvh`] with a box of half-size
+//! margin + ½ h(node); the facets found are the node's candidates until the next rebuild.
+//! Walls list the surface nodes within 1.5 margin of their plane.
+//!
+//! Why this is complete: between rebuilds no surface node moves by d_max ≥ margin/2, so a
+//! node–facet distance shrinks by less than 2 d_max < margin; a node that now penetrates a
+//! facet by up to ½ h (deeper is reported as tunnelling) was within margin + ½ h of it at the
+//! rebuild, hence a candidate. For walls, d_max + (wall motion along its normal) < margin/2
+//! keeps every node that can reach the plane within the next step in the list.
+//!
+//! The work per step is proportional to the cached (node, facet) candidates, i.e. to the
+//! surface nodes within contact range, not to grain pairs × facets.
+
+use super::narrow::{Aabb, Bvh, Entry, Pass};
+use super::ContactModel;
+use crate::mesh::{dot, sub};
+use rayon::prelude::*;
+
+/// Surface nodes per parallel chunk of the displacement check.
+const NODE_CHUNK: usize = 4096;
+
+/// Cached broad-phase data (scratch, rebuilt on demand, never serialised).
+#[derive(Debug, Default, Clone)]
+pub struct BroadPhase {
+    /// True once lists exist for the current positions.
+    pub built: bool,
+    /// Surface node positions at the last rebuild (flat surface order).
+    pub x_ref: Vec<[f64; 3]>,
+    /// Wall displacements at the last rebuild.
+    pub wall_ref: Vec<[f64; 3]>,
+    /// Current surface box of every grain (at the last rebuild).
+    pub boxes: Vec<Aabb>,
+    /// Candidate grain pairs (model grain indices, a < b).
+    pub pairs: Vec<(u32, u32)>,
+    /// Number of rebuilds so far.
+    pub rebuilds: u64,
+    order: Vec<u32>,
+    chunk_max: Vec<f64>,
+    bvh_built: Vec<bool>,
+}
+
+/// Outputs of a rebuild that the narrow phase and walls consume.
+#[derive(Debug, Default, Clone)]
+pub struct CandidateLists {
+    pub passes: Vec<Pass>,
+    pub entries: Vec<Entry>,
+    pub candidates: Vec<u32>,
+    /// (wall index, flat surface node index), ordered by wall then node.
+    pub wall_nodes: Vec<(u32, u32)>,
+    pub bvh: Vec<Bvh>,
+    query: Vec<u32>,
+}
+
+impl BroadPhase {
+    /// Largest displacement of a surface node since the last rebuild (m). Deterministic
+    /// (max is exact) and parallel over fixed chunks.
+    pub fn max_displacement(&mut self, cm: &ContactModel, x: &[[f64; 3]]) -> f64 {
+        let n = cm.node.len();
+        self.chunk_max.resize(n.div_ceil(NODE_CHUNK), 0.0);
+        let x_ref = &self.x_ref;
+        self.chunk_max
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(c, out)| {
+                let mut m: f64 = 0.0;
+                for k in c * NODE_CHUNK..((c + 1) * NODE_CHUNK).min(n) {
+                    let d = sub(x[cm.node[k] as usize], x_ref[k]);
+                    m = m.max(dot(d, d));
+                }
+                *out = m;
+            });
+        self.chunk_max.iter().cloned().fold(0.0, f64::max).sqrt()
+    }
+
+    /// True when the cached lists may miss a contact at positions `x` and wall
+    /// displacements `wall_next` (those at t_{n+1}).
+    pub fn needs_rebuild(
+        &mut self,
+        cm: &ContactModel,
+        x: &[[f64; 3]],
+        wall_next: &[[f64; 3]],
+    ) -> bool {
+        if !self.built {
+            return true;
+        }
+        let d = self.max_displacement(cm, x);
+        if 2.0 * d >= cm.margin {
+            return true;
+        }
+        cm.walls.iter().enumerate().any(|(w, wall)| {
+            let moved = dot(sub(wall_next[w], self.wall_ref[w]), wall.normal).abs();
+            d + moved >= 0.5 * cm.margin
+        })
+    }
+
+    /// Rebuilds pairs, slave entries, candidate facets and wall node lists at positions `x`
+    /// (walls at displacements `wall_now`).
+    pub fn rebuild(
+        &mut self,
+        cm: &ContactModel,
+        x: &[[f64; 3]],
+        wall_now: &[[f64; 3]],
+        lists: &mut CandidateLists,
+    ) {
+        self.rebuilds += 1;
+        self.built = true;
+        self.x_ref.clear();
+        self.x_ref
+            .extend(cm.node.iter().map(|&n| x[n as usize]));
+        self.wall_ref.clear();
+        self.wall_ref.extend_from_slice(wall_now);
+        let ng = cm.surfaces.len();
+        self.boxes.clear();
+        for g in &cm.surfaces {
+            let mut b = Aabb::EMPTY;
+            for k in g.nodes.clone() {
+                b.grow(x[cm.node[k] as usize]);
+            }
+            self.boxes.push(b);
+        }
+        let reach = |g: usize| cm.margin + 0.5 * cm.surfaces[g].h_max;
+
+        // Sweep and prune along x over the inflated boxes.
+        self.pairs.clear();
+        if cm.grain_contact {
+            self.order.clear();
+            self.order.extend(0..ng as u32);
+            let lo = |g: u32| self.boxes[g as usize].min[0] - reach(g as usize);
+            let order = &mut self.order;
+            order.sort_unstable_by(|&a, &b| lo(a).total_cmp(&lo(b)).then(a.cmp(&b)));
+            for i in 0..order.len() {
+                let a = order[i] as usize;
+                let ba = self.boxes[a].inflated(reach(a));
+                for &bj in &order[i + 1..] {
+                    let b = bj as usize;
+                    let bb = self.boxes[b].inflated(reach(b));
+                    if bb.min[0] > ba.max[0] {
+                        break;
+                    }
+                    if ba.overlaps(&bb) {
+                        self.pairs.push((a.min(b) as u32, a.max(b) as u32));
+                    }
+                }
+            }
+            self.pairs.sort_unstable();
+        }
+
+        // Per-grain BVHs for grains in a pair, then the two passes of every pair.
+        lists.bvh.resize_with(ng, Bvh::default);
+        self.bvh_built.clear();
+        self.bvh_built.resize(ng, false);
+        lists.passes.clear();
+        for &(a, b) in &self.pairs {
+            lists.passes.push(Pass {
+                slave: a,
+                master: b,
+            });
+            lists.passes.push(Pass {
+                slave: b,
+                master: a,
+            });
+            for g in [a as usize, b as usize] {
+                if !self.bvh_built[g] {
+                    lists.bvh[g].build(cm, cm.surfaces[g].facets.clone(), x);
+                    self.bvh_built[g] = true;
+                }
+            }
+        }
+        lists.passes.sort_unstable_by_key(|p| (p.slave, p.master));
+        lists.entries.clear();
+        lists.candidates.clear();
+        for (pi, pass) in lists.passes.iter().enumerate() {
+            let (s, m) = (pass.slave as usize, pass.master as usize);
+            let zone = self.boxes[m].inflated(reach(s));
+            for k in cm.surfaces[s].nodes.clone() {
+                let p = x[cm.node[k] as usize];
+                if !zone.contains(p) {
+                    continue;
+                }
+                let q = Aabb::around(p, cm.margin + 0.5 * cm.node_h[k]);
+                lists.query.clear();
+                lists.bvh[m].query(&q, &mut lists.query);
+                if lists.query.is_empty() {
+                    continue;
+                }
+                let start = lists.candidates.len() as u32;
+                lists.candidates.extend_from_slice(&lists.query);
+                lists.entries.push(Entry {
+                    slave: k as u32,
+                    pass: pi as u32,
+                    start,
+                    end: lists.candidates.len() as u32,
+                });
+            }
+        }
+
+        // Walls: surface nodes within 1.5 margin of the plane.
+        lists.wall_nodes.clear();
+        for (w, wall) in cm.walls.iter().enumerate() {
+            let p = wall.point_at_displacement(wall_now[w]);
+            let n = wall.normal;
+            for (g, surf) in cm.surfaces.iter().enumerate() {
+                let b = &self.boxes[g];
+                // signed distance of the box's lowest corner along n
+                let mut lowest = 0.0;
+                for i in 0..3 {
+                    let c = if n[i] >= 0.0 { b.min[i] } else { b.max[i] };
+                    lowest += (c - p[i]) * n[i];
+                }
+                if lowest > 1.5 * cm.margin {
+                    continue;
+                }
+                for k in surf.nodes.clone() {
+                    if dot(sub(x[cm.node[k] as usize], p), n) <= 1.5 * cm.margin {
+                        lists.wall_nodes.push((w as u32, k as u32));
+                    }
+                }
+            }
+        }
+    }
+}

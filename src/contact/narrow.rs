@@ -1,0 +1,592 @@
+//! Narrow phase: surface nodes against surface facets.
+//!
+//! - [`closest_point_on_triangle`]: exact closest point with the feature it lies on (face,
+//!   edge or vertex) and its barycentric coordinates (Ericson, *Real-Time Collision
+//!   Detection* §5.1.5).
+//! - [`Bvh`]: a bounding-volume hierarchy over the facet boxes of one grain, built at each
+//!   broad-phase rebuild and queried with the boxes of nearby surface nodes of other grains.
+//! - [`evaluate_entry`]: one slave node against its candidate facets of one master grain:
+//!   penetration, normal, penalty pressure, friction, energies.
+//!
+//! Inside/outside is decided with pseudo-normals (Bærentzen & Aanæs 2005): the facet normal
+//! when the closest point is inside a facet, the sum of the two facet normals on an edge, the
+//! angle-weighted vertex normal on a vertex. The penetration depth is the distance to the
+//! closest surface point, which is continuous as a node crosses facet edges, so the penalty
+//! force has no jump there (only its direction turns, by at most the dihedral angle between
+//! neighbouring facets, and only on the medial plane where both facets are equally close).
+
+use super::friction::{return_map, rotate_onto_plane, tangential};
+use super::{ContactKey, ContactModel, FrictionPoint, NONE};
+use crate::mesh::{add, cross, dot, norm, scale, sub};
+
+/// Which part of a triangle a closest point lies on. Edge k joins corners k and (k+1)%3.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Feature {
+    Face,
+    Edge(u8),
+    Vertex(u8),
+}
+
+/// Closest point of a triangle to a query point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Closest {
+    pub point: [f64; 3],
+    /// Barycentric coordinates of `point` with respect to (a, b, c).
+    pub bary: [f64; 3],
+    pub feature: Feature,
+    /// Squared distance from the query point (m²).
+    pub dist2: f64,
+}
+
+/// Exact closest point of triangle (a, b, c) to p, with its feature and barycentric
+/// coordinates (Voronoi-region tests, no square roots).
+pub fn closest_point_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> Closest {
+    let done = |point: [f64; 3], bary: [f64; 3], feature| Closest {
+        point,
+        bary,
+        feature,
+        dist2: {
+            let d = sub(p, point);
+            dot(d, d)
+        },
+    };
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return done(a, [1.0, 0.0, 0.0], Feature::Vertex(0));
+    }
+    let bp = sub(p, b);
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return done(b, [0.0, 1.0, 0.0], Feature::Vertex(1));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return done(add(a, scale(ab, v)), [1.0 - v, v, 0.0], Feature::Edge(0));
+    }
+    let cp = sub(p, c);
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return done(c, [0.0, 0.0, 1.0], Feature::Vertex(2));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return done(add(a, scale(ac, w)), [1.0 - w, 0.0, w], Feature::Edge(2));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return done(add(b, scale(sub(c, b), w)), [0.0, 1.0 - w, w], Feature::Edge(1));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let v = vb * denom;
+    let w = vc * denom;
+    done(
+        add(a, add(scale(ab, v), scale(ac, w))),
+        [1.0 - v - w, v, w],
+        Feature::Face,
+    )
+}
+
+/// Unit normal of triangle (a, b, c) oriented by (b−a)×(c−a); zero for a degenerate one.
+#[inline]
+pub fn triangle_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
+    let n = cross(sub(b, a), sub(c, a));
+    let l = norm(n);
+    if l > 0.0 {
+        scale(n, 1.0 / l)
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// Axis-aligned bounding box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: [f64::INFINITY; 3],
+        max: [f64::NEG_INFINITY; 3],
+    };
+
+    #[inline]
+    pub fn grow(&mut self, p: [f64; 3]) {
+        for i in 0..3 {
+            self.min[i] = self.min[i].min(p[i]);
+            self.max[i] = self.max[i].max(p[i]);
+        }
+    }
+
+    #[inline]
+    pub fn union(&mut self, o: &Aabb) {
+        for i in 0..3 {
+            self.min[i] = self.min[i].min(o.min[i]);
+            self.max[i] = self.max[i].max(o.max[i]);
+        }
+    }
+
+    #[inline]
+    pub fn inflated(&self, r: f64) -> Aabb {
+        Aabb {
+            min: self.min.map(|v| v - r),
+            max: self.max.map(|v| v + r),
+        }
+    }
+
+    #[inline]
+    pub fn around(p: [f64; 3], r: f64) -> Aabb {
+        Aabb {
+            min: p.map(|v| v - r),
+            max: p.map(|v| v + r),
+        }
+    }
+
+    #[inline]
+    pub fn overlaps(&self, o: &Aabb) -> bool {
+        (0..3).all(|i| self.min[i] <= o.max[i] && o.min[i] <= self.max[i])
+    }
+
+    #[inline]
+    pub fn contains(&self, p: [f64; 3]) -> bool {
+        (0..3).all(|i| self.min[i] <= p[i] && p[i] <= self.max[i])
+    }
+
+    #[inline]
+    fn centre(&self) -> [f64; 3] {
+        [
+            0.5 * (self.min[0] + self.max[0]),
+            0.5 * (self.min[1] + self.max[1]),
+            0.5 * (self.min[2] + self.max[2]),
+        ]
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Prim {
+    facet: u32,
+    bbox: Aabb,
+    centre: [f64; 3],
+}
+
+#[derive(Debug, Clone, Copy)]
+struct BvhNode {
+    bbox: Aabb,
+    /// Leaf: first primitive; internal: index of the right child (left child = self + 1).
+    start: u32,
+    /// Number of primitives in a leaf, 0 for an internal node.
+    count: u32,
+}
+
+/// Bounding-volume hierarchy over the facets of one grain (median split on the longest
+/// axis, leaves of ≤ 4 facets). Buffers are reused across rebuilds.
+#[derive(Debug, Default, Clone)]
+pub struct Bvh {
+    prims: Vec<Prim>,
+    nodes: Vec<BvhNode>,
+}
+
+const LEAF_SIZE: usize = 4;
+
+impl Bvh {
+    /// Rebuilds over the facets `facets` (global facet indices) at positions `x`.
+    pub fn build(&mut self, cm: &ContactModel, facets: std::ops::Range<usize>, x: &[[f64; 3]]) {
+        self.prims.clear();
+        for f in facets {
+            let mut bbox = Aabb::EMPTY;
+            for &n in &cm.facet[f] {
+                bbox.grow(x[n as usize]);
+            }
+            self.prims.push(Prim {
+                facet: f as u32,
+                bbox,
+                centre: bbox.centre(),
+            });
+        }
+        self.nodes.clear();
+        if !self.prims.is_empty() {
+            self.build_range(0, self.prims.len());
+        }
+    }
+
+    /// Builds the subtree over `prims[s..e]` and returns its node index (depth-first
+    /// layout: the left child follows its parent, `start` holds the right child).
+    fn build_range(&mut self, s: usize, e: usize) -> u32 {
+        let ni = self.nodes.len();
+        let mut bbox = Aabb::EMPTY;
+        let mut cbox = Aabb::EMPTY;
+        for p in &self.prims[s..e] {
+            bbox.union(&p.bbox);
+            cbox.grow(p.centre);
+        }
+        self.nodes.push(BvhNode {
+            bbox,
+            start: s as u32,
+            count: (e - s) as u32,
+        });
+        if e - s <= LEAF_SIZE {
+            return ni as u32;
+        }
+        let ext = [0, 1, 2].map(|i| cbox.max[i] - cbox.min[i]);
+        let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+            0
+        } else if ext[1] >= ext[2] {
+            1
+        } else {
+            2
+        };
+        let mid = (s + e) / 2;
+        self.prims[s..e].select_nth_unstable_by(mid - s, |a, b| {
+            a.centre[axis]
+                .total_cmp(&b.centre[axis])
+                .then(a.facet.cmp(&b.facet))
+        });
+        self.build_range(s, mid);
+        let right = self.build_range(mid, e);
+        self.nodes[ni].start = right;
+        self.nodes[ni].count = 0;
+        ni as u32
+    }
+
+    /// Appends to `out` the facets whose box overlaps `q`, in ascending facet order.
+    pub fn query(&self, q: &Aabb, out: &mut Vec<u32>) {
+        let first = out.len();
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let node = &self.nodes[stack[top] as usize];
+            if !node.bbox.overlaps(q) {
+                continue;
+            }
+            if node.count > 0 {
+                let s = node.start as usize;
+                for p in &self.prims[s..s + node.count as usize] {
+                    if p.bbox.overlaps(q) {
+                        out.push(p.facet);
+                    }
+                }
+            } else {
+                let me = stack[top] + 1;
+                stack[top] = node.start;
+                stack[top + 1] = me;
+                top += 2;
+            }
+        }
+        out[first..].sort_unstable();
+    }
+}
+
+/// One (slave grain → master grain) pass of the symmetric two-pass scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Pass {
+    /// Model grain indices.
+    pub slave: u32,
+    pub master: u32,
+}
+
+/// A slave surface node with its candidate facets of one master grain (cached between
+/// broad-phase rebuilds).
+#[derive(Debug, Clone, Copy)]
+pub struct Entry {
+    /// Flat surface-node index (see [`ContactModel::node`]).
+    pub slave: u32,
+    /// Index into the pass list.
+    pub pass: u32,
+    /// Range into the candidate facet list.
+    pub start: u32,
+    pub end: u32,
+}
+
+/// Result of one entry at one step.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PointResult {
+    /// The slave node penetrates the master surface.
+    pub active: bool,
+    /// Penetration deeper than half the local edge: detection can no longer be trusted.
+    pub tunnel: bool,
+    /// Model node ids of the slave node and of the master facet corners.
+    pub slave: u32,
+    pub masters: [u32; 3],
+    /// Barycentric weights of the contact point on the master facet.
+    pub weights: [f64; 3],
+    /// Force on the slave node (N); the master corners get −weights[i]·force.
+    pub force: [f64; 3],
+    /// Penetration depth g ≥ 0 (m).
+    pub gap: f64,
+    /// Outward normal of the master at the contact point.
+    pub normal: [f64; 3],
+    /// Normal pressure ε_n g (Pa).
+    pub pressure: f64,
+    /// Stored penalty energy (normal + tangential spring) of this point (J).
+    pub energy: f64,
+    /// Energy dissipated by slip in this step (J).
+    pub dissipation: f64,
+    /// Tangential traction to remember (Pa).
+    pub traction: [f64; 3],
+}
+
+/// Weight of each of the two passes.
+pub const PASS_WEIGHT: f64 = 0.5;
+
+/// Inputs shared by all entries of one evaluation.
+pub struct EvalContext<'a> {
+    pub cm: &'a ContactModel,
+    pub passes: &'a [Pass],
+    pub candidates: &'a [u32],
+    pub x: &'a [[f64; 3]],
+    pub v: &'a [[f64; 3]],
+    pub dt: f64,
+    /// Friction history of the previous step, sorted by key.
+    pub history: &'a [FrictionPoint],
+    /// Include friction (μ > 0 and not a pure geometric check).
+    pub friction: bool,
+}
+
+/// Outward pseudo-normal of the master surface at a closest-point feature.
+fn pseudo_normal(cm: &ContactModel, x: &[[f64; 3]], facet: usize, feature: Feature) -> [f64; 3] {
+    let fnormal = |f: usize| {
+        let [a, b, c] = cm.facet[f].map(|n| x[n as usize]);
+        triangle_normal(a, b, c)
+    };
+    match feature {
+        Feature::Face => fnormal(facet),
+        Feature::Edge(k) => {
+            let other = cm.facet_adjacent[facet][k as usize];
+            let n = fnormal(facet);
+            if other == NONE {
+                n
+            } else {
+                add(n, fnormal(other as usize))
+            }
+        }
+        Feature::Vertex(k) => {
+            let vnode = cm.facet[facet][k as usize];
+            let s = cm.surface_index[vnode as usize] as usize;
+            let (o0, o1) = (
+                cm.vertex_facet_offsets[s] as usize,
+                cm.vertex_facet_offsets[s + 1] as usize,
+            );
+            let mut acc = [0.0; 3];
+            for &f in &cm.vertex_facets[o0..o1] {
+                let tri = cm.facet[f as usize];
+                let j = tri.iter().position(|&n| n == vnode).unwrap_or(0);
+                let p = x[tri[j] as usize];
+                let e1 = sub(x[tri[(j + 1) % 3] as usize], p);
+                let e2 = sub(x[tri[(j + 2) % 3] as usize], p);
+                let (l1, l2) = (norm(e1), norm(e2));
+                if l1 == 0.0 || l2 == 0.0 {
+                    continue;
+                }
+                let angle = (dot(e1, e2) / (l1 * l2)).clamp(-1.0, 1.0).acos();
+                acc = add(acc, scale(fnormal(f as usize), angle));
+            }
+            acc
+        }
+    }
+}
+
+/// Evaluates one slave node against its candidate facets (see module docs). Pure function
+/// of its inputs: safe to run in parallel, results independent of scheduling.
+pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
+    let cm = ctx.cm;
+    let x = ctx.x;
+    let s_flat = entry.slave as usize;
+    let s = cm.node[s_flat];
+    let xs = x[s as usize];
+    let mut best: Option<(Closest, usize)> = None;
+    for &f in &ctx.candidates[entry.start as usize..entry.end as usize] {
+        let [a, b, c] = cm.facet[f as usize].map(|n| x[n as usize]);
+        let cl = closest_point_on_triangle(xs, a, b, c);
+        if best.is_none_or(|(bc, _)| cl.dist2 < bc.dist2) {
+            best = Some((cl, f as usize));
+        }
+    }
+    let mut r = PointResult {
+        slave: s,
+        ..Default::default()
+    };
+    let Some((cl, facet)) = best else {
+        return r;
+    };
+    let pn = pseudo_normal(cm, x, facet, cl.feature);
+    let d = sub(xs, cl.point);
+    let side = dot(d, pn);
+    if side >= 0.0 || cl.dist2 == 0.0 {
+        return r; // outside (or exactly on) the master surface
+    }
+    let (gap, normal) = match cl.feature {
+        Feature::Face => {
+            let n = scale(pn, 1.0 / norm(pn));
+            (-dot(d, n), n)
+        }
+        _ => {
+            let dist = cl.dist2.sqrt();
+            (dist, scale(d, -1.0 / dist))
+        }
+    };
+    if gap <= 0.0 {
+        return r;
+    }
+    let pass = ctx.passes[entry.pass as usize];
+    let (sg, mg) = (
+        &cm.surfaces[pass.slave as usize],
+        &cm.surfaces[pass.master as usize],
+    );
+    let masters = cm.facet[facet];
+    let h_s = cm.node_h[s_flat];
+    let mut h_m = 0.0;
+    for (i, &m) in masters.iter().enumerate() {
+        h_m += cl.bary[i] * cm.node_h[cm.surface_index[m as usize] as usize];
+    }
+    let eps = cm.penalty(sg.e_prime.max(mg.e_prime), h_s, h_m);
+    let area = cm.node_area[s_flat] * PASS_WEIGHT;
+    let pressure = eps * gap;
+    let mut force = scale(normal, pressure * area);
+    let mut energy = 0.5 * pressure * gap * area;
+    let mut dissipation = 0.0;
+    let mut traction = [0.0; 3];
+    if ctx.friction && sg.friction > 0.0 {
+        let key = ContactKey {
+            grain: sg.global_id,
+            other: mg.global_id,
+            node: s - sg.node_base,
+        };
+        let t_old = match ctx.history.binary_search_by_key(&key, |p| p.key) {
+            Ok(i) => rotate_onto_plane(ctx.history[i].traction, normal),
+            Err(_) => [0.0; 3],
+        };
+        let mut vm = [0.0; 3];
+        for (i, &m) in masters.iter().enumerate() {
+            vm = add(vm, scale(ctx.v[m as usize], cl.bary[i]));
+        }
+        let du = scale(sub(ctx.v[s as usize], vm), ctx.dt);
+        let du_t = tangential(du, normal);
+        let eps_t = eps; // ε_t = ε_n (see module docs of `contact`)
+        let rm = return_map(t_old, du_t, eps_t, sg.friction * pressure);
+        traction = rm.traction;
+        force = add(force, scale(traction, area));
+        energy += 0.5 * dot(traction, traction) / eps_t * area;
+        dissipation = rm.dissipation * area;
+    }
+    r.active = true;
+    r.tunnel = gap > 0.5 * h_s;
+    r.masters = masters;
+    r.weights = cl.bary;
+    r.force = force;
+    r.gap = gap;
+    r.normal = normal;
+    r.pressure = pressure;
+    r.energy = energy;
+    r.dissipation = dissipation;
+    r.traction = traction;
+    r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const A: [f64; 3] = [0.0, 0.0, 0.0];
+    const B: [f64; 3] = [1.0, 0.0, 0.0];
+    const C: [f64; 3] = [0.0, 1.0, 0.0];
+
+    fn check(p: [f64; 3], point: [f64; 3], feature: Feature) {
+        let cl = closest_point_on_triangle(p, A, B, C);
+        assert_eq!(cl.feature, feature, "{p:?}");
+        for i in 0..3 {
+            assert!((cl.point[i] - point[i]).abs() < 1e-14, "{cl:?}");
+        }
+        // barycentric coordinates reproduce the point and sum to one
+        let q = add(add(scale(A, cl.bary[0]), scale(B, cl.bary[1])), scale(C, cl.bary[2]));
+        for i in 0..3 {
+            assert!((q[i] - point[i]).abs() < 1e-14);
+        }
+        assert!((cl.bary.iter().sum::<f64>() - 1.0).abs() < 1e-14);
+        let d = sub(p, point);
+        assert!((cl.dist2 - dot(d, d)).abs() < 1e-14);
+    }
+
+    #[test]
+    fn projection_inside_on_edges_and_vertices() {
+        check([0.25, 0.25, -0.3], [0.25, 0.25, 0.0], Feature::Face);
+        check([0.5, -0.2, 0.1], [0.5, 0.0, 0.0], Feature::Edge(0));
+        check([0.8, 0.8, 0.0], [0.5, 0.5, 0.0], Feature::Edge(1));
+        check([-0.3, 0.4, 0.2], [0.0, 0.4, 0.0], Feature::Edge(2));
+        check([-1.0, -1.0, 0.5], A, Feature::Vertex(0));
+        check([2.0, -0.1, 0.0], B, Feature::Vertex(1));
+        check([-0.1, 3.0, -1.0], C, Feature::Vertex(2));
+    }
+
+    #[test]
+    fn projection_is_continuous_across_a_region_boundary() {
+        // Sweep across edge 0 (y = 0): the closest point moves continuously.
+        let mut prev: Option<[f64; 3]> = None;
+        for k in 0..=200 {
+            let y = -0.01 + 0.0001 * k as f64;
+            let cl = closest_point_on_triangle([0.4, y, -0.05], A, B, C);
+            if let Some(p) = prev {
+                assert!(norm(sub(cl.point, p)) <= 1.0001e-4);
+            }
+            prev = Some(cl.point);
+        }
+    }
+
+    #[test]
+    fn bvh_query_matches_brute_force() {
+        // A strip of triangles; query boxes at random places.
+        let mut facet = Vec::new();
+        let mut x = Vec::new();
+        for i in 0..40 {
+            let f = i as f64;
+            x.push([f, 0.0, (f * 0.3).sin()]);
+            x.push([f, 1.0, (f * 0.3).cos()]);
+        }
+        for i in 0..39u32 {
+            facet.push([2 * i, 2 * i + 2, 2 * i + 1]);
+            facet.push([2 * i + 1, 2 * i + 2, 2 * i + 3]);
+        }
+        let cm = ContactModel {
+            facet: facet.clone(),
+            ..Default::default()
+        };
+        let mut bvh = Bvh::default();
+        bvh.build(&cm, 0..facet.len(), &x);
+        let mut out = Vec::new();
+        for k in 0..50 {
+            let c = [k as f64 * 0.8 - 1.0, 0.5, 0.0];
+            let q = Aabb::around(c, 0.7);
+            out.clear();
+            bvh.query(&q, &mut out);
+            let brute: Vec<u32> = (0..facet.len() as u32)
+                .filter(|&f| {
+                    let mut b = Aabb::EMPTY;
+                    for &n in &facet[f as usize] {
+                        b.grow(x[n as usize]);
+                    }
+                    b.overlaps(&q)
+                })
+                .collect();
+            assert_eq!(out, brute, "query {k}");
+        }
+    }
+}

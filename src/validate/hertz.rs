@@ -1,0 +1,160 @@
+//! Hertz normal contact: sphere squeezed between two rigid frictionless plates.
+//!
+//! Error metric: max |F − F_ref|/F_ref over the samples with F_ref in [0.5 N, 50 N], where
+//! F_ref(δ) is the converged finite-sphere reference (THEORY.md §1); the distance from
+//! half-space Hertz, max |F − F_H|/F_H over the same samples, is reported beside it.
+
+use super::plot::{Plot, Scale, Series};
+use super::reference::{FiniteSphereReference, Hertz};
+use super::runner::{case_solver, load_case_scene, Case, CaseOutcome, Probe};
+use crate::error::{MufeError, Result};
+use crate::material::ElasticParameters;
+use crate::scene::ShapeSpec;
+use serde_json::json;
+
+pub const SCENE: &str = include_str!("../../jobs/validation/hertz.toml");
+
+/// Force window of the error metric (N).
+pub const FORCE_RANGE: (f64, f64) = (0.5, 50.0);
+
+pub struct HertzCase;
+
+impl HertzCase {
+    fn material_and_radius(scene: &crate::scene::Scene) -> Result<(ElasticParameters, f64)> {
+        let g = &scene.grains[0];
+        let m = &scene.materials[&g.material];
+        let ShapeSpec::Sphere(s) = &g.shape else {
+            return Err(MufeError::Run("hertz: grain 0 must be a sphere".into()));
+        };
+        Ok((ElasticParameters { youngs_modulus: m.youngs_modulus, poisson_ratio: m.poisson_ratio, density: m.density }, s.radius))
+    }
+}
+
+impl Case for HertzCase {
+    fn name(&self) -> &'static str {
+        "hertz"
+    }
+
+    fn default_mrs(&self, quick: bool) -> Vec<f64> {
+        if quick {
+            vec![0.009]
+        } else {
+            vec![0.009, 0.0045, 0.0023]
+        }
+    }
+
+    fn target(&self, quick: bool) -> f64 {
+        if quick {
+            0.08
+        } else {
+            0.03
+        }
+    }
+
+    fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome> {
+        let base = load_case_scene("hertz", SCENE, &[])?;
+        let (material, radius) = Self::material_and_radius(&base.scene)?;
+        let s = mr * 2.0 * radius;
+        let mut sets = vec![
+            format!("grains[0].shape.sphere.refine[0].seeding={s:e}"),
+            format!("grains[0].shape.sphere.refine[1].seeding={s:e}"),
+        ];
+        sets.extend_from_slice(overrides);
+        let loaded = load_case_scene("hertz", SCENE, &sets)?;
+        let mut solver = case_solver(&loaded)?;
+        let reference = FiniteSphereReference::load();
+        let hertz = Hertz::sphere_on_flat(&material, radius);
+
+        // first touch: the plates start at ±R; the faceted sphere's extreme nodes are at
+        // z_max ≤ R, so δ = plate travel − (R − z_max).
+        let z_max = solver.state.x.iter().map(|p| p[2]).fold(f64::NEG_INFINITY, f64::max);
+        let z_min = solver.state.x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
+        let (gap_top, gap_bottom) = (radius - z_max, z_min + radius);
+        let delta_end = hertz.approach(1.04 * FORCE_RANGE.1 / 1.05);
+        let mut probe = Probe::new(&solver);
+        let sample_every = ((loaded.scene.output.history_interval.unwrap_or(5e-8) / solver.model.dt).round() as u64).max(1);
+        let max_steps = (loaded.scene.simulation.duration / solver.model.dt).ceil() as u64;
+        let mut curve = Vec::new();
+        let (mut err, mut err_hertz, mut ke_ie, mut pen_ratio): (f64, f64, f64, f64) = (0.0, 0.0, 0.0, 0.0);
+        let mut in_range = 0;
+        while solver.state.step < max_steps {
+            solver.step()?;
+            if solver.state.step % sample_every != 0 {
+                continue;
+            }
+            probe.sample(&solver);
+            let d_top = -probe.get("top_displacement_z")? - gap_top;
+            let d_bottom = probe.get("bottom_displacement_z")? - gap_bottom;
+            let delta = 0.5 * (d_top + d_bottom);
+            if delta <= 0.0 {
+                continue;
+            }
+            let force = 0.5 * (probe.get("top_force_z")?.abs() + probe.get("bottom_force_z")?.abs());
+            curve.push((delta * 1e6, force));
+            if let Some(f_ref) = reference.force(&material, radius, delta) {
+                if f_ref >= FORCE_RANGE.0 && f_ref <= FORCE_RANGE.1 {
+                    in_range += 1;
+                    err = err.max((force - f_ref).abs() / f_ref);
+                    err_hertz = err_hertz.max((force - hertz.force(delta)).abs() / hertz.force(delta));
+                    let ie = probe.get("internal_energy")?;
+                    ke_ie = ke_ie.max(probe.get("kinetic_energy")? / ie.max(1e-300));
+                    pen_ratio = pen_ratio.max(probe.get("max_penetration").unwrap_or(0.0) / delta);
+                }
+            }
+            if delta >= delta_end {
+                break;
+            }
+        }
+        if in_range < 5 {
+            return Err(MufeError::Run(format!("hertz at MR {mr}: only {in_range} samples in the force window; lengthen simulation.duration")));
+        }
+        let target = self.target(quick);
+        let mut details = serde_json::Map::new();
+        details.insert("error_vs_half_space_hertz".into(), json!(err_hertz));
+        details.insert("max_kinetic_over_internal".into(), json!(ke_ie));
+        details.insert("max_penetration_over_delta".into(), json!(pen_ratio));
+        details.insert("seeding_at_contact_m".into(), json!(s));
+        details.insert("samples_in_window".into(), json!(in_range));
+        details.insert("added_mass_fraction".into(), json!(solver.model.added_mass / solver.model.total_physical_mass()));
+        Ok(CaseOutcome {
+            case: "hertz".into(),
+            mr,
+            elements: solver.model.num_elements(),
+            steps: solver.state.step,
+            wall_s: 0.0,
+            error: err,
+            target,
+            pass: err <= target,
+            details,
+            curve,
+        })
+    }
+
+    fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>) {
+        let base = load_case_scene("hertz", SCENE, &[]).ok();
+        let (material, radius) = base
+            .and_then(|b| Self::material_and_radius(&b.scene).ok())
+            .unwrap_or((ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 }, 1.1e-3));
+        let reference = FiniteSphereReference::load();
+        let hertz = Hertz::sphere_on_flat(&material, radius);
+        let d_max = outcomes.iter().flat_map(|o| o.curve.iter().map(|p| p.0)).fold(8.0, f64::max) * 1e-6;
+        let deltas: Vec<f64> = (0..200).map(|i| 0.05e-6 * (d_max / 0.05e-6).powf(i as f64 / 199.0)).collect();
+        let fin = Series {
+            label: "finite-sphere reference (THEORY §1)".into(),
+            points: deltas.iter().filter_map(|&d| reference.force(&material, radius, d).map(|f| (d * 1e6, f))).collect(),
+            theory: true,
+        };
+        let half = Series { label: "half-space Hertz".into(), points: deltas.iter().map(|&d| (d * 1e6, hertz.force(d))).collect(), theory: true };
+        (
+            Plot {
+                title: "Hertz: sphere between rigid plates",
+                x_label: "approach of each plate δ (µm)",
+                y_label: "plate force F (N)",
+                x_scale: Scale::Log,
+                y_scale: Scale::Log,
+                series: vec![],
+            },
+            vec![fin, half],
+        )
+    }
+}

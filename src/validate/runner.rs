@@ -1,0 +1,160 @@
+//! Running validation cases over meshing ratios: table, `validation.json`, PNG plots.
+
+use super::plot::{self, Plot, Scale, Series};
+use crate::error::{InputError, MufeError, Result};
+use crate::scene::{parse_scene, LoadedScene};
+use crate::solver::run::{build_solver, history_columns, history_row};
+use crate::solver::Solver;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One row of `validation.json` (DESIGN.md §1 fields first, then case extras).
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseOutcome {
+    pub case: String,
+    /// Meshing ratio at the contact, s/(2R).
+    pub mr: f64,
+    pub elements: usize,
+    pub steps: u64,
+    pub wall_s: f64,
+    /// The case's documented error metric (fraction).
+    pub error: f64,
+    pub target: f64,
+    pub pass: bool,
+    /// Case-specific extras (distance from half-space Hertz, max penetration / δ,
+    /// max KE/IE, normal-force drift, ...).
+    pub details: serde_json::Map<String, serde_json::Value>,
+    /// The FE curve (x, y) in the case's plot units.
+    #[serde(skip)]
+    pub curve: Vec<(f64, f64)>,
+}
+
+/// A validation case.
+pub trait Case {
+    fn name(&self) -> &'static str;
+    /// Default meshing ratios at the contact (full sweep, or quick).
+    fn default_mrs(&self, quick: bool) -> Vec<f64>;
+    /// Accuracy target (fraction) at the finest meshing ratio.
+    fn target(&self, quick: bool) -> f64;
+    /// Runs at one meshing ratio.
+    fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome>;
+    /// Theory curve over the range of the given outcomes, and the plot axes.
+    fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>);
+}
+
+/// Loads a case scene (embedded copy of `jobs/validation/<case>.toml`) with overrides.
+pub fn load_case_scene(name: &str, text: &str, overrides: &[String]) -> Result<LoadedScene> {
+    Ok(parse_scene(&format!("jobs/validation/{name}.toml"), text, overrides)?)
+}
+
+/// Reads named history columns from a solver while it runs.
+pub struct Probe {
+    names: Vec<String>,
+    row: Vec<f64>,
+}
+
+impl Probe {
+    pub fn new(solver: &Solver) -> Self {
+        Self { names: history_columns(solver).into_iter().map(|c| c.name).collect(), row: Vec::new() }
+    }
+    /// Refreshes the values from the solver's current state.
+    pub fn sample(&mut self, solver: &Solver) {
+        history_row(solver, &mut self.row);
+    }
+    /// Value of a column (after `sample`).
+    pub fn get(&self, name: &str) -> Result<f64> {
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .map(|i| self.row[i])
+            .ok_or_else(|| MufeError::Run(format!("validation: no history column '{name}'")))
+    }
+}
+
+/// Builds the solver of a case scene.
+pub fn case_solver(loaded: &LoadedScene) -> Result<Solver> {
+    build_solver(loaded)
+}
+
+/// Runs the given cases over their meshing ratios, prints the table, writes
+/// `out/validation.json` and the plots. Returns all outcomes.
+pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out: &Path, overrides: &[String]) -> Result<Vec<CaseOutcome>> {
+    std::fs::create_dir_all(out).map_err(|e| MufeError::Io(format!("{}: cannot create directory: {e}", out.display())))?;
+    println!(
+        "{:<9} {:>8} {:>9} {:>8} {:>9} {:>9} {:>8} {:>5}",
+        "case", "MR", "elements", "steps", "wall s", "error", "target", "pass"
+    );
+    let mut all = Vec::new();
+    for case in cases {
+        let list = mrs.map(|m| m.to_vec()).unwrap_or_else(|| case.default_mrs(quick));
+        let mut outcomes = Vec::new();
+        for mr in list {
+            let t0 = Instant::now();
+            let mut o = case.run(mr, quick, overrides)?;
+            o.wall_s = t0.elapsed().as_secs_f64();
+            println!(
+                "{:<9} {:>8.4} {:>9} {:>8} {:>9.1} {:>8.2}% {:>7.1}% {:>5}",
+                o.case,
+                o.mr,
+                o.elements,
+                o.steps,
+                o.wall_s,
+                100.0 * o.error,
+                100.0 * o.target,
+                if o.pass { "yes" } else { "NO" }
+            );
+            outcomes.push(o);
+        }
+        let (mut p, theory) = case.plot(&outcomes);
+        let mut series = theory;
+        for o in &outcomes {
+            series.push(Series { label: format!("FE, MR = {:.4} ({} elements)", o.mr, o.elements), points: o.curve.clone(), theory: false });
+        }
+        p.series = series;
+        let png = out.join(format!("{}.png", case.name()));
+        plot::draw(&png, &p).map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
+        all.extend(outcomes);
+    }
+    write_json(&out.join("validation.json"), &all)?;
+    speed_vs_error_plot(&out.join("speed_vs_error.png"), &all)?;
+    println!("wrote {}, {} and one PNG per case", out.join("validation.json").display(), out.join("speed_vs_error.png").display());
+    Ok(all)
+}
+
+fn write_json(path: &PathBuf, outcomes: &[CaseOutcome]) -> Result<()> {
+    let text = serde_json::to_string_pretty(outcomes).map_err(|e| MufeError::Io(e.to_string()))?;
+    std::fs::write(path, text).map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
+}
+
+fn speed_vs_error_plot(path: &Path, outcomes: &[CaseOutcome]) -> Result<()> {
+    let mut names: Vec<&str> = outcomes.iter().map(|o| o.case.as_str()).collect();
+    names.dedup();
+    let series = names
+        .iter()
+        .map(|n| Series {
+            label: n.to_string(),
+            points: outcomes.iter().filter(|o| o.case == *n).map(|o| (o.wall_s, 100.0 * o.error.max(1e-6))).collect(),
+            theory: false,
+        })
+        .collect();
+    plot::draw(
+        path,
+        &Plot { title: "speed vs error (all cases, all MR)", x_label: "wall time (s)", y_label: "error vs reference (%)", x_scale: Scale::Log, y_scale: Scale::Log, series },
+    )
+    .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
+}
+
+/// Parses `--mr 0.09,0.045`.
+pub fn parse_mr_list(s: &str) -> std::result::Result<Vec<f64>, InputError> {
+    s.split(',')
+        .map(|p| {
+            let v: f64 = p.trim().parse().map_err(|_| InputError::new("<command line>", "--mr", format!("'{p}' is not a number")))?;
+            if v.is_finite() && v > 0.0 && v < 1.0 {
+                Ok(v)
+            } else {
+                Err(InputError::new("<command line>", "--mr", format!("meshing ratio must be in (0, 1), got {v}")))
+            }
+        })
+        .collect()
+}
