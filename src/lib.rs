@@ -16,6 +16,7 @@ pub type Vec3 = nalgebra::Vector3<Real>;
 /// 3×3 matrix (deformation gradients, stresses in Pa).
 pub type Mat3 = nalgebra::Matrix3<Real>;
 pub mod boundary;
+pub mod contact;
 pub mod domain;
 pub mod element;
 pub mod energy;

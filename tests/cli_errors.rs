@@ -100,10 +100,20 @@ fn assert_one_line_error(o: &Output, needles: &[&str]) -> String {
         o.status
     );
     assert!(!err.contains("panicked"), "panic on bad input:\n{err}");
-    assert!(!err.contains("RUST_BACKTRACE"), "panic on bad input:\n{err}");
+    assert!(
+        !err.contains("RUST_BACKTRACE"),
+        "panic on bad input:\n{err}"
+    );
     let lines: Vec<&str> = err.lines().collect();
-    assert_eq!(lines.len(), 1, "expected exactly one stderr line, got:\n{err}");
-    assert!(err.ends_with('\n'), "error line must end with a newline: {err:?}");
+    assert_eq!(
+        lines.len(),
+        1,
+        "expected exactly one stderr line, got:\n{err}"
+    );
+    assert!(
+        err.ends_with('\n'),
+        "error line must end with a newline: {err:?}"
+    );
     let line = lines[0];
     for n in needles {
         assert!(line.contains(n), "error line lacks {n:?}: {line}");
@@ -143,7 +153,11 @@ fn bad_input(case: &str, scene: &Path, extra: &[&str], needles: &[&str]) {
     args.extend_from_slice(extra);
     let o = mufe(&args);
     assert_eq!(o.status.code(), Some(2));
-    assert!(!fresh.exists(), "{case}: failed run created {}", fresh.display());
+    assert!(
+        !fresh.exists(),
+        "{case}: failed run created {}",
+        fresh.display()
+    );
 
     if !extra.contains(&"--threads") {
         let mut args = vec!["check", scene_arg];
@@ -160,7 +174,11 @@ fn unknown_field() {
         "unknown_field",
         &fixture("bad/unknown_field.toml"),
         &[],
-        &["unknown_field.toml", "materials.glass.colour", "unknown field"],
+        &[
+            "unknown_field.toml",
+            "materials.glass.colour",
+            "unknown field",
+        ],
     );
 }
 
@@ -170,7 +188,11 @@ fn negative_radius() {
         "negative_radius",
         &fixture("bad/negative_radius.toml"),
         &[],
-        &["negative_radius.toml", "grains[0].shape.sphere.radius", "-0.0011"],
+        &[
+            "negative_radius.toml",
+            "grains[0].shape.sphere.radius",
+            "-0.0011",
+        ],
     );
 }
 
@@ -215,7 +237,12 @@ fn nan_value() {
         "nan_value",
         &fixture("bad/nan_value.toml"),
         &[],
-        &["nan_value.toml", "materials.glass.youngs_modulus", "finite", "NaN"],
+        &[
+            "nan_value.toml",
+            "materials.glass.youngs_modulus",
+            "finite",
+            "NaN",
+        ],
     );
 }
 
@@ -235,7 +262,11 @@ fn bad_set_path_unknown_table() {
         "set_path_table",
         &fixture("valid_small.toml"),
         &["--set", "simulatoin.duration=1e-6"],
-        &["<command line>", "--set simulatoin.duration=1e-6", "simulatoin"],
+        &[
+            "<command line>",
+            "--set simulatoin.duration=1e-6",
+            "simulatoin",
+        ],
     );
 }
 

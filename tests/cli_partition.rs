@@ -67,7 +67,10 @@ fn partitions_and_writes_the_file() {
     assert!(o.status.success(), "{stdout}{}", text(&o.stderr));
     assert!(stdout.contains("imbalance"), "{stdout}");
     assert!(stdout.contains("edge cut"), "{stdout}");
-    assert!(stdout.contains(&format!("{n} grains into {parts} parts")), "{stdout}");
+    assert!(
+        stdout.contains(&format!("{n} grains into {parts} parts")),
+        "{stdout}"
+    );
 
     let part = partition::read_partition(&out, n).expect("partition file reads back");
     assert_eq!(part.len(), n);

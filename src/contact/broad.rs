@@ -17,7 +17,7 @@
 //! The work per step is proportional to the cached (node, facet) candidates, i.e. to the
 //! surface nodes within contact range, not to grain pairs × facets.
 
-use super::narrow::{Aabb, Bvh, Entry, Pass};
+use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
 use super::ContactModel;
 use crate::mesh::{dot, sub};
 use rayon::prelude::*;
@@ -40,6 +40,8 @@ pub struct BroadPhase {
     pub pairs: Vec<(u32, u32)>,
     /// Number of rebuilds so far.
     pub rebuilds: u64,
+    /// Largest surface-node displacement since the last rebuild, as of the last check (m).
+    pub moved: f64,
     order: Vec<u32>,
     chunk_max: Vec<f64>,
     bvh_built: Vec<bool>,
@@ -90,6 +92,7 @@ impl BroadPhase {
             return true;
         }
         let d = self.max_displacement(cm, x);
+        self.moved = d;
         if 2.0 * d >= cm.margin {
             return true;
         }
@@ -110,6 +113,7 @@ impl BroadPhase {
     ) {
         self.rebuilds += 1;
         self.built = true;
+        self.moved = 0.0;
         self.x_ref.clear();
         self.x_ref
             .extend(cm.node.iter().map(|&n| x[n as usize]));
@@ -189,6 +193,7 @@ impl BroadPhase {
                 if lists.query.is_empty() {
                     continue;
                 }
+                let d0 = locate(cm, x, p, &lists.query).map_or(f64::INFINITY, |l| (-l.depth).max(0.0));
                 let start = lists.candidates.len() as u32;
                 lists.candidates.extend_from_slice(&lists.query);
                 lists.entries.push(Entry {
@@ -196,10 +201,12 @@ impl BroadPhase {
                     pass: pi as u32,
                     start,
                     end: lists.candidates.len() as u32,
+                    d0,
                 });
             }
         }
 
+        if std::env::var("MUFE_DEBUG_CONTACT").is_ok() { eprintln!("rebuild: {} pairs, {} entries, {} candidates", self.pairs.len(), lists.entries.len(), lists.candidates.len()); }
         // Walls: surface nodes within 1.5 margin of the plane.
         lists.wall_nodes.clear();
         for (w, wall) in cm.walls.iter().enumerate() {

@@ -128,8 +128,9 @@ mod tests {
             t = r.traction;
             dissipated += r.dissipation;
         }
-        // elastic stick range limit/eps = 2e-6 = 20 steps
-        assert_eq!(stuck_steps, 20);
+        // elastic stick range limit/eps = 2e-6 = 20 steps (the 20th lands on the cone up to
+        // round-off)
+        assert!((19..=20).contains(&stuck_steps), "{stuck_steps}");
         let moved = 1000.0 * step;
         let expected = limit * (moved - limit / eps);
         assert!((dissipated - expected).abs() < 1e-9 * expected, "{dissipated} vs {expected}");

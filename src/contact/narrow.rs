@@ -315,6 +315,10 @@ pub struct Entry {
     /// Range into the candidate facet list.
     pub start: u32,
     pub end: u32,
+    /// Distance from the node to the master surface at the rebuild (m), 0 if it was inside:
+    /// while every node has moved by less than d0/2 since, the node cannot penetrate and is
+    /// skipped.
+    pub d0: f64,
 }
 
 /// Result of one entry at one step.
@@ -405,48 +409,80 @@ fn pseudo_normal(cm: &ContactModel, x: &[[f64; 3]], facet: usize, feature: Featu
     }
 }
 
-/// Evaluates one slave node against its candidate facets (see module docs). Pure function
-/// of its inputs: safe to run in parallel, results independent of scheduling.
-pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
-    let cm = ctx.cm;
-    let x = ctx.x;
-    let s_flat = entry.slave as usize;
-    let s = cm.node[s_flat];
-    let xs = x[s as usize];
+/// Where a node is with respect to a master surface.
+#[derive(Debug, Clone, Copy)]
+pub struct Located {
+    pub closest: Closest,
+    /// Global facet index of the closest point.
+    pub facet: usize,
+    /// Penetration depth (> 0 inside the master) or −distance (outside), m.
+    pub depth: f64,
+    /// Outward master normal at the contact point (unit; meaningful when inside).
+    pub normal: [f64; 3],
+}
+
+/// Closest point of the candidate facets to `xs` and whether `xs` is inside the master
+/// (pseudo-normal test). `None` without candidates.
+pub fn locate(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], candidates: &[u32]) -> Option<Located> {
     let mut best: Option<(Closest, usize)> = None;
-    for &f in &ctx.candidates[entry.start as usize..entry.end as usize] {
+    for &f in candidates {
         let [a, b, c] = cm.facet[f as usize].map(|n| x[n as usize]);
         let cl = closest_point_on_triangle(xs, a, b, c);
         if best.is_none_or(|(bc, _)| cl.dist2 < bc.dist2) {
             best = Some((cl, f as usize));
         }
     }
-    let mut r = PointResult {
-        slave: s,
-        ..Default::default()
-    };
-    let Some((cl, facet)) = best else {
-        return r;
-    };
+    let (cl, facet) = best?;
     let pn = pseudo_normal(cm, x, facet, cl.feature);
     let d = sub(xs, cl.point);
-    let side = dot(d, pn);
-    if side >= 0.0 || cl.dist2 == 0.0 {
-        return r; // outside (or exactly on) the master surface
+    let dist = cl.dist2.sqrt();
+    if dot(d, pn) >= 0.0 || dist == 0.0 {
+        return Some(Located {
+            closest: cl,
+            facet,
+            depth: -dist,
+            normal: [0.0; 3],
+        });
     }
-    let (gap, normal) = match cl.feature {
+    let (depth, normal) = match cl.feature {
         Feature::Face => {
             let n = scale(pn, 1.0 / norm(pn));
             (-dot(d, n), n)
         }
-        _ => {
-            let dist = cl.dist2.sqrt();
-            (dist, scale(d, -1.0 / dist))
-        }
+        _ => (dist, scale(d, -1.0 / dist)),
     };
-    if gap <= 0.0 {
+    Some(Located {
+        closest: cl,
+        facet,
+        depth,
+        normal,
+    })
+}
+
+/// Evaluates one slave node against its candidate facets (see module docs). Pure function
+/// of its inputs: safe to run in parallel, results independent of scheduling.
+/// `moved` bounds the displacement of every node since the rebuild (m).
+pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResult {
+    let cm = ctx.cm;
+    let x = ctx.x;
+    let s_flat = entry.slave as usize;
+    let s = cm.node[s_flat];
+    let mut r = PointResult {
+        slave: s,
+        ..Default::default()
+    };
+    if entry.d0 > 2.0 * moved {
         return r;
     }
+    let xs = x[s as usize];
+    let cands = &ctx.candidates[entry.start as usize..entry.end as usize];
+    let Some(loc) = locate(cm, x, xs, cands) else {
+        return r;
+    };
+    if loc.depth <= 0.0 {
+        return r;
+    }
+    let (cl, facet, gap, normal) = (loc.closest, loc.facet, loc.depth, loc.normal);
     let pass = ctx.passes[entry.pass as usize];
     let (sg, mg) = (
         &cm.surfaces[pass.slave as usize],
@@ -465,7 +501,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
     let mut energy = 0.5 * pressure * gap * area;
     let mut dissipation = 0.0;
     let mut traction = [0.0; 3];
-    if ctx.friction && sg.friction > 0.0 {
+    if ctx.friction {
         let key = ContactKey {
             grain: sg.global_id,
             other: mg.global_id,
@@ -482,7 +518,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
         let du = scale(sub(ctx.v[s as usize], vm), ctx.dt);
         let du_t = tangential(du, normal);
         let eps_t = eps; // ε_t = ε_n (see module docs of `contact`)
-        let rm = return_map(t_old, du_t, eps_t, sg.friction * pressure);
+        let rm = return_map(t_old, du_t, eps_t, cm.friction * pressure);
         traction = rm.traction;
         force = add(force, scale(traction, area));
         energy += 0.5 * dot(traction, traction) / eps_t * area;

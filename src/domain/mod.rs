@@ -23,6 +23,8 @@
 //! prefixed with `rank R:` and then calls `MPI_Abort`, so a panic on one rank ends the whole
 //! job within seconds instead of leaving the other ranks waiting forever in a collective.
 
+pub mod decomposition;
+
 use std::marker::PhantomData;
 use std::os::raw::{c_int, c_void};
 

@@ -4,17 +4,18 @@
 //! Node coordinates are in metres, in the grain's own frame (centre at the origin for
 //! generated spheres); the solver places grains in the scene.
 //!
-//! Pipeline of [`mesh_sphere`]:
-//! 1. [`surface_refine`]: icosahedron → conforming longest-edge (Rivara LEPP) bisection driven
-//!    by the surface sizing function of the [`SphereMeshSpec`], new vertices projected onto the
-//!    sphere, then edge flips to the convex hull (the spherical Delaunay triangulation);
-//! 2. [`tetgen`] (private): the triangulated sphere (plus, for graded meshes, an internal
-//!    sphere separating a fine band from a coarse core) is handed to TetGen as a PLC with
-//!    per-region maximum volumes and a radius–edge quality bound;
-//! 3. tets are re-oriented to positive volume and checked with [`validate`].
+//! Pipeline of [`mesh_sphere`] (details in `sphere.rs` and [`surface_refine`]):
+//! 1. [`surface_refine`]: geodesic icosphere at the seeding, conforming longest-edge (Rivara
+//!    LEPP) bisection where refinement patches ask for smaller elements, flips to the convex
+//!    hull, and relaxation of the refined zone to strictly acute triangles;
+//! 2. the interior is seeded with nested body-centred cubic lattices following a 3D size
+//!    field (seeding; core size below a graded band; refinement patches);
+//! 3. TetGen (private `tetgen` module) tetrahedralises the surface with the lattice points
+//!    as isolated vertices under a radius–edge bound, keeping the surface exactly as
+//!    triangulated; tets are re-oriented to positive volume and checked with [`validate`].
 //!
 //! [`extract_surface`], [`facet_normals`] and [`surface_node_geometry`] give contact what it
-//! needs; [`quality`] summarises element shape (the explicit time step depends on the worst
+//! needs; [`quality()`] summarises element shape (the explicit time step depends on the worst
 //! element, so the minimum dihedral angle matters).
 
 pub mod block;

@@ -262,11 +262,11 @@ mod tests {
             [0.0, 0.0, 1.0],
         ];
         let a = tet_dihedral_angles(&x).map(f64::to_degrees);
-        for k in 0..3 {
-            assert!((a[k] - 90.0).abs() < 1e-12);
+        for corner in &a[..3] {
+            assert!((corner - 90.0).abs() < 1e-12);
         }
-        for k in 3..6 {
-            assert!((a[k] - (1.0f64 / 3f64.sqrt()).acos().to_degrees()).abs() < 1e-12);
+        for far in &a[3..] {
+            assert!((far - (1.0f64 / 3f64.sqrt()).acos().to_degrees()).abs() < 1e-12);
         }
     }
 

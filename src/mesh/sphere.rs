@@ -1,44 +1,54 @@
 //! Sphere mesher: uniform, graded (fine surface band, coarse core) and locally refined
 //! (fine patches around chosen surface points, e.g. the expected contacts).
+//!
+//! How a sphere is meshed (see [`mesh_sphere`]):
+//! 1. the surface is triangulated by [`triangulate_sphere`] with the spec's sizing function
+//!    (geodesic base, longest-edge bisection in refinement patches, made acute);
+//! 2. the interior is seeded with nested body-centred cubic (BCC) lattices following a 3D
+//!    size field (the seeding; the core size below a graded band; the patch formula near
+//!    refinement points), kept a skin depth below the surface and out of the surface
+//!    triangles' and edges' diametral balls;
+//! 3. TetGen tetrahedralises the closed surface with the lattice points as isolated PLC
+//!    vertices, refining only where its radius–edge bound requires (in the skin and at the
+//!    lattice level transitions) and optimising dihedral angles.
+//!
+//! Why not TetGen's volume bounds and internal facet spheres for the grading? Tried first:
+//! volume-driven Steiner points near the surface fall inside the surface triangles'
+//! diametral balls and TetGen splits the surface (≈ 3× the requested facets at MR 0.045),
+//! and internal facets get split too. Seeding the interior ourselves keeps the surface
+//! exactly as triangulated (the requested MR), gives Sommerville tets (dihedral 60°/90°)
+//! inside, and is about twice as fast.
 
 use serde::{Deserialize, Serialize};
 
 use super::surface_refine::triangulate_sphere;
 use super::tetgen::{tetrahedralize, Region};
-use super::{norm, scale, sub, validate, MeshError, TetMesh};
+use super::{add, cross, dot, norm, scale, sub, validate, MeshError, TetMesh};
 
-/// TetGen's maximum radius–edge ratio (`-q`). With the interior seeded by a lattice TetGen
-/// rarely needs to refine; 1.5 keeps the transition zones (skin, band/core gap, refinement
-/// patches) well shaped.
-pub(crate) const RADIUS_EDGE_RATIO: f64 = 1.5;
+/// TetGen's maximum radius–edge ratio (`-q`). The lattice-seeded interior rarely needs
+/// refinement. Measured on R = 1.1 mm, MR 0.09/0.045/0.023 × uniform/graded/patch: at 2.0
+/// the surface is never split and the minimum dihedral angle (set mostly by TetGen's
+/// optimisation pass) is 6.6–8.5°; at 1.5 TetGen's refinement of the skin under refinement
+/// patches inserts points that encroach surface triangles (+10–30 % surface facets, edges
+/// down to 1/5 of the seeding) and the minimum dihedral angle drops to 3.9–6.5°.
+pub(crate) const RADIUS_EDGE_RATIO: f64 = 2.0;
 
 /// BCC lattice constant in units of the nominal edge length: the Delaunay tets of a BCC
 /// lattice (Sommerville tets, dihedral angles 60° and 90°) have edges a and a·√3/2, so
 /// a = 1.07 h gives a mean edge ≈ h.
 const LATTICE_FACTOR: f64 = 1.07;
 
-/// No lattice point closer than `SKIN_DEPTH × seeding` to the surface: the layer of tets on
-/// the surface triangles is left to TetGen (a regular tet is 0.82 h high). Interior points
-/// much closer than that would sit inside the surface triangles' diametral balls, where
-/// TetGen would split the surface instead of keeping the requested seeding.
+/// No lattice point closer than `SKIN_DEPTH × h` to the surface (h the local size): the
+/// layer of tets on the surface triangles is left to TetGen (a regular tet is 0.82 h high).
 const SKIN_DEPTH: f64 = 0.7;
 
+/// Relative margin around the surface triangles' and edges' diametral balls kept free of
+/// lattice points (TetGen splits any surface edge or triangle whose ball holds a vertex).
+const BALL_MARGIN: f64 = 0.15;
+
 /// Graded meshes: below the band the interior size grows by this much per unit depth until
-/// it reaches the core size (a gentle ramp keeps the 2:1 lattice transitions well shaped).
-const CORE_GROWTH: f64 = 0.5;
-
-/// Safety bound on tet volume (× the regular tet of the coarsest nominal size): never
-/// active on a lattice-seeded ball, it only prevents huge elements should TetGen leave a gap.
-const VOLUME_SAFETY: f64 = 4.0;
-
-/// Volume of a regular tet of edge `h`.
-fn regular_tet_volume(h: f64) -> f64 {
-    h * h * h / (6.0 * std::f64::consts::SQRT_2)
-}
-
-fn tuning(name: &str, default: f64) -> f64 {
-    std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default)
-}
+/// it reaches the core size.
+const CORE_GROWTH: f64 = 1.0;
 
 /// A tet mesh of a sphere centred at the origin (grain frame). All lengths in metres.
 ///
@@ -67,8 +77,10 @@ pub struct SphereMeshSpec {
 }
 
 /// Hybrid mesh: fine elements (≈ `seeding`) in a surface band `band_depth` deep, coarser
-/// ones (≈ `core_seeding`) inside it. Implemented with an internal spherical facet surface at
-/// radius R − band_depth and a TetGen volume bound per region.
+/// ones (≈ `core_seeding`) inside it. Below the band the element size grows by
+/// `CORE_GROWTH` (1.0) per unit depth up to the core size, which is `core_seeding` rounded
+/// to `seeding` × a power of two (the interior lattices are nested 2:1), i.e. within a
+/// factor √2 of the request.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GradedBand {
@@ -269,110 +281,58 @@ impl SphereMeshSpec {
 }
 
 /// Meshes the sphere described by `spec` (validated first). Deterministic: the same spec
-/// gives a bitwise identical mesh. Tets are positively oriented.
+/// gives a bitwise identical mesh. Tets are positively oriented and pass [`validate`].
+/// See the module documentation for the method.
 ///
-/// 1. The surface is triangulated by [`triangulate_sphere`] with the spec's sizing function.
-/// 2. The interior is seeded with points of a body-centred cubic lattice (spacing ≈ seeding;
-///    for graded meshes a fine lattice in the band and a coarse one in the core), kept
-///    `SKIN_DEPTH·s` below the surface.
-/// 3. TetGen tetrahedralises surface + points (the points are isolated PLC vertices) and only
-///    refines where the radius–edge bound requires it: in the skin, in the band/core gap
-///    and under refinement patches, where the interior grades naturally from the surface.
+/// The work is done at unit radius (TetGen's tolerances are relative and its numeric
+/// switches go through text) and scaled back by R.
 ///
-/// Seeding the interior ourselves instead of giving TetGen volume bounds keeps the surface
-/// exactly as triangulated (volume-driven Steiner points near the surface make TetGen split
-/// surface triangles, ≈ 3× the requested facets at MR 0.045), gives well-shaped lattice tets
-/// inside, and is ~2× faster.
-///
-/// The work is done at unit radius (TetGen's tolerances are relative and its volume bounds go
-/// through text) and scaled back by R.
+/// Measured (R = 1.1 mm, release build of the library, TetGen at -O2): see
+/// `tests::mesh_size_table` (run with `--ignored --nocapture`).
 pub fn mesh_sphere(spec: &SphereMeshSpec) -> Result<TetMesh, MeshError> {
-    mesh_sphere_with_ratio(spec, RADIUS_EDGE_RATIO)
-}
-
-/// [`mesh_sphere`] with an explicit TetGen radius–edge bound.
-pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f64) -> Result<TetMesh, MeshError> {
     spec.validate()?;
     let big_r = spec.radius;
     let inv = 1.0 / big_r;
 
-    // Unit-sphere sizing function: the spec's formula with all lengths divided by R.
-    let refine: Vec<([f64; 3], f64, f64, f64)> = spec
-        .refine
-        .iter()
-        .map(|r| (scale(r.direction, 1.0 / norm(r.direction)), r.seeding * inv, r.radius * inv, r.growth))
-        .collect();
+    let patches = unit_patches(spec);
     let s = spec.seeding * inv;
-    let size = |x: [f64; 3]| {
-        let mut h = s;
-        for &(p, sr, rr, g) in &refine {
-            h = h.min(sr + g * (norm(sub(x, p)) - rr).max(0.0));
-        }
-        h
-    };
-    let surface = triangulate_sphere(1.0, s, size, "seeding")?;
-    if std::env::var("MUFE_DEBUG").is_ok() {
-        let mut lo = f64::MAX;
-        let mut hmin = f64::MAX;
-        for t in &surface.triangles {
-            for k in 0..3 {
-                let l = norm(sub(surface.points[t[k] as usize], surface.points[t[(k + 1) % 3] as usize]));
-                lo = lo.min(l);
-            }
-        }
-        for p in &surface.points { hmin = hmin.min(size(*p)); }
-        let mut maxang: f64 = 0.0; let mut nobt = 0; let mut nenc = 0;
-        for t in &surface.triangles {
-            let p = t.map(|i| surface.points[i as usize]);
-            for k in 0..3 {
-                let e1 = sub(p[(k + 1) % 3], p[k]);
-                let e2 = sub(p[(k + 2) % 3], p[k]);
-                let a = (super::dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees();
-                maxang = maxang.max(a);
-                if a > 89.0 { nobt += 1; }
-                if a > 90.0 { nenc += 1; }
-            }
-        }
-        eprintln!("max angle {maxang:.2}, >89: {nobt}, >90: {nenc}");
-        eprintln!("surface: {} tris, {} pts, min edge {:.3e} (unit), min size {:.3e}", surface.triangles.len(), surface.points.len(), lo, hmin);
-    }
+    let patch_size = |x: [f64; 3]| patch_size(&patches, x);
+    let surface = unit_surface(spec)?;
+    let n_surface = surface.points.len();
     let mut points = surface.points;
     let facets = surface.triangles;
 
-    let lattice = tuning("MUFE_LF", LATTICE_FACTOR);
-    let skin = tuning("MUFE_SKIN", SKIN_DEPTH);
-    let growth = tuning("MUFE_GROWTH", CORE_GROWTH);
-    // Interior size field H(p): the patches' formula with 3D distances, under a background
-    // of s (uniform) or s in the band growing to the core size below it (graded). Nested
-    // BCC lattices of constant a·2^(C−ℓ) fill the places where H ≈ s·2^(C−ℓ): level 0 is the
-    // core (C = log₂(core/s) rounded, 0 if not graded), level C the seeding, levels above
-    // C the refinement patches.
+    // Interior size field H(p): the patch formula with 3D distances, under a background of s
+    // (uniform) or s in the band growing to the core size below it (graded). Nested BCC
+    // lattices of constant a·2^(C−ℓ) fill the places where H ≈ s·2^(C−ℓ): level 0 is the core
+    // (C = log₂(core/s) rounded; 0 if not graded), level C the seeding, the levels above C
+    // the refinement patches.
     let (band, coarse_levels) = match &spec.graded {
         None => (1.0, 0u32),
-        Some(g) => (g.band_depth * inv, (g.core_seeding / spec.seeding).log2().round().max(0.0) as u32),
+        Some(g) => (
+            g.band_depth * inv,
+            (g.core_seeding / spec.seeding).log2().round().max(0.0) as u32,
+        ),
     };
     let core = s * (1u64 << coarse_levels) as f64;
-    let fine_levels = refine
+    let fine_levels = patches
         .iter()
         .map(|&(_, sr, _, _)| (s / sr).log2().round().max(0.0) as u32)
         .max()
         .unwrap_or(0);
     let field = |p: [f64; 3]| {
         let depth = 1.0 - norm(p);
-        let mut h = core.min(s + growth * (depth - band).max(0.0));
-        for &(c, sr, rr, g) in &refine {
-            h = h.min(sr + g * (norm(sub(p, c)) - rr).max(0.0));
-        }
-        h
+        core.min(s + CORE_GROWTH * (depth - band).max(0.0))
+            .min(patch_size(p))
     };
     let whole: Vec<Aabb> = vec![([-1.0; 3], [1.0; 3])];
     let mut boxes = vec![whole.clone(); coarse_levels as usize + 1];
-    let rot_t = transpose(&rotation(1));
+    let rot_t = transpose(&lattice_rotation());
     for l in 1..=fine_levels {
-        // Where the size is below the level's threshold: balls around the patches.
+        // Where H is below the level's threshold s·2^(½−l): balls around the patches.
         let threshold = s * 2f64.powf(0.5 - l as f64);
         let mut level_boxes = Vec::new();
-        for &(p, sr, rr, g) in &refine {
+        for &(p, sr, rr, g) in &patches {
             if sr > threshold {
                 continue;
             }
@@ -382,45 +342,47 @@ pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f
             }
             let reach = rr + (threshold - sr) / g;
             let c = mat_vec(&rot_t, p);
-            level_boxes.push((c.map(|x| (x - reach).max(-1.0)), c.map(|x| (x + reach).min(1.0))));
+            level_boxes.push((
+                c.map(|x| (x - reach).max(-1.0)),
+                c.map(|x| (x + reach).min(1.0)),
+            ));
         }
         boxes.push(level_boxes);
     }
     let top = (coarse_levels + fine_levels) as f64;
     add_nested_bcc(
-        lattice * core,
+        LATTICE_FACTOR * core,
         &boxes,
         |p| {
             let h = field(p);
-            if 1.0 - norm(p) < skin * h {
+            if 1.0 - norm(p) < SKIN_DEPTH * h {
                 return None;
             }
             Some((coarse_levels as f64 + (s / h).log2().round()).clamp(0.0, top) as u32)
         },
         &mut points,
     );
-    let coarsest = core;
 
-    // Interior points must stay out of the surface triangles' diametral balls: TetGen
-    // (with -q) splits any subface whose ball holds a vertex, and the splits cascade.
-    let n_surface = facets.iter().flatten().map(|&i| i as usize + 1).max().unwrap_or(0);
-    let guard = DiametralBalls::new(&points[..n_surface], &facets, tuning("MUFE_MARGIN", BALL_MARGIN));
-    let mut k = n_surface;
+    // Lattice points must stay out of the surface triangles' and edges' diametral balls.
+    let guard = DiametralBalls::new(&points[..n_surface], &facets, BALL_MARGIN);
+    let mut kept = n_surface;
     for i in n_surface..points.len() {
         if !guard.encroaches(points[i]) {
-            points[k] = points[i];
-            k += 1;
+            points[kept] = points[i];
+            kept += 1;
         }
     }
-    points.truncate(k);
-    if std::env::var("MUFE_NOLAT").is_ok() {
-        points.truncate(n_surface);
-    }
+    points.truncate(kept);
 
-    let regions =
-        [Region { point: [0.0; 3], marker: 1, max_volume: Some(VOLUME_SAFETY * regular_tet_volume(coarsest)) }];
-
-    let mut mesh = tetrahedralize(&points, &facets, &regions, radius_edge_ratio)?;
+    // No volume bound: TetGen also splits every surface triangle whose area^1.5 exceeds the
+    // bound of the adjacent region (`checkfac4split`), which at any useful value cuts the
+    // larger surface triangles; the lattice sets the interior size instead.
+    let regions = [Region {
+        point: [0.0; 3],
+        marker: 1,
+        max_volume: None,
+    }];
+    let mut mesh = tetrahedralize(&points, &facets, &regions, RADIUS_EDGE_RATIO)?;
     for p in mesh.nodes.iter_mut() {
         *p = scale(*p, big_r);
     }
@@ -428,12 +390,44 @@ pub(crate) fn mesh_sphere_with_ratio(spec: &SphereMeshSpec, radius_edge_ratio: f
     Ok(mesh)
 }
 
-/// Relative margin around the surface triangles' diametral balls kept free of lattice points.
-const BALL_MARGIN: f64 = 0.15;
+/// The refinement patches at unit radius: (unit direction, seeding, radius, growth).
+fn unit_patches(spec: &SphereMeshSpec) -> Vec<([f64; 3], f64, f64, f64)> {
+    let inv = 1.0 / spec.radius;
+    spec.refine
+        .iter()
+        .map(|r| {
+            (
+                scale(r.direction, 1.0 / norm(r.direction)),
+                r.seeding * inv,
+                r.radius * inv,
+                r.growth,
+            )
+        })
+        .collect()
+}
 
-/// The diametral balls (circumscribed balls centred in the triangle's plane) of the surface
-/// triangles, bucketed on a uniform grid of cell ≥ the largest inflated radius so that a
-/// query checks 27 cells.
+/// minᵢ(sᵢ + gᵢ·max(0, |x − pᵢ| − rᵢ)) over the patches (∞ without patches).
+fn patch_size(patches: &[([f64; 3], f64, f64, f64)], x: [f64; 3]) -> f64 {
+    let mut h = f64::INFINITY;
+    for &(p, sr, rr, g) in patches {
+        h = h.min(sr + g * (norm(sub(x, p)) - rr).max(0.0));
+    }
+    h
+}
+
+/// The surface triangulation of `spec` on the unit sphere (what [`mesh_sphere`] hands to
+/// TetGen, before scaling by R).
+pub(crate) fn unit_surface(
+    spec: &SphereMeshSpec,
+) -> Result<super::surface_refine::SphereSurface, MeshError> {
+    let patches = unit_patches(spec);
+    let s = spec.seeding / spec.radius;
+    triangulate_sphere(1.0, s, |x| s.min(patch_size(&patches, x)), "seeding")
+}
+
+/// The diametral balls of the surface triangles (circumscribed balls centred in the
+/// triangle's plane) and edges (the edge as diameter), inflated by a margin and bucketed on a
+/// uniform grid of cell ≥ the largest radius so that a query checks 27 cells.
 struct DiametralBalls {
     cell: f64,
     grid: std::collections::HashMap<[i64; 3], Vec<u32>>,
@@ -442,36 +436,40 @@ struct DiametralBalls {
 
 impl DiametralBalls {
     fn new(points: &[[f64; 3]], facets: &[[u32; 3]], margin: f64) -> Self {
-        let mut balls: Vec<([f64; 3], f64)> = facets
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| points[i as usize]);
-                let (ab, ac) = (sub(b, a), sub(c, a));
-                let n = super::cross(ab, ac);
-                let num = super::add(
-                    scale(super::cross(n, ab), super::dot(ac, ac)),
-                    scale(super::cross(ac, n), super::dot(ab, ab)),
-                );
-                let off = scale(num, 0.5 / super::dot(n, n));
-                let r = (1.0 + margin) * norm(off);
-                (super::add(a, off), r * r)
-            })
-            .collect();
-        // Segment (edge) diametral balls: each edge once, from the facet where it ascends.
+        let grow = (1.0 + margin) * (1.0 + margin);
+        let mut balls: Vec<([f64; 3], f64)> = Vec::with_capacity(facets.len() * 5 / 2);
         for t in facets {
+            let [a, b, c] = t.map(|i| points[i as usize]);
+            let (ab, ac) = (sub(b, a), sub(c, a));
+            let n = cross(ab, ac);
+            let num = add(
+                scale(cross(n, ab), dot(ac, ac)),
+                scale(cross(ac, n), dot(ab, ab)),
+            );
+            let off = scale(num, 0.5 / dot(n, n));
+            balls.push((add(a, off), grow * dot(off, off)));
+            // Edges once each, from the triangle where they ascend.
             for k in 0..3 {
                 let (i, j) = (t[k], t[(k + 1) % 3]);
                 if i < j {
-                    let (a, b) = (points[i as usize], points[j as usize]);
-                    let r = 0.5 * (1.0 + margin) * norm(sub(b, a));
-                    balls.push((scale(super::add(a, b), 0.5), r * r));
+                    let (p, q) = (points[i as usize], points[j as usize]);
+                    let d = sub(q, p);
+                    balls.push((scale(add(p, q), 0.5), 0.25 * grow * dot(d, d)));
                 }
             }
         }
-        let cell = balls.iter().map(|b| b.1).fold(0.0, f64::max).sqrt().max(1e-9);
-        let mut grid: std::collections::HashMap<[i64; 3], Vec<u32>> = std::collections::HashMap::new();
+        let cell = balls
+            .iter()
+            .map(|b| b.1)
+            .fold(0.0, f64::max)
+            .sqrt()
+            .max(1e-12);
+        let mut grid: std::collections::HashMap<[i64; 3], Vec<u32>> =
+            std::collections::HashMap::new();
         for (i, b) in balls.iter().enumerate() {
-            grid.entry(b.0.map(|x| (x / cell).floor() as i64)).or_default().push(i as u32);
+            grid.entry(b.0.map(|x| (x / cell).floor() as i64))
+                .or_default()
+                .push(i as u32);
         }
         Self { cell, grid, balls }
     }
@@ -486,7 +484,7 @@ impl DiametralBalls {
                         for &i in list {
                             let (centre, r2) = self.balls[i as usize];
                             let d = sub(p, centre);
-                            if super::dot(d, d) < r2 {
+                            if dot(d, d) < r2 {
                                 return true;
                             }
                         }
@@ -509,16 +507,15 @@ type Aabb = ([f64; 3], [f64; 3]);
 /// frame; level 0 should cover the ball). `want(p)` rejects a point (`None`) or gives the
 /// level of detail wanted at p; a point is kept if it is wanted at a level ≥ the coarsest
 /// lattice it belongs to. Since BCC(a) ⊂ BCC(a/2), each point is examined once, at its
-/// coarsest level, so the levels form one conforming point set with no duplicates; the
-/// BCC Delaunay tets (Sommerville tets) are well shaped and TetGen only repairs the level
-/// transitions. Deterministic order.
+/// coarsest level, so the levels form one point set without duplicates, and a point of a
+/// coarse lattice stays where finer levels take over (2:1 transitions). Deterministic order.
 fn add_nested_bcc<F: Fn([f64; 3]) -> Option<u32>>(
     a0: f64,
     boxes: &[Vec<Aabb>],
     want: F,
     points: &mut Vec<[f64; 3]>,
 ) {
-    let rot = rotation(1);
+    let rot = lattice_rotation();
     let inside = |b: &Aabb, x: [f64; 3]| (0..3).all(|d| x[d] >= b.0[d] && x[d] <= b.1[d]);
     for (l, level_boxes) in boxes.iter().enumerate() {
         // Half-lattice integer coordinates q: lattice-frame point = q · half; BCC points have
@@ -547,7 +544,7 @@ fn add_nested_bcc<F: Fn([f64; 3]) -> Option<u32>>(
                             continue;
                         }
                         let p = mat_vec(&rot, x);
-                        if super::dot(p, p) >= 1.0 {
+                        if dot(p, p) >= 1.0 {
                             continue;
                         }
                         if want(p).is_some_and(|w| w as usize >= l) {
@@ -560,16 +557,11 @@ fn add_nested_bcc<F: Fn([f64; 3]) -> Option<u32>>(
     }
 }
 
-fn transpose(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    [[m[0][0], m[1][0], m[2][0]], [m[0][1], m[1][1], m[2][1]], [m[0][2], m[1][2], m[2][2]]]
-}
-
-/// A fixed rotation: angle 0.7·k rad about an irrational axis.
-fn rotation(k: usize) -> [[f64; 3]; 3] {
+/// The fixed lattice rotation: 0.7 rad about the irrational axis (1, φ, e).
+fn lattice_rotation() -> [[f64; 3]; 3] {
     let axis = [1.0, (1.0 + 5f64.sqrt()) / 2.0, std::f64::consts::E];
-    let l = norm(axis);
-    let [x, y, z] = axis.map(|c| c / l);
-    let (sn, c) = (0.7 * k as f64).sin_cos();
+    let [x, y, z] = axis.map(|c| c / norm(axis));
+    let (sn, c) = 0.7f64.sin_cos();
     let t = 1.0 - c;
     [
         [t * x * x + c, t * x * y - sn * z, t * x * z + sn * y],
@@ -578,39 +570,377 @@ fn rotation(k: usize) -> [[f64; 3]; 3] {
     ]
 }
 
+fn transpose(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    [
+        [m[0][0], m[1][0], m[2][0]],
+        [m[0][1], m[1][1], m[2][1]],
+        [m[0][2], m[1][2], m[2][2]],
+    ]
+}
+
 fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    [super::dot(m[0], v), super::dot(m[1], v), super::dot(m[2], v)]
+    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::quality;
+    use crate::mesh::{
+        extract_surface, facet_normals, quality, surface_node_geometry, tet_volume, SurfaceMesh,
+    };
+    use std::collections::HashMap;
+    use std::f64::consts::PI;
+
+    const R: f64 = 1.1e-3;
+
+    fn mesh_volume(m: &TetMesh) -> f64 {
+        m.tets
+            .iter()
+            .map(|t| tet_volume(&t.map(|i| m.nodes[i as usize])))
+            .sum()
+    }
+
+    /// Every directed edge exactly once, with its twin: closed, consistently oriented.
+    fn assert_closed(s: &SurfaceMesh) {
+        let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+        for f in &s.facets {
+            for k in 0..3 {
+                *directed.entry((f[k], f[(k + 1) % 3])).or_default() += 1;
+            }
+        }
+        for (&(a, b), &n) in &directed {
+            assert_eq!(n, 1, "edge ({a},{b}) used {n} times in one direction");
+            assert_eq!(
+                directed.get(&(b, a)),
+                Some(&1),
+                "edge ({a},{b}) not shared by exactly 2 facets"
+            );
+        }
+        // Euler characteristic of a sphere.
+        let (v, e, f) = (
+            s.nodes.len() as i64,
+            directed.len() as i64 / 2,
+            s.facets.len() as i64,
+        );
+        assert_eq!(v - e + f, 2);
+    }
+
+    /// Surface edges as (midpoint, length).
+    fn surface_edges(m: &TetMesh, s: &SurfaceMesh) -> Vec<([f64; 3], f64)> {
+        let mut out = Vec::new();
+        for f in &s.facets {
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                if a < b {
+                    let (p, q) = (m.nodes[a as usize], m.nodes[b as usize]);
+                    out.push((scale(add(p, q), 0.5), norm(sub(q, p))));
+                }
+            }
+        }
+        out
+    }
 
     #[test]
-    #[ignore]
-    fn explore() {
-        let r = 1.1e-3;
-        let qs: Vec<f64> = std::env::var("MUFE_Q").unwrap().split(',').map(|x| x.parse().unwrap()).collect();
-        let mrs: Vec<f64> = std::env::var("MUFE_MR").unwrap_or("0.09,0.045".into()).split(',').map(|x| x.parse().unwrap()).collect();
-        for mr in mrs {
-            for &q in &qs {
-                for graded in [0, 1, 2] {
-                    let s = mr * 2.0 * r;
-                    let mut spec = SphereMeshSpec::uniform(r, s);
-                    if graded == 1 {
-                        spec = spec.with_graded(3.0 * s, r / 4.0);
+    fn uniform_sphere_is_closed_outward_and_has_the_right_volume() {
+        let spec = SphereMeshSpec::from_meshing_ratio(R, 0.09);
+        let m = mesh_sphere(&spec).unwrap();
+        validate(&m).unwrap();
+        for t in &m.tets {
+            assert!(tet_volume(&t.map(|i| m.nodes[i as usize])) > 0.0);
+        }
+        let s = extract_surface(&m);
+        assert_closed(&s);
+
+        // Divergence theorem: Σ (area vector · centroid)/3 over the facets = enclosed volume,
+        // positive only if the facets point outward.
+        let v_tets = mesh_volume(&m);
+        let v_surf: f64 = s
+            .facets
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.map(|i| m.nodes[i as usize]);
+                let area = scale(cross(sub(b, a), sub(c, a)), 0.5);
+                dot(area, scale(add(add(a, b), c), 1.0 / 3.0)) / 3.0
+            })
+            .sum();
+        assert!(v_surf > 0.0);
+        assert!(
+            (v_surf / v_tets - 1.0).abs() < 1e-10,
+            "{v_surf} vs {v_tets}"
+        );
+
+        // The convex polyhedron lies inside the sphere and contains the ball of radius
+        // d_min = R − (largest chord sagitta) = min distance from the centre to a facet plane.
+        let normals = facet_normals(&m, &s);
+        let d_min = s
+            .facets
+            .iter()
+            .zip(&normals)
+            .map(|(f, n)| dot(*n, m.nodes[f[0] as usize]))
+            .fold(f64::INFINITY, f64::min);
+        let sagitta = R - d_min;
+        assert!(sagitta > 0.0 && sagitta < 0.05 * R, "sagitta {sagitta}");
+        let (v_in, v_out) = (4.0 / 3.0 * PI * d_min.powi(3), 4.0 / 3.0 * PI * R.powi(3));
+        assert!(
+            v_tets >= v_in * (1.0 - 1e-12) && v_tets <= v_out * (1.0 + 1e-12),
+            "{v_in} ≤ {v_tets} ≤ {v_out}"
+        );
+        for &n in &s.nodes {
+            assert!(norm(m.nodes[n as usize]) <= R * (1.0 + 1e-12));
+        }
+
+        // The surface is exactly the triangulated sphere (no TetGen Steiner points): mean
+        // edge ≈ seeding, every surface node on the sphere.
+        let q = quality(&m);
+        assert!(
+            (q.mean_surface_edge / spec.seeding - 1.0).abs() < 0.1,
+            "{}",
+            q.mean_surface_edge
+        );
+        for &n in &s.nodes {
+            assert!((norm(m.nodes[n as usize]) / R - 1.0).abs() < 1e-12);
+        }
+        assert!(q.min_dihedral_deg > 5.0, "{q}");
+
+        // Node geometry for contact: tributary areas add up to the surface area, normals are
+        // unit and outward.
+        let g = surface_node_geometry(&m, &s);
+        let area: f64 = s
+            .facets
+            .iter()
+            .map(|f| {
+                let [a, b, c] = f.map(|i| m.nodes[i as usize]);
+                0.5 * norm(cross(sub(b, a), sub(c, a)))
+            })
+            .sum();
+        assert!((g.areas.iter().sum::<f64>() / area - 1.0).abs() < 1e-12);
+        assert!(area < 4.0 * PI * R * R && area > 4.0 * PI * d_min * d_min);
+        for (k, &n) in s.nodes.iter().enumerate() {
+            let x = m.nodes[n as usize];
+            assert!((norm(g.normals[k]) - 1.0).abs() < 1e-12);
+            assert!(dot(g.normals[k], x) / norm(x) > 0.99);
+        }
+    }
+
+    #[test]
+    fn local_refinement_is_fine_at_the_point_and_coarse_elsewhere() {
+        let s = R / 4.0;
+        let fine = s / 4.0;
+        let dir = [1.0, 1.0, 0.0];
+        let spec = SphereMeshSpec::uniform(R, s).with_refinement(dir, fine, 0.1 * R);
+        let m = mesh_sphere(&spec).unwrap();
+        validate(&m).unwrap();
+        let surf = extract_surface(&m);
+        assert_closed(&surf);
+        let point = scale(dir, R / norm(dir));
+        let edges = surface_edges(&m, &surf);
+        let near: Vec<f64> = edges
+            .iter()
+            .filter(|(c, _)| norm(sub(*c, point)) < 0.1 * R)
+            .map(|e| e.1)
+            .collect();
+        let far: Vec<f64> = edges
+            .iter()
+            .filter(|(c, _)| norm(sub(*c, point)) > 1.5 * R)
+            .map(|e| e.1)
+            .collect();
+        assert!(near.len() >= 6 && !far.is_empty());
+        let near_max = near.iter().cloned().fold(0.0, f64::max);
+        let far_mean = far.iter().sum::<f64>() / far.len() as f64;
+        assert!(near_max <= 1.5 * fine, "near {near_max} vs {fine}");
+        assert!(
+            far_mean > 3.0 * fine && (far_mean / s - 1.0).abs() < 0.15,
+            "far mean {far_mean}"
+        );
+        let q = quality(&m);
+        assert!(q.min_dihedral_deg > 5.0, "{q}");
+        // TetGen kept the surface exactly as triangulated (no Steiner points on it).
+        assert_eq!(
+            q.surface_facets,
+            unit_surface(&spec).unwrap().triangles.len()
+        );
+        // Much cheaper than meshing the whole sphere at the fine seeding.
+        let uniform_fine = mesh_sphere(&SphereMeshSpec::uniform(R, fine)).unwrap();
+        assert!(
+            5 * m.tets.len() < uniform_fine.tets.len(),
+            "refined {} vs uniform fine {}",
+            m.tets.len(),
+            uniform_fine.tets.len()
+        );
+        // Two calls give bitwise identical meshes.
+        assert_eq!(mesh_sphere(&spec).unwrap(), m);
+    }
+
+    #[test]
+    fn graded_mesh_has_a_coarse_core_and_the_same_surface() {
+        let s = 0.045 * 2.0 * R;
+        let uniform = mesh_sphere(&SphereMeshSpec::uniform(R, s)).unwrap();
+        let graded =
+            mesh_sphere(&SphereMeshSpec::uniform(R, s).with_graded(3.0 * s, R / 4.0)).unwrap();
+        validate(&graded).unwrap();
+        assert!(
+            (graded.tets.len() as f64) < 0.8 * uniform.tets.len() as f64,
+            "graded {} vs uniform {}",
+            graded.tets.len(),
+            uniform.tets.len()
+        );
+        let (qg, qu) = (quality(&graded), quality(&uniform));
+        assert!((qg.mean_surface_edge / s - 1.0).abs() < 0.1, "{qg}");
+        assert_eq!(qg.surface_facets, qu.surface_facets);
+        assert!(qg.min_dihedral_deg > 5.0, "{qg}");
+        // Mean edge of the tets in the inner half of the radius: coarse in the graded mesh.
+        let core_edge = |m: &TetMesh| {
+            let (mut sum, mut n) = (0.0, 0);
+            for t in &m.tets {
+                let x = t.map(|i| m.nodes[i as usize]);
+                let c = scale(add(add(x[0], x[1]), add(x[2], x[3])), 0.25);
+                if norm(c) < 0.5 * R {
+                    for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                        sum += norm(sub(x[i], x[j]));
+                        n += 1;
                     }
-                    if graded == 2 {
-                        spec = spec.with_refinement([0.0, 0.0, 1.0], s / 4.0, 2.0 * s);
-                    }
-                    let t0 = std::time::Instant::now();
-                    let m = mesh_sphere_with_ratio(&spec, q).unwrap();
-                    let dt = t0.elapsed();
-                    let qr = quality(&m);
-                    let n = crate::mesh::surface_refine::geodesic_frequency(r, s);
-                    eprintln!("MR {mr} q {q} graded {graded}: {:.2?} input tris {} {qr}", dt, 20 * n * n);
                 }
+            }
+            sum / n as f64
+        };
+        assert!(
+            core_edge(&graded) > 1.6 * s,
+            "graded core edge {}",
+            core_edge(&graded)
+        );
+        assert!(
+            (core_edge(&uniform) / s - 1.0).abs() < 0.2,
+            "uniform core edge {}",
+            core_edge(&uniform)
+        );
+    }
+
+    #[test]
+    fn spec_errors_name_the_field() {
+        let ok = SphereMeshSpec::uniform(R, 1e-4);
+        ok.validate().unwrap();
+        let field = |spec: SphereMeshSpec| match spec.validate() {
+            Err(MeshError::InvalidSpec { field, .. }) => field,
+            other => panic!("expected an InvalidSpec error, got {other:?}"),
+        };
+        assert_eq!(field(SphereMeshSpec::uniform(-1.0, 1e-4)), "radius");
+        assert_eq!(field(SphereMeshSpec::uniform(f64::NAN, 1e-4)), "radius");
+        assert_eq!(field(SphereMeshSpec::uniform(R, 0.0)), "seeding");
+        assert_eq!(field(SphereMeshSpec::uniform(R, f64::INFINITY)), "seeding");
+        assert_eq!(field(SphereMeshSpec::uniform(R, 2.0 * R)), "seeding");
+        assert_eq!(field(ok.clone().with_graded(R, 2e-4)), "graded.band_depth");
+        assert_eq!(
+            field(ok.clone().with_graded(0.5e-4, 2e-4)),
+            "graded.band_depth"
+        );
+        assert_eq!(
+            field(ok.clone().with_graded(3e-4, 0.5e-4)),
+            "graded.core_seeding"
+        );
+        assert_eq!(
+            field(ok.clone().with_graded(3e-4, -1.0)),
+            "graded.core_seeding"
+        );
+        assert_eq!(
+            field(ok.clone().with_refinement([0.0; 3], 2e-5, 1e-4)),
+            "refine[0].direction"
+        );
+        assert_eq!(
+            field(ok.clone().with_refinement([1.0, 0.0, 0.0], 2e-4, 1e-4)),
+            "refine[0].seeding"
+        );
+        let mut bad = ok
+            .clone()
+            .with_refinement([1.0, 0.0, 0.0], 2e-5, 1e-4)
+            .with_refinement([0.0, 1.0, 0.0], 2e-5, -1.0);
+        assert_eq!(field(bad.clone()), "refine[1].radius");
+        bad.refine[1].radius = 1e-4;
+        bad.refine[1].growth = f64::NAN;
+        assert_eq!(field(bad.clone()), "refine[1].growth");
+        let e = SphereMeshSpec::uniform(R, -1.0).validate().unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "seeding: must be a positive finite length, got -1"
+        );
+        // mesh_sphere validates first.
+        assert!(matches!(
+            mesh_sphere(&SphereMeshSpec::uniform(R, 0.0)),
+            Err(MeshError::InvalidSpec { .. })
+        ));
+    }
+
+    #[test]
+    fn spec_reads_from_toml_with_default_growth() {
+        let text = r#"
+            radius = 1.1e-3
+            seeding = 9.9e-5
+            graded = { band_depth = 3.0e-4, core_seeding = 2.75e-4 }
+            refine = [ { direction = [0, 0, 2], seeding = 2.5e-5, radius = 1e-4 } ]
+        "#;
+        let spec: SphereMeshSpec = toml::from_str(text).unwrap();
+        assert_eq!(spec.refine[0].growth, 0.3);
+        assert_eq!(
+            spec.graded,
+            Some(GradedBand {
+                band_depth: 3.0e-4,
+                core_seeding: 2.75e-4
+            })
+        );
+        spec.validate().unwrap();
+        assert!((spec.meshing_ratio() - 0.045).abs() < 1e-12);
+        // Sizing formula: fine at the point, growing with chord distance beyond the zone.
+        assert_eq!(spec.surface_size([0.0, 0.0, R]), 2.5e-5);
+        let x = [R * 0.6f64.sin(), 0.0, R * 0.6f64.cos()];
+        let d = norm(sub(x, [0.0, 0.0, R]));
+        assert!((spec.surface_size(x) - (2.5e-5 + 0.3 * (d - 1e-4)).min(9.9e-5)).abs() < 1e-18);
+        assert_eq!(spec.surface_size([0.0, 0.0, -R]), 9.9e-5);
+        assert!(
+            toml::from_str::<SphereMeshSpec>("radius = 1.0\nseeding = 0.1\nbogus = 1").is_err()
+        );
+    }
+
+    /// Element/node counts, quality and timing for the paper's sphere (R = 1.1 mm) at
+    /// MR = 0.090, 0.045, 0.023, uniform vs graded (band 3s, core R/4) vs a refined contact
+    /// patch. `cargo test --release --lib mesh_size_table -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn mesh_size_table() {
+        println!("| MR | s (µm) | kind | tets | nodes | surface facets | min/max dihedral (°) | max aspect | time |");
+        println!("|---|---|---|---|---|---|---|---|---|");
+        for mr in [0.090, 0.045, 0.023] {
+            let s = mr * 2.0 * R;
+            let specs = [
+                ("uniform", SphereMeshSpec::uniform(R, s)),
+                (
+                    "graded",
+                    SphereMeshSpec::uniform(R, s).with_graded(3.0 * s, R / 4.0),
+                ),
+                (
+                    "patch s/4",
+                    SphereMeshSpec::uniform(R, s).with_refinement(
+                        [0.0, 0.0, 1.0],
+                        s / 4.0,
+                        2.0 * s,
+                    ),
+                ),
+            ];
+            for (kind, spec) in specs {
+                let t0 = std::time::Instant::now();
+                let m = mesh_sphere(&spec).unwrap();
+                let dt = t0.elapsed();
+                let q = quality(&m);
+                let input = unit_surface(&spec).unwrap().triangles.len();
+                println!(
+                    "| {mr:.3} | {:.1} | {kind} | {} | {} | {} (input {input}) | {:.1} / {:.1} | {:.2} | {:.2?} |",
+                    s * 1e6,
+                    q.elements,
+                    q.nodes,
+                    q.surface_facets,
+                    q.min_dihedral_deg,
+                    q.max_dihedral_deg,
+                    q.max_aspect_ratio,
+                    dt
+                );
             }
         }
     }

@@ -1,18 +1,25 @@
 //! Size-driven triangulation of a sphere surface.
 //!
-//! Starts from an icosahedron inscribed in the sphere and refines it by conforming
-//! longest-edge bisection (Rivara's LEPP algorithm): to split a triangle, follow the
-//! "longest-edge propagation path" through neighbours across their longest edges until two
-//! triangles share their longest edge, and bisect that pair together. The mesh never has
-//! hanging nodes, and the smallest angle stays bounded below by a fixed fraction of the
-//! icosahedron's (Rosenberg–Stenger). New vertices are projected onto the sphere.
-//! Afterwards, edges are flipped until every edge is convex: the result is the convex hull
-//! of its vertices, which for points on a sphere is the spherical Delaunay triangulation
-//! (max–min angle), the best input for TetGen.
+//! 1. **Geodesic base**: every icosahedron face split into n² triangles on a barycentric
+//!    grid, projected onto the sphere, n chosen so that the mean edge is the base size
+//!    (edges in steps of 1/n rather than the √2 steps of repeated bisection; all angles
+//!    ≤ 72°).
+//! 2. **Local refinement** by conforming longest-edge bisection (Rivara's LEPP algorithm):
+//!    to split a triangle, follow the longest-edge propagation path through neighbours
+//!    across their longest edges until two triangles share their longest edge, and bisect
+//!    that pair together (midpoint projected onto the sphere). No hanging nodes.
+//! 3. **Edge flips** until every edge is convex: the triangulation becomes the convex hull
+//!    of its vertices, which for points on a sphere is the spherical Delaunay triangulation.
+//! 4. Where bisection happened, **make the triangles acute** (`Refiner::make_acute`):
+//!    removal of valence-3/4 vertices, Lloyd relaxation with density h⁻⁴, and local vertex
+//!    moves, until no angle exceeds [`MAX_ANGLE_DEG`]. TetGen treats every surface edge as
+//!    a segment and splits any whose diametral ball holds a vertex — every edge opposite an
+//!    angle ≥ 90° — and such splits cascade into edges several times shorter than
+//!    requested, which would set the explicit time step.
 //!
-//! Adjacency is kept as per-triangle neighbour arrays (O(1) updates per bisection, no
-//! hashing, no allocation per step); the whole refinement is O(n) in the output size, with a
-//! deterministic processing order (same input → bitwise same output).
+//! Adjacency is kept as per-triangle neighbour arrays (O(1) updates per bisection or flip,
+//! no hashing or allocation per step); a directed-edge hash map is used only to (re)build
+//! them. Processing order is fixed, so the same input gives a bitwise identical output.
 
 use std::collections::HashMap;
 
@@ -20,16 +27,20 @@ use super::{add, cross, dot, norm, scale, sub, MeshError};
 
 /// Refinement criterion: a triangle is split while its longest edge exceeds
 /// `LONGEST_EDGE_FACTOR × h(centroid)`. It sits above the longest edge of the geodesic base
-/// mesh (≈ 1.2 × its mean), so uniform regions keep the base mesh (mean edge ≈ h), and below
-/// 1.5 so that refined patches never have an edge longer than 1.45 h; bisection leaves
-/// their mean edge near 0.85 h.
+/// mesh (≈ 1.1 × its mean), so uniform regions keep the base mesh (mean edge ≈ h), and below
+/// 1.5 so that refined patches stay below 1.5 h (bisection leaves their mean edge near
+/// 0.85 h; the Lloyd relaxation that follows redistributes but does not add vertices).
 pub const LONGEST_EDGE_FACTOR: f64 = 1.42;
 
 /// Target largest angle of the surface triangles after refinement (degrees): below 90° with
 /// a margin (see `Refiner::make_acute`). The geodesic base mesh has at most 72°.
 pub const MAX_ANGLE_DEG: f64 = 85.0;
+/// Lloyd sweeps per pass of `make_acute` (measured: ~40 bring obtuse angles from ~10 % of
+/// the bisected triangles to a few 5–7 valence defects, which the local moves then fix).
 const LLOYD_ITERATIONS: usize = 40;
+/// Rounds of local vertex moves per pass of `make_acute`.
 const REPAIR_ROUNDS: usize = 10;
+/// Passes of (vertex removal, Lloyd, local moves) at most.
 const ACUTE_PASSES: usize = 3;
 
 /// Mean edge of the frequency-n geodesic sphere of unit radius, times n (measured; the
@@ -65,12 +76,19 @@ struct Refiner {
     tris: Vec<Tri>,
 }
 
-/// Triangulates the sphere of `radius` centred at the origin so that every triangle's
-/// longest edge is ≤ [`LONGEST_EDGE_FACTOR`]`·size(x)` at its centroid `x` projected on the
-/// sphere (mean edge ≈ `size`). `size` must be positive and finite on the sphere.
+/// Triangulates the sphere of `radius` centred at the origin following the sizing function
+/// `size` (edge length as a function of a point on the sphere, positive and finite, at most
+/// `base_size`): the geodesic base has mean edge ≈ `base_size`; where `size` is smaller,
+/// triangles are bisected until their longest edge is ≤ [`LONGEST_EDGE_FACTOR`]`·size` at
+/// their centroid, then relaxed to acute shapes. All vertices lie exactly on the sphere.
 /// `field` names the spec field for the error returned if the triangle count would exceed
 /// [`MAX_SURFACE_TRIANGLES`].
-pub fn triangulate_sphere<F>(radius: f64, base_size: f64, size: F, field: &str) -> Result<SphereSurface, MeshError>
+pub fn triangulate_sphere<F>(
+    radius: f64,
+    base_size: f64,
+    size: F,
+    field: &str,
+) -> Result<SphereSurface, MeshError>
 where
     F: Fn([f64; 3]) -> f64,
 {
@@ -100,7 +118,10 @@ where
 {
     let n = geodesic_frequency(radius, base_size);
     if 20 * n * n > limit {
-        return Err(MeshError::TooLarge { field: field.to_string(), limit });
+        return Err(MeshError::TooLarge {
+            field: field.to_string(),
+            limit,
+        });
     }
     let mut r = Refiner::geodesic(radius, n);
     let base_vertices = r.pts.len();
@@ -202,7 +223,13 @@ impl Refiner {
                         (0, _) => on_edge(a, c, j),
                         _ if i + j == n => on_edge(b, c, j),
                         _ => {
-                            let p = add(pa, add(scale(sub(pb, pa), i as f64 / nf), scale(sub(pc, pa), j as f64 / nf)));
+                            let p = add(
+                                pa,
+                                add(
+                                    scale(sub(pb, pa), i as f64 / nf),
+                                    scale(sub(pc, pa), j as f64 / nf),
+                                ),
+                            );
                             pts.push(project(p));
                             (pts.len() - 1) as u32
                         }
@@ -235,7 +262,10 @@ impl Refiner {
         }
         let tris = tri_v
             .iter()
-            .map(|&v| Tri { v, n: [0, 1, 2].map(|k| half[&(v[(k + 2) % 3], v[(k + 1) % 3])]) })
+            .map(|&v| Tri {
+                v,
+                n: [0, 1, 2].map(|k| half[&(v[(k + 2) % 3], v[(k + 1) % 3])]),
+            })
             .collect();
         Refiner { radius, pts, tris }
     }
@@ -392,46 +422,65 @@ impl Refiner {
     /// vertex moves to the density-weighted centroid of its Voronoi cell (then back onto the
     /// sphere) and edges are re-flipped. The cell is assembled per triangle corner from the
     /// two kites (v, edge midpoint, circumcentre) with signed areas, so no fan ordering is
-    /// needed.
+    /// needed. Only `movable` vertices move; triangles without one are skipped. One
+    /// accumulator array is allocated for all sweeps.
     fn lloyd<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, iterations: usize, movable: &[bool]) {
         let np = self.pts.len();
         let mut acc = vec![([0.0; 3], 0.0); np];
+        let mut active: Vec<u32> = Vec::new();
         for _ in 0..iterations {
             acc.iter_mut().for_each(|a| *a = ([0.0; 3], 0.0));
-            for t in &self.tris {
+            active.clear();
+            for (ti, t) in self.tris.iter().enumerate() {
                 if !t.v.iter().any(|&i| movable[i as usize]) {
                     continue;
                 }
+                active.push(ti as u32);
                 let p = t.v.map(|i| self.pts[i as usize]);
                 let (ab, ac) = (sub(p[1], p[0]), sub(p[2], p[0]));
                 let n = cross(ab, ac);
                 let nn = dot(n, n);
-                let num = add(scale(cross(n, ab), dot(ac, ac)), scale(cross(ac, n), dot(ab, ab)));
+                let num = add(
+                    scale(cross(n, ab), dot(ac, ac)),
+                    scale(cross(ac, n), dot(ab, ab)),
+                );
                 let cc = add(p[0], scale(num, 0.5 / nn));
                 let nhat = scale(n, 1.0 / nn.sqrt());
+                // Density sampled once per triangle (at its centroid on the sphere).
+                let g = add(add(p[0], p[1]), p[2]);
+                let h = size(scale(g, self.radius / norm(g)));
+                let rho = 1.0 / (h * h * h * h);
                 for k in 0..3 {
                     let v = p[k];
                     for (w, first) in [(p[(k + 1) % 3], true), (p[(k + 2) % 3], false)] {
                         let m = scale(add(v, w), 0.5);
-                        // Signed area of (v, m, cc) for the next vertex, (v, cc, m) for the previous.
+                        // Signed area of (v, m, cc) toward the next vertex, (v, cc, m) toward
+                        // the previous one.
                         let (q1, q2) = if first { (m, cc) } else { (cc, m) };
-                        let area = 0.5 * dot(cross(sub(q1, v), sub(q2, v)), nhat);
-                        let g = scale(add(add(v, q1), q2), 1.0 / 3.0);
-                        let h = size(scale(g, self.radius / norm(g)));
-                        let wgt = area / (h * h * h * h);
+                        let wgt = rho * 0.5 * dot(cross(sub(q1, v), sub(q2, v)), nhat);
                         let a = &mut acc[t.v[k] as usize];
-                        a.0 = add(a.0, scale(g, wgt));
+                        a.0 = add(a.0, scale(add(add(v, q1), q2), wgt / 3.0));
                         a.1 += wgt;
                     }
                 }
             }
+            let mut max_move2: f64 = 0.0;
+            let mut min_h2 = f64::INFINITY;
             for ((p, a), &m) in self.pts.iter_mut().zip(&acc).zip(movable) {
                 if m && a.1 > 0.0 {
                     let c = scale(a.0, 1.0 / a.1);
-                    *p = scale(c, self.radius / norm(c));
+                    let q = scale(c, self.radius / norm(c));
+                    let d = sub(q, *p);
+                    max_move2 = max_move2.max(dot(d, d));
+                    min_h2 = min_h2.min(size(q).powi(2));
+                    *p = q;
                 }
             }
-            self.flip_to_convex();
+            self.flip_from(&active);
+            // Converged: nothing moved by more than 0.1 % of the finest size.
+            if max_move2 < 1e-6 * min_h2 {
+                break;
+            }
         }
     }
 
@@ -440,7 +489,9 @@ impl Refiner {
     fn fan_worst(&self, fan: &[u32], v: u32, x: [f64; 3]) -> Option<f64> {
         let mut worst = f64::NEG_INFINITY;
         for &t in fan {
-            let p = self.tris[t as usize].v.map(|i| if i == v { x } else { self.pts[i as usize] });
+            let p = self.tris[t as usize]
+                .v
+                .map(|i| if i == v { x } else { self.pts[i as usize] });
             let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
             if dot(n, add(add(p[0], p[1]), p[2])) <= 0.0 {
                 return None;
@@ -499,7 +550,11 @@ impl Refiner {
                 }
                 let x0 = self.pts[v as usize];
                 let nrm = scale(x0, 1.0 / norm(x0));
-                let a = if nrm[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+                let a = if nrm[0].abs() < 0.9 {
+                    [1.0, 0.0, 0.0]
+                } else {
+                    [0.0, 1.0, 0.0]
+                };
                 let u = cross(nrm, a);
                 let u = scale(u, 1.0 / norm(u));
                 let w = cross(nrm, u);
@@ -616,7 +671,9 @@ impl Refiner {
                     break;
                 }
             }
-            if fan.iter().any(|&t| dead_tri[t as usize]) || ring.iter().any(|&r| removed[r as usize]) {
+            if fan.iter().any(|&t| dead_tri[t as usize])
+                || ring.iter().any(|&r| removed[r as usize])
+            {
                 continue;
             }
             removed[v] = true;
@@ -717,9 +774,19 @@ impl Refiner {
     /// vertices). For points on a sphere this is the Delaunay criterion, so it terminates;
     /// a small tolerance keeps exactly cocircular quads (frequent by symmetry) unflipped.
     fn flip_to_convex(&mut self) {
-        let nt = self.tris.len() as u32;
-        let mut stack: Vec<u32> = (0..nt).rev().collect();
-        let mut queued = vec![true; nt as usize];
+        let all: Vec<u32> = (0..self.tris.len() as u32).collect();
+        self.flip_from(&all);
+    }
+
+    /// [`Self::flip_to_convex`] starting from the triangles `start` (flips propagate to
+    /// neighbours as needed).
+    fn flip_from(&mut self, start: &[u32]) {
+        let nt = self.tris.len();
+        let mut stack: Vec<u32> = start.iter().rev().copied().collect();
+        let mut queued = vec![false; nt];
+        for &t in start {
+            queued[t as usize] = true;
+        }
         while let Some(t) = stack.pop() {
             queued[t as usize] = false;
             for i in 0..3 {
@@ -824,12 +891,18 @@ mod tests {
     fn geodesic_base_is_closed_regular_and_calibrated() {
         for n in [1usize, 2, 5, 13, 40] {
             let r = Refiner::geodesic(1.0, n);
-            let s = SphereSurface { points: r.pts.clone(), triangles: r.tris.iter().map(|t| t.v).collect() };
+            let s = SphereSurface {
+                points: r.pts.clone(),
+                triangles: r.tris.iter().map(|t| t.v).collect(),
+            };
             assert_eq!(s.triangles.len(), 20 * n * n);
             check_closed_outward(&s);
             let (mean, _lo, hi, min_angle) = edge_stats(&s);
             if n >= 5 {
-                assert!((mean * n as f64 / GEODESIC_MEAN_EDGE - 1.0).abs() < 0.01, "n={n}: mean {mean}");
+                assert!(
+                    (mean * n as f64 / GEODESIC_MEAN_EDGE - 1.0).abs() < 0.01,
+                    "n={n}: mean {mean}"
+                );
             }
             // The base mesh must never trigger refinement by itself.
             assert!(hi < 1.11 * mean && 1.11 * 1.1 < LONGEST_EDGE_FACTOR);
@@ -848,26 +921,115 @@ mod tests {
         }
     }
 
+    fn max_angle_deg(s: &SphereSurface) -> f64 {
+        let mut worst: f64 = 0.0;
+        for t in &s.triangles {
+            let p = t.map(|i| s.points[i as usize]);
+            for k in 0..3 {
+                let e1 = sub(p[(k + 1) % 3], p[k]);
+                let e2 = sub(p[(k + 2) % 3], p[k]);
+                worst = worst.max((dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees());
+            }
+        }
+        worst
+    }
+
+    /// Convex: no vertex above any triangle's plane (checked on a sample).
+    fn assert_convex(s: &SphereSurface) {
+        for t in s.triangles.iter().step_by(13) {
+            let [a, b, c] = t.map(|i| s.points[i as usize]);
+            let n = cross(sub(b, a), sub(c, a));
+            for p in s.points.iter().step_by(3) {
+                assert!(
+                    dot(sub(*p, a), n) <= 1e-12 * norm(n),
+                    "vertex above facet {t:?}"
+                );
+            }
+        }
+    }
+
     #[test]
-    fn uniform_refinement_hits_mean_edge_and_is_convex() {
-        let h = 0.05;
-        let s = triangulate_sphere(1.0, h, |_| h, "seeding").unwrap();
-        check_closed_outward(&s);
-        let (mean, lo, hi, min_angle) = edge_stats(&s);
-        assert!((mean / h - 1.0).abs() < 0.08, "mean edge {mean} vs {h}");
-        assert!(hi <= LONGEST_EDGE_FACTOR * h * 1.0001, "longest edge {hi}");
-        assert!(lo > 0.3 * h, "shortest edge {lo}");
-        assert!(min_angle > 25.0, "min angle {min_angle}");
+    fn uniform_sizing_hits_mean_edge_and_is_convex() {
+        for h in [0.05, 0.083, 0.17, 0.21] {
+            let s = triangulate_sphere(1.0, h, |_| h, "seeding").unwrap();
+            check_closed_outward(&s);
+            let (mean, lo, hi, min_angle) = edge_stats(&s);
+            assert!((mean / h - 1.0).abs() < 0.1, "h {h}: mean edge {mean}");
+            assert!(hi <= LONGEST_EDGE_FACTOR * h, "h {h}: longest edge {hi}");
+            assert!(lo > 0.6 * h, "h {h}: shortest edge {lo}");
+            assert!(
+                min_angle > 50.0 && max_angle_deg(&s) < 75.0,
+                "h {h}: angles"
+            );
+            for p in &s.points {
+                assert!((norm(*p) - 1.0).abs() < 1e-14);
+            }
+            assert_convex(&s);
+        }
+    }
+
+    #[test]
+    fn bisection_is_conforming_and_meets_the_size_criterion() {
+        let size =
+            |x: [f64; 3]| 0.5f64.min(0.03 + 0.5 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.05).max(0.0));
+        let mut r = Refiner::geodesic(1.0, 2);
+        r.refine(&size, "seeding", usize::MAX).unwrap();
+        let s = SphereSurface {
+            points: r.pts.clone(),
+            triangles: r.tris.iter().map(|t| t.v).collect(),
+        };
+        check_closed_outward(&s); // no hanging nodes: every edge has its twin
+        for (i, t) in r.tris.iter().enumerate() {
+            assert!(
+                !r.needs_split(i as u32, &size),
+                "triangle {t:?} still too long"
+            );
+        }
+        // Neighbour links are consistent.
+        for (i, t) in r.tris.iter().enumerate() {
+            for k in 0..3 {
+                let u = r.tris[t.n[k] as usize];
+                assert!(u.n.contains(&(i as u32)));
+            }
+        }
         for p in &s.points {
             assert!((norm(*p) - 1.0).abs() < 1e-14);
         }
-        // Convex: every vertex lies below every triangle's plane.
-        for t in s.triangles.iter().step_by(37) {
-            let [a, b, c] = t.map(|i| s.points[i as usize]);
-            let n = cross(sub(b, a), sub(c, a));
-            for p in s.points.iter().step_by(7) {
-                assert!(dot(sub(*p, a), n) <= 1e-12);
+    }
+
+    #[test]
+    fn refined_patch_is_acute_convex_and_fine_near_the_point() {
+        let (coarse, fine, zone): (f64, f64, f64) = (0.1, 0.02, 0.05);
+        let pole = [0.0, 0.0, 1.0];
+        let size = |x: [f64; 3]| coarse.min(fine + 0.3 * (norm(sub(x, pole)) - zone).max(0.0));
+        let s = triangulate_sphere(1.0, coarse, size, "seeding").unwrap();
+        check_closed_outward(&s);
+        assert_convex(&s);
+        // Acute everywhere, so TetGen has no encroached segment to split.
+        assert!(
+            max_angle_deg(&s) < MAX_ANGLE_DEG + 3.0,
+            "max angle {}",
+            max_angle_deg(&s)
+        );
+        let (mut near_max, mut far_sum, mut far_n) = (0f64, 0.0, 0);
+        for t in &s.triangles {
+            for k in 0..3 {
+                let (a, b) = (s.points[t[k] as usize], s.points[t[(k + 1) % 3] as usize]);
+                let (mid, l) = (scale(add(a, b), 0.5), norm(sub(a, b)));
+                let d = norm(sub(mid, pole));
+                if d < zone {
+                    near_max = near_max.max(l);
+                } else if d > 1.0 {
+                    far_sum += l;
+                    far_n += 1;
+                }
             }
+        }
+        assert!(near_max > 0.0 && near_max <= 1.5 * fine, "near {near_max}");
+        let far_mean = far_sum / far_n as f64;
+        assert!((far_mean / coarse - 1.0).abs() < 0.1, "far {far_mean}");
+        for p in &s.points {
+            assert!((norm(*p) - 1.0).abs() < 1e-14);
         }
     }
 
@@ -900,61 +1062,5 @@ mod tests {
         let e = triangulate_sphere_limited(1.0, 1e-3, |_| 1e-3, "seeding", 10_000).unwrap_err();
         assert!(matches!(e, MeshError::TooLarge { .. }));
         assert!(e.to_string().starts_with("seeding: "));
-    }
-}
-
-#[cfg(test)]
-mod explore_tests {
-    use super::*;
-
-    fn angles(s: &SphereSurface) -> (f64, usize, usize) {
-        let mut val = vec![0usize; s.points.len()];
-        for t in &s.triangles { for &v in t { val[v as usize] += 1; } }
-        let mut hist = std::collections::BTreeMap::new();
-        for t in &s.triangles {
-            let p = t.map(|i| s.points[i as usize]);
-            for k in 0..3 {
-                let e1 = sub(p[(k + 1) % 3], p[k]);
-                let e2 = sub(p[(k + 2) % 3], p[k]);
-                if (dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees() > 90.0 {
-                    *hist.entry((val[t[k] as usize], val[t[(k+1)%3] as usize].min(val[t[(k+2)%3] as usize]), val[t[(k+1)%3] as usize].max(val[t[(k+2)%3] as usize]))).or_insert(0) += 1;
-                }
-            }
-        }
-        let mut vh = std::collections::BTreeMap::new();
-        for v in &val { *vh.entry(*v).or_insert(0) += 1; }
-        eprintln!("valences {vh:?}\n obtuse (apex val, edge vals) {hist:?}");
-        let (mut maxa, mut obt, mut n) = (0f64, 0, 0);
-        for t in &s.triangles {
-            let p = t.map(|i| s.points[i as usize]);
-            let mut m: f64 = 0.0;
-            for k in 0..3 {
-                let e1 = sub(p[(k + 1) % 3], p[k]);
-                let e2 = sub(p[(k + 2) % 3], p[k]);
-                m = m.max((dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees());
-            }
-            maxa = maxa.max(m);
-            if m > 90.0 {
-                obt += 1;
-            }
-            n += 1;
-        }
-        (maxa, obt, n)
-    }
-
-    #[test]
-    #[ignore]
-    fn explore_smoothing() {
-        for it in [0usize, 50] {
-            std::env::set_var("MUFE_SMOOTH", it.to_string());
-            // uniform via LEPP from coarse base
-            let s = triangulate_sphere(1.0, 0.5, |_| 0.05, "x").unwrap();
-            let (m, o, n) = angles(&s);
-            eprintln!("it {it} uniform-LEPP: max {m:.1} obtuse {o}/{n}");
-            let size = |x: [f64; 3]| 0.1f64.min(0.025 + 0.3 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.1).max(0.0));
-            let s = triangulate_sphere(1.0, 0.1, size, "x").unwrap();
-            let (m, o, n) = angles(&s);
-            eprintln!("it {it} patch: max {m:.1} obtuse {o}/{n}");
-        }
     }
 }

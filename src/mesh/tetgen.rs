@@ -3,11 +3,19 @@
 //! `tritet::Tetgen::generate_mesh` runs TetGen with the switches `pzAfQ` + `a` (per-region
 //! volume constraints when no global value is given) + `q<ratio>`: tritet passes its last
 //! argument straight after `q`, which TetGen reads as the maximum radius–edge ratio (not an
-//! angle). TetGen's mesh optimisation (`-O2/7`, max dihedral 165° under `-q`) runs by default.
+//! angle). TetGen's mesh optimisation (`-O2/7`, max dihedral 165° under `-q`) runs by
+//! default. Points that are on no facet are kept as isolated interior vertices.
+//!
+//! Things to know when feeding it (no `-Y`: TetGen may split the surface): every facet edge
+//! is a segment, split if any vertex lies in its diametral ball (so surface triangles must be
+//! acute); a facet is split if a vertex lies in its circumball, or if its area^1.5 exceeds
+//! the volume bound of an adjacent region (so volume bounds must be loose or absent near the
+//! surface).
 //!
 //! TetGen keeps process-wide state (robust predicates), so all calls are serialised through
 //! one mutex. Its C++ exceptions are caught by tritet and — for `throw int` — reported as
-//! success with an empty output, so an empty result is treated as a failure here.
+//! success with an empty output (after printing `status = N`), so an empty result is treated
+//! as a failure here.
 
 use std::sync::Mutex;
 
@@ -35,22 +43,23 @@ pub(crate) fn tetrahedralize(
     radius_edge_ratio: f64,
 ) -> Result<TetMesh, MeshError> {
     let err = |e: &str| MeshError::TetGen(e.to_string());
-    let delaunay = std::env::var("MUFE_DELAUNAY").is_ok();
-    let mut tg = if delaunay {
-        tritet::Tetgen::new(points.len(), None, None, None).map_err(err)?
-    } else {
-        tritet::Tetgen::new(points.len(), Some(vec![3; facets.len()]), Some(regions.len()), None).map_err(err)?
-    };
+    let mut tg = tritet::Tetgen::new(
+        points.len(),
+        Some(vec![3; facets.len()]),
+        Some(regions.len()),
+        None,
+    )
+    .map_err(err)?;
     for (i, p) in points.iter().enumerate() {
         // Marker 1 is reserved by TetGen for boundary points; 0 = none.
         tg.set_point(i, 0, p[0], p[1], p[2]).map_err(err)?;
     }
-    for (f, tri) in facets.iter().enumerate().filter(|_| !delaunay) {
+    for (f, tri) in facets.iter().enumerate() {
         for (m, &p) in tri.iter().enumerate() {
             tg.set_facet_point(f, m, p as usize).map_err(err)?;
         }
     }
-    for (i, r) in regions.iter().enumerate().filter(|_| !delaunay) {
+    for (i, r) in regions.iter().enumerate() {
         tg.set_region(
             i,
             r.marker,
@@ -66,11 +75,8 @@ pub(crate) fn tetrahedralize(
         let _guard = TETGEN_LOCK
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        if delaunay {
-            tg.generate_delaunay(false).map_err(err)?;
-        } else {
-            tg.generate_mesh(false, false, None, Some(radius_edge_ratio)).map_err(err)?;
-        }
+        tg.generate_mesh(false, false, None, Some(radius_edge_ratio))
+            .map_err(err)?;
         let npoint = tg.out_npoint();
         let ncell = tg.out_ncell();
         if ncell == 0 || npoint < 4 {
@@ -114,4 +120,60 @@ pub(crate) fn tetrahedralize(
         }
     }
     Ok(TetMesh { nodes, tets })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{quality, tet_volume};
+
+    fn tet_plc(offset: [f64; 3]) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        let o = offset;
+        let pts = vec![
+            o,
+            [o[0] + 1.0, o[1], o[2]],
+            [o[0], o[1] + 1.0, o[2]],
+            [o[0], o[1], o[2] + 1.0],
+        ];
+        (pts, vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    }
+
+    #[test]
+    fn meshes_a_tetrahedron_with_positive_tets() {
+        let (pts, facets) = tet_plc([0.0; 3]);
+        let region = Region {
+            point: [0.1; 3],
+            marker: 1,
+            max_volume: Some(0.01),
+        };
+        let m = tetrahedralize(&pts, &facets, &[region], 2.0).unwrap();
+        assert!(m.tets.len() > 10);
+        let v: f64 = m
+            .tets
+            .iter()
+            .map(|t| tet_volume(&t.map(|i| m.nodes[i as usize])))
+            .sum();
+        assert!((v - 1.0 / 6.0).abs() < 1e-12);
+        for t in &m.tets {
+            assert!(tet_volume(&t.map(|i| m.nodes[i as usize])) > 0.0);
+        }
+        assert!(quality(&m).min_dihedral_deg > 1.0);
+    }
+
+    #[test]
+    fn rejects_intersecting_facets_with_an_error() {
+        // Two interpenetrating tetrahedra: a self-intersecting PLC.
+        let (mut pts, mut facets) = tet_plc([0.0; 3]);
+        let (p2, f2) = tet_plc([0.2; 3]);
+        pts.extend(p2);
+        facets.extend(f2.iter().map(|f| f.map(|i| i + 4)));
+        let region = Region {
+            point: [0.05; 3],
+            marker: 1,
+            max_volume: None,
+        };
+        let e = tetrahedralize(&pts, &facets, &[region], 2.0).unwrap_err();
+        assert!(matches!(e, MeshError::TetGen(_)));
+        assert!(e.to_string().starts_with("TetGen failed: "), "{e}");
+    }
 }

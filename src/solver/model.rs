@@ -3,6 +3,7 @@
 //! after). Immutable during a run except through [`crate::solver::State`].
 
 use crate::boundary::{PrescribedMotion, Translation};
+use crate::contact::ContactModel;
 use crate::element::{max_stiffness_eigenvalue, TetReference};
 use crate::error::InputError;
 use crate::material::{ElasticParameters, StVenantKirchhoff};
@@ -62,7 +63,9 @@ pub struct Model {
     pub driven: Vec<u8>,
     /// Time step used (s).
     pub dt: f64,
-    /// Stable time step of the unscaled model (s), and the element that sets it.
+    /// Stable time step of the unscaled model (s), including the contact penalty springs
+    /// (see `contact.stable_step` for the element-only value), and the element with the
+    /// smallest own step.
     pub dt_stable: f64,
     pub dt_critical_element: usize,
     /// Mass added by mass scaling (kg), and the number of scaled elements.
@@ -71,6 +74,8 @@ pub struct Model {
     pub gravity: [f64; 3],
     /// Mass-proportional damping α (1/s).
     pub damping: f64,
+    /// Surfaces, penalty data and walls for contact.
+    pub contact: ContactModel,
 }
 
 impl Model {
@@ -230,7 +235,7 @@ pub fn build_model(
         (0, f64::INFINITY),
         |acc, (e, &d)| if d < acc.1 { (e, d) } else { acc },
     );
-    let dt_stable = sim.dt_safety * dt_crit;
+    let dt_stable_elements = sim.dt_safety * dt_crit;
 
     // Mass scaling: raise an element's density so its own stable step reaches target_dt.
     let n = x0.len();
@@ -239,6 +244,7 @@ pub fn build_model(
     let mut added_mass = 0.0;
     let mut scaled_elements = 0;
     let target = sim.target_dt.map(|t| t / sim.dt_safety);
+    let mut elem_scale = vec![1.0; tets.len()];
     for (e, t) in tets.iter().enumerate() {
         let rho = materials[tet_law[e] as usize].density;
         let m_phys = rho * tet_reference[e].volume / 4.0;
@@ -250,27 +256,12 @@ pub fn build_model(
             _ => 1.0,
         };
         added_mass += 4.0 * m_phys * (scale - 1.0);
+        elem_scale[e] = scale;
         for &node in t {
             physical_mass[node as usize] += m_phys;
             mass[node as usize] += m_phys * scale;
         }
     }
-    // After scaling every element's own step is ≥ target_dt/safety, so target_dt is stable.
-    let scaled_dt = sim.target_dt.unwrap_or(dt_stable);
-    let dt = match sim.dt {
-        Some(d) => {
-            if d > scaled_dt * (1.0 + 1e-12) {
-                return Err(InputError::new(
-                    file,
-                    "simulation.dt",
-                    format!("{d:e} s exceeds the stable step {scaled_dt:e} s (element {dt_critical_element})"),
-                ));
-            }
-            d
-        }
-        None => scaled_dt,
-    };
-
     // node → element incidence (CSR)
     let mut counts = vec![0u32; n + 1];
     for t in &tets {
@@ -301,6 +292,49 @@ pub fn build_model(
             ),
         ));
     }
+
+    // Contact: surfaces, penalty springs in the stable step (and contact-node mass scaling
+    // towards target_dt), then the initial-overlap check.
+    let e_prime: Vec<f64> = materials
+        .iter()
+        .map(|m| m.youngs_modulus / (1.0 - m.poisson_ratio * m.poisson_ratio))
+        .collect();
+    let mut contact = ContactModel::build(scene, &grains, &x0, &e_prime);
+    let dt_contact = contact.account_stable_step(
+        &tets,
+        &elem_dt,
+        &elem_scale,
+        &physical_mass,
+        &mut mass,
+        sim.dt_safety,
+        sim.target_dt,
+    );
+    added_mass += contact.stable_step.added_mass;
+    contact.check_initial_overlap(file, &grains, &x0)?;
+    let dt_stable = dt_stable_elements.min(dt_contact);
+
+    // After scaling every element's (and contact node's) own step is ≥ target_dt/safety,
+    // so target_dt is stable.
+    let scaled_dt = sim.target_dt.unwrap_or(dt_stable);
+    let dt = match sim.dt {
+        Some(d) => {
+            if d > scaled_dt * (1.0 + 1e-12) {
+                let why = match contact.stable_step.critical_node {
+                    Some(n) if dt_contact < dt_stable_elements && sim.target_dt.is_none() => {
+                        format!("contact node {n}")
+                    }
+                    _ => format!("element {dt_critical_element}"),
+                };
+                return Err(InputError::new(
+                    file,
+                    "simulation.dt",
+                    format!("{d:e} s exceeds the stable step {scaled_dt:e} s ({why})"),
+                ));
+            }
+            d
+        }
+        None => scaled_dt,
+    };
 
     // Prescribed motions
     let mut driven = vec![0u8; n];
@@ -410,6 +444,7 @@ pub fn build_model(
             scaled_elements,
             gravity: sim.gravity,
             damping: sim.damping,
+            contact,
         },
         motions,
     ))

@@ -39,6 +39,12 @@ pub struct RunSummary {
     pub energy: crate::energy::EnergyLedger,
     pub timing_table: String,
     pub results: PathBuf,
+    /// Most contact points at one step (grain–grain per pass + wall nodes).
+    pub max_contacts: usize,
+    /// Largest grain–grain penetration over the run (m).
+    pub max_penetration: f64,
+    /// Share of step time spent in the contact stage (0..1).
+    pub contact_share: f64,
 }
 
 /// Initial velocity field: each grain's rigid translation + rotation about its centre.
@@ -91,6 +97,22 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
             }
         }
     }
+    let cm = &solver.model.contact;
+    if cm.active() {
+        c.push(HistoryColumn::new("contacts", "", None, "active contact points: grain–grain (per pass) plus wall nodes"));
+        c.push(HistoryColumn::new("max_penetration", "m", None, "largest grain–grain penetration depth at this step"));
+        c.push(HistoryColumn::new("contact_energy", "J", None, "elastic energy stored in the contact penalty springs (part of ALLIE)"));
+    }
+    for w in &cm.walls {
+        for (what, units, desc) in [
+            ("force", "N", "force the wall exerts on the grains"),
+            ("displacement", "m", "displacement of the wall since t = 0"),
+        ] {
+            for axis in ["x", "y", "z"] {
+                c.push(HistoryColumn::new(&format!("{}_{what}_{axis}", w.name), units, None, desc));
+            }
+        }
+    }
     c
 }
 
@@ -117,6 +139,14 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
         row.extend_from_slice(&r.moment);
         row.extend_from_slice(&r.displacement);
         row.extend_from_slice(&r.rotation);
+    }
+    if solver.model.contact.active() {
+        let c = &s.contact;
+        row.extend_from_slice(&[c.contacts() as f64, c.stats.max_penetration, c.stats.energy]);
+    }
+    for w in &s.contact.walls {
+        row.extend_from_slice(&w.force);
+        row.extend_from_slice(&w.displacement);
     }
 }
 
@@ -243,6 +273,9 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         energy: solver.state.energy.clone(),
         timing_table: solver.timers.table(solver.state.step),
         results: results.clone(),
+        max_contacts: solver.state.contact.stats.max_contacts_run,
+        max_penetration: solver.state.contact.stats.max_penetration_run,
+        contact_share: solver.timers.share(Stage::Contact),
     };
     if talk {
         let e = &summary.energy;
@@ -262,6 +295,18 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
             e.damping_dissipation(),
             e.relative_balance_error()
         );
+        if solver.model.contact.active() {
+            let c = &solver.state.contact;
+            println!(
+                "contact: {} points now, at most {}; max penetration {:.3e} m ({:.2e} × smallest surface edge); {} broad-phase rebuilds; {:.1}% of step time in contact",
+                c.contacts(),
+                summary.max_contacts,
+                summary.max_penetration,
+                summary.max_penetration / solver.model.contact.min_edge.max(f64::MIN_POSITIVE),
+                c.stats.rebuilds,
+                100.0 * summary.contact_share
+            );
+        }
         println!("results: {}", results.display());
     }
     Ok(summary)
@@ -302,6 +347,34 @@ pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u
             100.0 * m.added_mass / phys,
             phys
         );
+    }
+    let cm = &m.contact;
+    if cm.active() {
+        let st = &cm.stable_step;
+        println!(
+            "contact: friction {}, penalty factor {} (max ε_n {:.3e} Pa/m), margin {:.3e} m, {} surface nodes, {} facets, {} walls",
+            cm.friction,
+            cm.penalty_factor,
+            st.max_penalty,
+            cm.margin,
+            cm.node.len(),
+            cm.facet.len(),
+            cm.walls.len()
+        );
+        if st.contact_dt.is_finite() {
+            println!(
+                "contact stable step: {:.4e} s (node {}) vs {:.4e} s from elements alone (×{:.3}){}",
+                st.contact_dt,
+                st.critical_node.unwrap_or(0),
+                st.element_dt,
+                (st.contact_dt / st.element_dt).min(1.0),
+                if st.scaled_nodes > 0 {
+                    format!("; {} contact nodes mass-scaled, added {:.4e} kg", st.scaled_nodes, st.added_mass)
+                } else {
+                    String::new()
+                }
+            );
+        }
     }
     let bytes = estimate_memory_bytes(m);
     println!("memory estimate: {:.1} MiB ({:.0} bytes/element)", bytes as f64 / 1048576.0, bytes as f64 / m.num_elements().max(1) as f64);

@@ -1,6 +1,7 @@
 //! The explicit central-difference step as named, timed stages:
-//! contact → internal forces → boundary (body force, damping, prescribed motions)
-//! → integrate → energy.
+//! contact (detection, grain–grain forces at x_n) → internal forces (+ contact forces)
+//! → boundary (body force, damping, prescribed motions) → contact (kinematic walls on
+//! v_{n+½}) → integrate → energy. Time in both contact parts is charged to `contact`.
 //!
 //! Convention: at the start of step n the state holds x_n and v_{n−½};
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
@@ -9,6 +10,7 @@ use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::model::Model;
 use super::timing::{Stage, StageTimers};
 use crate::boundary::PrescribedMotion;
+use crate::contact::{ContactScratch, ContactState};
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::error::MufeError;
 use rayon::prelude::*;
@@ -44,6 +46,9 @@ pub struct State {
     pub reactions: Vec<Reaction>,
     /// Work done by each prescribed motion (J).
     pub motion_work: Vec<WorkAccumulator>,
+    /// Friction history, wall work and contact diagnostics.
+    #[serde(default)]
+    pub contact: ContactState,
 }
 
 /// Per-step scratch buffers (never serialised).
@@ -54,6 +59,8 @@ pub struct Scratch {
     /// v_{n+½} being built (m/s).
     pub v_next: Vec<[f64; 3]>,
     pub elements: ElementScratch,
+    /// Cached contact candidate lists and per-point results.
+    pub contact: ContactScratch,
     node_partials: Vec<NodePartials>,
 }
 
@@ -91,11 +98,13 @@ impl Solver {
             motion_rotation: motions.iter().map(|m| m.rotation).collect(),
             reactions: vec![Reaction::default(); motions.len()],
             motion_work: vec![WorkAccumulator::default(); motions.len()],
+            contact: ContactState::new(&model),
         };
         let scratch = Scratch {
             force: vec![[0.0; 3]; n],
             v_next: vec![[0.0; 3]; n],
             elements: ElementScratch::new(&model),
+            contact: ContactScratch::default(),
             node_partials: vec![NodePartials::default(); n.div_ceil(NODE_CHUNK)],
         };
         Self {
@@ -116,10 +125,24 @@ impl Solver {
         let scratch = &mut self.scratch;
         let timers = &mut self.timers;
 
-        timers.time(Stage::Contact, || {});
+        timers.time(Stage::Contact, || {
+            crate::contact::evaluate(
+                model,
+                &state.x,
+                &state.v,
+                state.time,
+                state.step,
+                dt,
+                &mut state.contact,
+                &mut scratch.contact,
+            )
+        })?;
 
         let summary = timers.time(Stage::InternalForces, || {
             compute_internal_forces_into(model, &state.x, &mut scratch.elements, &mut scratch.force)
+        });
+        timers.time(Stage::Contact, || {
+            crate::contact::add_forces(model, &scratch.contact, &mut state.contact, &mut scratch.force)
         });
         if let Some((e, jac)) = summary.bad_element {
             let g = &model.grains[model.grain_of_element(e)];
@@ -137,6 +160,18 @@ impl Solver {
         timers.time(Stage::Boundary, || {
             apply_body_and_damping_forces(model, state, scratch, dt);
             drive_prescribed_motions(model, &self.motions, state, scratch, dt);
+        });
+        timers.time(Stage::Contact, || {
+            crate::contact::enforce_walls(
+                model,
+                &state.x,
+                &state.v,
+                &mut scratch.v_next,
+                state.time,
+                dt,
+                &mut state.contact,
+                &scratch.contact,
+            )
         });
 
         let partials = timers.time(Stage::Integrate, || {
@@ -162,7 +197,10 @@ impl Solver {
                 .record(dt, partials.gravity_before, partials.gravity_after);
             e.damping
                 .record(dt, partials.damping_before, partials.damping_after);
-            e.boundary_work = state.motion_work.iter().map(|w| w.work).sum();
+            e.friction_dissipation = state.contact.friction_dissipation_total();
+            e.contact_energy = state.contact.stats.energy;
+            e.boundary_work = state.motion_work.iter().map(|w| w.work).sum::<f64>()
+                + state.contact.wall_external_work();
             if e.initial_total.is_none() {
                 e.initial_total = Some(e.total());
             }

@@ -1,0 +1,893 @@
+//! Contact between grain surfaces (penalty, symmetric node-to-surface, Coulomb friction)
+//! and with rigid plane walls (kinematic).
+//!
+//! # Grain–grain contact
+//! Two passes per touching pair: every surface node of A against the facets of B, and every
+//! surface node of B against the facets of A, each with weight ½ ([`narrow::PASS_WEIGHT`]),
+//! so no grain is "master" and results do not depend on grain order. For a slave node s that
+//! is inside the master surface by g > 0 (distance to the closest surface point, see
+//! [`narrow`]) the contact pressure is p = ε_n g and the slave gets
+//! f = ½ A_s (p n + t), with A_s its tributary area (one third of the adjacent facet areas,
+//! reference configuration), n the master's outward normal at the contact point and t the
+//! friction traction. The reaction −f goes to the master facet's corners by the barycentric
+//! weights of the contact point, so linear and angular momentum balance exactly (up to the
+//! O(g) lever arm of the tangential part).
+//!
+//! **Penalty stiffness** (pressure per unit penetration, Pa/m):
+//! ε_n = factor · E' · min(h_s, h_m) / h_s², with E' = E/(1−ν²) of the stiffer of the two
+//! materials, h_s the mean surface edge length at the slave node and h_m the same at the
+//! contact point on the master (interpolated from the facet corners, so it is continuous).
+//! On matching meshes this is factor · E'/h: the nodal spring ε_n A_s ≈ 0.9 factor E' h is
+//! `factor` times stiffer than the local surface compliance of the mesh itself (a point load
+//! on a surface node of a linear-tet mesh deflects by ~F/(E' h)), so the penetration is about
+//! 1/factor of the local elastic approach there. When the slave side is the coarser one
+//! (h_m < h_s) the pass is softened by h_m/h_s so that a big slave node cannot load one small
+//! master node with a spring much stiffer than that node's own elements (that would set the
+//! stable step); the fine-slave pass then carries the resolution.
+//! Default factor: [`DEFAULT_PENALTY_FACTOR`].
+//!
+//! **Stable step**: a surface node that can touch another grain gets
+//! ω² = ω_el² + 2 k/m, k = ε_n,max A (the relative mode of two such nodes), ω_el the largest
+//! frequency of its elements; Δt = safety · 2/max ω. Without `target_dt` this lowers the step
+//! (reported by `mufe check/run`); with `target_dt` the contact nodes are mass-scaled like
+//! elements so that the target holds (the added mass is reported).
+//!
+//! **Friction** ([`friction`]): elastic tangential predictor with ε_t = ε_n (the tangential
+//! spring is a numerical compliance like the normal one, equally stiff, and does not raise
+//! the stable step beyond the normal spring's estimate), return to |t| ≤ μ p, exact
+//! dissipation ½A·(−t·Δs) per step. The traction of each contact point is remembered between
+//! steps in [`ContactState::history`], keyed by [`ContactKey`] (slave grain id, master grain
+//! id, node index within the slave grain: global ids that survive migration between ranks),
+//! and rotated onto the current tangent plane each step. A point that stops penetrating
+//! loses its history.
+//!
+//! **Energy**: contact forces between grains are internal. The stored penalty energy
+//! ½ ε_n g² A + ½ |t|²/ε_t A (×½ per pass) is `contact_energy` (part of ALLIE), slip
+//! dissipation is `friction_dissipation` (ALLFD); with central differences their sum changes
+//! by minus the work of the contact forces (exactly for a linear spring in stick, up to
+//! O(g/h) terms otherwise), so ETOTAL stays flat.
+//!
+//! **Detection** ([`broad`], [`narrow`]): Verlet-list broad phase over grain boxes with a
+//! margin, per-grain facet BVHs, cached (node, candidate facets) lists; rebuilt only when some
+//! surface node has moved by margin/2 since the last rebuild.
+//!
+//! # Walls
+//! See [`walls`]: kinematic (exact) enforcement on v_{n+½}, optional Coulomb friction.
+//!
+//! # Determinism
+//! Entries are evaluated in parallel over fixed chunks, each into its own slot; forces,
+//! energies and the new history are then accumulated serially in entry order (passes sorted
+//! by grain, slave nodes ascending). 1 and N threads give bitwise identical results.
+//!
+//! # Use from the solver (see `solver::step`)
+//! 1. [`evaluate`] at x_n, v_{n−½} (stage `contact`), before internal forces;
+//! 2. [`add_forces`] after internal forces have been written into the force buffer;
+//! 3. [`enforce_walls`] after v_{n+½} has been predicted and prescribed motions applied;
+//! 4. the ledger reads [`ContactState::friction_dissipation_total`],
+//!    [`ContactStats::energy`] and [`ContactState::wall_external_work`].
+
+pub mod broad;
+pub mod friction;
+pub mod narrow;
+pub mod walls;
+
+use crate::boundary::Translation;
+use crate::energy::WorkAccumulator;
+use crate::error::{InputError, MufeError};
+use crate::mesh::{cross, dot, norm, scale, sub};
+use crate::scene::Scene;
+use crate::solver::model::{GrainBlock, Model};
+use broad::{BroadPhase, CandidateLists};
+use narrow::{evaluate_entry, EvalContext, PointResult};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// Default penalty factor: the nodal contact spring is this many times stiffer than the
+/// local surface stiffness of the mesh (see module docs), so the penetration is ~1/10 of the
+/// local elastic approach at the scale of one element and ≲ 1 % of the approach δ once the
+/// contact radius spans a few elements (measured in the hard-case tests and reported by
+/// `mufe run` as max penetration).
+pub const DEFAULT_PENALTY_FACTOR: f64 = 10.0;
+/// Default broad-phase margin as a fraction of the smallest surface edge of the scene.
+pub const DEFAULT_MARGIN_FRACTION: f64 = 0.5;
+/// Initial overlap beyond this fraction of the smallest surface edge of the two grains is an
+/// input error.
+pub const OVERLAP_TOLERANCE: f64 = 1e-3;
+/// "No such index" marker in index arrays.
+pub const NONE: u32 = u32::MAX;
+/// Entries per parallel work item (fixed, so results do not depend on the thread count).
+const ENTRY_CHUNK: usize = 256;
+
+/// Global key of a grain–grain contact point: the slave node (grain id + node index within
+/// that grain) and the opposing grain. Ordered by (grain, other, node).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct ContactKey {
+    /// Global id (scene index) of the slave node's grain.
+    pub grain: u32,
+    /// Global id of the master grain.
+    pub other: u32,
+    /// Node index within the slave grain's mesh.
+    pub node: u32,
+}
+
+/// Friction history of one contact point.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FrictionPoint {
+    pub key: ContactKey,
+    /// Tangential traction on the slave (Pa), global frame.
+    pub traction: [f64; 3],
+}
+
+/// State of one wall (part of the checkpoint).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct WallState {
+    /// Work of the wall force on the grains, ∫ f·v_node dt (J).
+    pub work: WorkAccumulator,
+    /// ∫ f_t·(v_node − v_wall) dt (J, ≤ 0): minus the friction dissipation at this wall.
+    pub friction: WorkAccumulator,
+    /// Force the wall exerts on the grains at the last step (N).
+    pub force: [f64; 3],
+    /// Wall displacement at the time of that force (m).
+    pub displacement: [f64; 3],
+    /// Nodes in contact at the last step.
+    pub contacts: usize,
+}
+
+/// Diagnostics of the last contact evaluation (and maxima over the run).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ContactStats {
+    /// Active grain–grain contact points (a node penetrating in one pass counts once).
+    pub points: usize,
+    /// Largest penetration depth at the last step (m).
+    pub max_penetration: f64,
+    /// Stored penalty energy at the last step (J).
+    pub energy: f64,
+    /// Largest penetration seen so far (m).
+    pub max_penetration_run: f64,
+    /// Most contact points (grain + wall) seen at one step so far.
+    pub max_contacts_run: usize,
+    /// Resultant grain–grain contact force on each grain (N), aligned with `Model::grains`.
+    pub grain_force: Vec<[f64; 3]>,
+    /// Broad-phase rebuilds so far.
+    pub rebuilds: u64,
+}
+
+/// Everything contact keeps between steps (serialised with the solver state).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ContactState {
+    /// Friction history, sorted by key.
+    pub history: Vec<FrictionPoint>,
+    /// Energy dissipated by grain–grain slip so far (J).
+    pub friction_dissipation: f64,
+    pub walls: Vec<WallState>,
+    pub stats: ContactStats,
+}
+
+impl ContactState {
+    /// Initial contact state for a model.
+    pub fn new(model: &Model) -> Self {
+        Self {
+            walls: vec![WallState::default(); model.contact.walls.len()],
+            stats: ContactStats {
+                grain_force: vec![[0.0; 3]; model.grains.len()],
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    }
+
+    /// Grain–grain plus wall friction dissipation (J): ALLFD.
+    pub fn friction_dissipation_total(&self) -> f64 {
+        self.friction_dissipation - self.walls.iter().map(|w| w.friction.work).sum::<f64>()
+    }
+
+    /// Work of the walls counted as external work (J): their total work on the grains plus
+    /// the part dissipated by wall friction (which is reported in ALLFD).
+    pub fn wall_external_work(&self) -> f64 {
+        self.walls
+            .iter()
+            .map(|w| w.work.work - w.friction.work)
+            .sum()
+    }
+
+    /// Contact points at the last step: grain–grain points plus wall nodes.
+    pub fn contacts(&self) -> usize {
+        self.stats.points + self.walls.iter().map(|w| w.contacts).sum::<usize>()
+    }
+}
+
+/// One grain's part of the flat surface arrays.
+#[derive(Debug, Clone, Default)]
+pub struct GrainSurface {
+    /// Range into the flat surface-node arrays.
+    pub nodes: Range<usize>,
+    /// Range into the flat facet arrays.
+    pub facets: Range<usize>,
+    /// Global id of the grain.
+    pub global_id: u32,
+    /// First model node of the grain (for node indices within the grain).
+    pub node_base: u32,
+    /// Plane-strain modulus E/(1−ν²) of the grain's material (Pa).
+    pub e_prime: f64,
+    /// Smallest / largest mean surface edge length at a node (m).
+    pub h_min: f64,
+    pub h_max: f64,
+    /// Smallest surface edge of the grain (m).
+    pub min_edge: f64,
+}
+
+/// How contact changes the stable step (set up once).
+#[derive(Debug, Clone, Default)]
+pub struct StableStepReport {
+    /// Stable step from the elements alone (s, with the safety factor, physical masses).
+    pub element_dt: f64,
+    /// Stable step of the contact nodes (s, with the safety factor, physical masses);
+    /// infinite when no grain can touch another.
+    pub contact_dt: f64,
+    /// Model node that sets `contact_dt`.
+    pub critical_node: Option<usize>,
+    /// Contact nodes whose mass was raised to reach `target_dt`, and the mass added (kg).
+    pub scaled_nodes: usize,
+    pub added_mass: f64,
+    /// Largest ε_n of a node (Pa/m).
+    pub max_penalty: f64,
+}
+
+/// Static contact data of the model (built once, immutable during a run).
+#[derive(Debug, Clone, Default)]
+pub struct ContactModel {
+    /// Coulomb μ between grains.
+    pub friction: f64,
+    pub penalty_factor: f64,
+    /// Broad-phase margin (m).
+    pub margin: f64,
+    /// The scene has at least two grains.
+    pub grain_contact: bool,
+    /// Per model grain.
+    pub surfaces: Vec<GrainSurface>,
+    /// Flat surface nodes: model node id, tributary area (m², reference), mean edge (m).
+    pub node: Vec<u32>,
+    pub node_area: Vec<f64>,
+    pub node_h: Vec<f64>,
+    /// Flat facets (model node ids, outward orientation) and the facet across each edge
+    /// (edge k joins corners k and k+1).
+    pub facet: Vec<[u32; 3]>,
+    pub facet_adjacent: Vec<[u32; 3]>,
+    /// Facets around each flat surface node (CSR).
+    pub vertex_facet_offsets: Vec<u32>,
+    pub vertex_facets: Vec<u32>,
+    /// Model node → flat surface index, or [`NONE`].
+    pub surface_index: Vec<u32>,
+    pub walls: Vec<walls::Wall>,
+    /// Smallest surface edge of the scene (m).
+    pub min_edge: f64,
+    pub stable_step: StableStepReport,
+}
+
+impl ContactModel {
+    /// Builds the surface data of the grains (model node ids) and binds the walls.
+    pub fn build(
+        scene: &Scene,
+        grains: &[GrainBlock],
+        x0: &[[f64; 3]],
+        e_prime: &[f64],
+    ) -> ContactModel {
+        let spec = &scene.contact;
+        let mut cm = ContactModel {
+            friction: spec.friction,
+            penalty_factor: spec
+                .penalty_factor
+                .unwrap_or(DEFAULT_PENALTY_FACTOR),
+            grain_contact: scene.grains.len() >= 2,
+            surface_index: vec![NONE; x0.len()],
+            min_edge: f64::INFINITY,
+            ..Default::default()
+        };
+        let mut edges: Vec<(u32, u32, u32)> = Vec::new();
+        for g in grains {
+            let n0 = cm.node.len();
+            let f0 = cm.facet.len();
+            for (k, &n) in g.surface.nodes.iter().enumerate() {
+                cm.surface_index[n as usize] = (n0 + k) as u32;
+                cm.node.push(n);
+            }
+            cm.node_area.resize(cm.node.len(), 0.0);
+            cm.node_h.resize(cm.node.len(), 0.0);
+            let mut edge_count = vec![0u32; g.surface.nodes.len()];
+            let mut min_edge = f64::INFINITY;
+            for f in &g.surface.facets {
+                let p = f.map(|n| x0[n as usize]);
+                let area = 0.5 * norm(cross(sub(p[1], p[0]), sub(p[2], p[0])));
+                for k in 0..3 {
+                    let s = cm.surface_index[f[k] as usize] as usize;
+                    cm.node_area[s] += area / 3.0;
+                    // each edge is seen from both of its facets: counted twice at both
+                    // ends, which leaves the mean unchanged
+                    for other in [f[(k + 1) % 3], f[(k + 2) % 3]] {
+                        let l = norm(sub(x0[other as usize], p[k]));
+                        cm.node_h[s] += l;
+                        edge_count[s - n0] += 1;
+                        min_edge = min_edge.min(l);
+                    }
+                }
+                cm.facet.push(*f);
+            }
+            for (k, c) in edge_count.iter().enumerate() {
+                if *c > 0 {
+                    cm.node_h[n0 + k] /= *c as f64;
+                }
+            }
+            // facet adjacency by matching each directed edge (a, b) with (b, a)
+            edges.clear();
+            for (fi, f) in cm.facet[f0..].iter().enumerate() {
+                for k in 0..3 {
+                    let (a, b) = (f[k], f[(k + 1) % 3]);
+                    edges.push((a.min(b), a.max(b), ((f0 + fi) * 3 + k) as u32));
+                }
+            }
+            edges.sort_unstable();
+            cm.facet_adjacent.resize(cm.facet.len(), [NONE; 3]);
+            for w in edges.windows(2) {
+                if w[0].0 == w[1].0 && w[0].1 == w[1].1 {
+                    let (fa, ka) = ((w[0].2 / 3) as usize, (w[0].2 % 3) as usize);
+                    let (fb, kb) = ((w[1].2 / 3) as usize, (w[1].2 % 3) as usize);
+                    cm.facet_adjacent[fa][ka] = fb as u32;
+                    cm.facet_adjacent[fb][kb] = fa as u32;
+                }
+            }
+            let hs = &cm.node_h[n0..];
+            cm.surfaces.push(GrainSurface {
+                nodes: n0..cm.node.len(),
+                facets: f0..cm.facet.len(),
+                global_id: g.global_id,
+                node_base: g.nodes.start as u32,
+                e_prime: e_prime[g.material],
+                h_min: hs.iter().cloned().fold(f64::INFINITY, f64::min),
+                h_max: hs.iter().cloned().fold(0.0, f64::max),
+                min_edge,
+            });
+            cm.min_edge = cm.min_edge.min(min_edge);
+        }
+        // vertex → facets
+        let n = cm.node.len();
+        let mut offsets = vec![0u32; n + 1];
+        for f in &cm.facet {
+            for &v in f {
+                offsets[cm.surface_index[v as usize] as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut entries = vec![0u32; offsets[n] as usize];
+        for (fi, f) in cm.facet.iter().enumerate() {
+            for &v in f {
+                let s = cm.surface_index[v as usize] as usize;
+                entries[fill[s] as usize] = fi as u32;
+                fill[s] += 1;
+            }
+        }
+        cm.vertex_facet_offsets = offsets;
+        cm.vertex_facets = entries;
+        if !cm.min_edge.is_finite() {
+            cm.min_edge = 0.0;
+        }
+        cm.margin = spec
+            .margin
+            .unwrap_or(DEFAULT_MARGIN_FRACTION * cm.min_edge);
+        cm.walls = scene
+            .walls
+            .iter()
+            .map(|w| {
+                let l = norm(w.normal);
+                walls::Wall {
+                    name: w.name.clone(),
+                    point0: w.point,
+                    normal: scale(w.normal, 1.0 / l),
+                    friction: w.friction,
+                    translation: match (&w.velocity, &w.displacement) {
+                        (Some(v), _) => Translation::Velocity(v.clone()),
+                        (_, Some(d)) => Translation::Displacement(d.clone()),
+                        _ => Translation::Fixed,
+                    },
+                }
+            })
+            .collect();
+        cm
+    }
+
+    /// Whether contact does anything in this model (two grains or a wall).
+    pub fn active(&self) -> bool {
+        self.grain_contact || !self.walls.is_empty()
+    }
+
+    /// Penalty ε_n (Pa/m) for a slave node of mean edge `h_s` against a master point of
+    /// mean edge `h_m`, with `e_prime` the plane-strain modulus of the stiffer side.
+    #[inline]
+    pub fn penalty(&self, e_prime: f64, h_s: f64, h_m: f64) -> f64 {
+        self.penalty_factor * e_prime * h_s.min(h_m) / (h_s * h_s)
+    }
+
+    /// Accounts for the contact springs in the stable step (see module docs) and, with a
+    /// target step, raises the mass of the contact nodes that would limit it. `elem_dt` is
+    /// each element's own critical step (no safety, physical mass) and `elem_scale` its
+    /// mass-scaling factor. Returns the contact-limited stable step of the unscaled model
+    /// (with safety), infinite when no grain can touch another.
+    #[allow(clippy::too_many_arguments)]
+    pub fn account_stable_step(
+        &mut self,
+        tets: &[[u32; 4]],
+        elem_dt: &[f64],
+        elem_scale: &[f64],
+        physical_mass: &[f64],
+        mass: &mut [f64],
+        safety: f64,
+        target_dt: Option<f64>,
+    ) -> f64 {
+        let element_omega = elem_dt.iter().map(|d| 2.0 / d).fold(0.0, f64::max);
+        let mut report = StableStepReport {
+            element_dt: safety * 2.0 / element_omega,
+            contact_dt: f64::INFINITY,
+            ..Default::default()
+        };
+        if !self.grain_contact || self.node.is_empty() {
+            self.stable_step = report;
+            return f64::INFINITY;
+        }
+        let e_max = self
+            .surfaces
+            .iter()
+            .map(|s| s.e_prime)
+            .fold(0.0, f64::max);
+        // ω_el² per surface node, physical and scaled
+        let n = self.node.len();
+        let mut w2_phys = vec![0.0f64; n];
+        let mut w2_scaled = vec![0.0f64; n];
+        for (e, t) in tets.iter().enumerate() {
+            let w2 = (2.0 / elem_dt[e]).powi(2);
+            for &node in t {
+                let s = self.surface_index[node as usize];
+                if s != NONE {
+                    let s = s as usize;
+                    w2_phys[s] = w2_phys[s].max(w2);
+                    w2_scaled[s] = w2_scaled[s].max(w2 / elem_scale[e]);
+                }
+            }
+        }
+        let mut worst = 0.0;
+        let omega_t = target_dt.map(|t| 2.0 * safety / t);
+        for s in 0..n {
+            let node = self.node[s] as usize;
+            let eps = self.penalty_factor * e_max / self.node_h[s];
+            report.max_penalty = report.max_penalty.max(eps);
+            let k = eps * self.node_area[s];
+            let w2 = w2_phys[s] + 2.0 * k / physical_mass[node];
+            if w2 > worst {
+                worst = w2;
+                report.critical_node = Some(node);
+            }
+            if let Some(wt) = omega_t {
+                let m = mass[node];
+                let w2s = w2_scaled[s] + 2.0 * k / m;
+                if w2s > wt * wt {
+                    let needed = (w2_scaled[s] * m + 2.0 * k) / (wt * wt);
+                    report.scaled_nodes += 1;
+                    report.added_mass += needed - m;
+                    mass[node] = needed;
+                }
+            }
+        }
+        report.contact_dt = safety * 2.0 / worst.sqrt();
+        let dt = report.contact_dt;
+        self.stable_step = report;
+        dt
+    }
+
+    /// Fails with an input error naming both grains (or the wall and the grain) when any
+    /// surface node starts inside another grain, or behind a wall, by more than
+    /// [`OVERLAP_TOLERANCE`] × the smallest surface edge involved.
+    pub fn check_initial_overlap(
+        &self,
+        file: &str,
+        grains: &[GrainBlock],
+        x0: &[[f64; 3]],
+    ) -> Result<(), InputError> {
+        if !self.active() {
+            return Ok(());
+        }
+        let mut broad = BroadPhase::default();
+        let mut lists = CandidateLists::default();
+        let wall0 = vec![[0.0; 3]; self.walls.len()];
+        broad.rebuild(self, x0, &wall0, &mut lists);
+        let zeros = vec![[0.0; 3]; x0.len()];
+        let ctx = EvalContext {
+            cm: self,
+            passes: &lists.passes,
+            candidates: &lists.candidates,
+            x: x0,
+            v: &zeros,
+            dt: 0.0,
+            history: &[],
+            friction: false,
+        };
+        let mut worst: Option<(f64, usize, usize)> = None;
+        for e in &lists.entries {
+            let r = evaluate_entry(&ctx, e, 0.0);
+            if !r.active {
+                continue;
+            }
+            let p = lists.passes[e.pass as usize];
+            let (a, b) = (p.slave as usize, p.master as usize);
+            let tol = OVERLAP_TOLERANCE * self.surfaces[a].min_edge.min(self.surfaces[b].min_edge);
+            if r.gap > tol && worst.is_none_or(|w| r.gap > w.0) {
+                worst = Some((r.gap, a.min(b), a.max(b)));
+            }
+        }
+        if let Some((g, a, b)) = worst {
+            let tol = OVERLAP_TOLERANCE * self.surfaces[a].min_edge.min(self.surfaces[b].min_edge);
+            return Err(InputError::new(
+                file,
+                format!("grains[{}] and grains[{}]", grains[a].global_id, grains[b].global_id),
+                format!(
+                    "'{}' and '{}' overlap by {g:.3e} m at t = 0 (tolerance {tol:.3e} m = {OVERLAP_TOLERANCE} × smallest surface edge); move them apart",
+                    grains[a].name, grains[b].name
+                ),
+            ));
+        }
+        for &(w, k) in &lists.wall_nodes {
+            let wall = &self.walls[w as usize];
+            let k = k as usize;
+            let depth = -dot(sub(x0[self.node[k] as usize], wall.point0), wall.normal);
+            let g = self.surfaces.partition_point(|s| s.nodes.end <= k);
+            let tol = OVERLAP_TOLERANCE * self.surfaces[g].min_edge;
+            if depth > tol {
+                return Err(InputError::new(
+                    file,
+                    format!("walls[{w}] and grains[{}]", grains[g].global_id),
+                    format!(
+                        "grain '{}' starts {depth:.3e} m behind wall '{}' (tolerance {tol:.3e} m); move the grain or the wall",
+                        grains[g].name, wall.name
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Contact scratch (not state): cached candidate lists and per-entry results.
+#[derive(Debug, Default, Clone)]
+pub struct ContactScratch {
+    pub broad: BroadPhase,
+    pub lists: CandidateLists,
+    /// One result per entry of the last evaluation.
+    pub results: Vec<PointResult>,
+    history_old: Vec<FrictionPoint>,
+    wall_now: Vec<[f64; 3]>,
+    wall_next: Vec<[f64; 3]>,
+}
+
+/// Stage 1 of the step: detection and grain–grain contact forces at x_n (velocities
+/// v_{n−½} give the slip increment of the last step). Results stay in `scratch` until
+/// [`add_forces`]; statistics, stored energy, dissipation and the new friction history go
+/// into `state`. Fails (as a run error) when a node is found deeper than half its local
+/// edge inside another grain: detection can no longer be trusted.
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate(
+    model: &Model,
+    x: &[[f64; 3]],
+    v: &[[f64; 3]],
+    time: f64,
+    step: u64,
+    dt: f64,
+    state: &mut ContactState,
+    scratch: &mut ContactScratch,
+) -> Result<(), MufeError> {
+    let cm = &model.contact;
+    if !cm.active() {
+        return Ok(());
+    }
+    scratch.wall_now.clear();
+    scratch.wall_next.clear();
+    for w in &cm.walls {
+        scratch.wall_now.push(w.displacement_at(time));
+        scratch.wall_next.push(w.displacement_at(time + dt));
+    }
+    if scratch.broad.needs_rebuild(cm, x, &scratch.wall_next) {
+        scratch
+            .broad
+            .rebuild(cm, x, &scratch.wall_now, &mut scratch.lists);
+    }
+    state.stats.rebuilds = scratch.broad.rebuilds;
+
+    std::mem::swap(&mut state.history, &mut scratch.history_old);
+    state.history.clear();
+    let lists = &scratch.lists;
+    scratch.results.resize(lists.entries.len(), PointResult::default());
+    let ctx = EvalContext {
+        cm,
+        passes: &lists.passes,
+        candidates: &lists.candidates,
+        x,
+        v,
+        dt,
+        history: &scratch.history_old,
+        friction: cm.friction > 0.0,
+    };
+    let moved = scratch.broad.moved;
+    scratch
+        .results
+        .par_chunks_mut(ENTRY_CHUNK)
+        .zip(lists.entries.par_chunks(ENTRY_CHUNK))
+        .for_each(|(out, entries)| {
+            for (r, e) in out.iter_mut().zip(entries) {
+                *r = evaluate_entry(&ctx, e, moved);
+            }
+        });
+
+    let stats = &mut state.stats;
+    stats.points = 0;
+    stats.max_penetration = 0.0;
+    stats.energy = 0.0;
+    let mut dissipation = 0.0;
+    for (e, r) in lists.entries.iter().zip(&scratch.results) {
+        if !r.active {
+            continue;
+        }
+        let pass = lists.passes[e.pass as usize];
+        if r.tunnel {
+            let (sg, mg) = (&model.grains[pass.slave as usize], &model.grains[pass.master as usize]);
+            return Err(MufeError::Run(format!(
+                "contact failure at t = {time:.6e} s (step {step}): node {} of grain '{}' is {:.3e} m inside grain '{}', more than half its local surface edge {:.3e} m (tunnelling); raise contact.penalty_factor or reduce the loading rate",
+                r.slave as usize - sg.nodes.start,
+                sg.name,
+                r.gap,
+                mg.name,
+                cm.node_h[e.slave as usize]
+            )));
+        }
+        stats.points += 1;
+        stats.max_penetration = stats.max_penetration.max(r.gap);
+        stats.energy += r.energy;
+        dissipation += r.dissipation;
+        if ctx.friction {
+            let (sg, mg) = (&cm.surfaces[pass.slave as usize], &cm.surfaces[pass.master as usize]);
+            state.history.push(FrictionPoint {
+                key: ContactKey {
+                    grain: sg.global_id,
+                    other: mg.global_id,
+                    node: r.slave - sg.node_base,
+                },
+                traction: r.traction,
+            });
+        }
+    }
+    debug_assert!(state.history.windows(2).all(|w| w[0].key < w[1].key));
+    state.friction_dissipation += dissipation;
+    stats.max_penetration_run = stats.max_penetration_run.max(stats.max_penetration);
+    let c = state.contacts();
+    state.stats.max_contacts_run = state.stats.max_contacts_run.max(c);
+    Ok(())
+}
+
+/// Stage 2: adds the grain–grain contact forces of the last [`evaluate`] to `force` (serially,
+/// in entry order) and records the resultant contact force on each grain.
+pub fn add_forces(
+    model: &Model,
+    scratch: &ContactScratch,
+    state: &mut ContactState,
+    force: &mut [[f64; 3]],
+) {
+    let cm = &model.contact;
+    if !cm.grain_contact {
+        return;
+    }
+    let gf = &mut state.stats.grain_force;
+    gf.clear();
+    gf.resize(model.grains.len(), [0.0; 3]);
+    let lists = &scratch.lists;
+    for (e, r) in lists.entries.iter().zip(&scratch.results) {
+        if !r.active {
+            continue;
+        }
+        let f = r.force;
+        let s = r.slave as usize;
+        for i in 0..3 {
+            force[s][i] += f[i];
+        }
+        for (k, &m) in r.masters.iter().enumerate() {
+            let w = r.weights[k];
+            let m = m as usize;
+            for i in 0..3 {
+                force[m][i] -= w * f[i];
+            }
+        }
+        let pass = lists.passes[e.pass as usize];
+        for i in 0..3 {
+            gf[pass.slave as usize][i] += f[i];
+            gf[pass.master as usize][i] -= f[i];
+        }
+    }
+}
+
+/// Stage 3: kinematic walls on v_{n+½} (see [`walls`]). `t` = t_n.
+#[allow(clippy::too_many_arguments)]
+pub fn enforce_walls(
+    model: &Model,
+    x: &[[f64; 3]],
+    v: &[[f64; 3]],
+    v_next: &mut [[f64; 3]],
+    t: f64,
+    dt: f64,
+    state: &mut ContactState,
+    scratch: &ContactScratch,
+) {
+    let cm = &model.contact;
+    if cm.walls.is_empty() {
+        return;
+    }
+    walls::enforce(
+        cm,
+        &model.mass,
+        &model.driven,
+        x,
+        v,
+        v_next,
+        t,
+        dt,
+        &scratch.lists.wall_nodes,
+        state,
+    );
+    let c = state.contacts();
+    state.stats.max_contacts_run = state.stats.max_contacts_run.max(c);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::parse_scene;
+    use crate::solver::run::build_solver;
+    use crate::solver::Solver;
+
+    const GLASS: &str = r#"
+[materials.glass]
+youngs_modulus = 63e9
+poisson_ratio = 0.22
+density = 2500.0
+"#;
+
+    fn solver(text: &str) -> Solver {
+        let loaded = parse_scene("test.toml", text, &[]).expect("scene parses");
+        build_solver(&loaded).expect("model builds")
+    }
+
+    /// Contact forces on every node (zero elsewhere) at the solver's current state.
+    fn contact_forces(s: &mut Solver) -> Vec<[f64; 3]> {
+        let mut f = vec![[0.0; 3]; s.model.num_nodes()];
+        let dt = s.model.dt;
+        evaluate(
+            &s.model,
+            &s.state.x,
+            &s.state.v,
+            0.0,
+            0,
+            dt,
+            &mut s.state.contact,
+            &mut s.scratch.contact,
+        )
+        .unwrap();
+        add_forces(&s.model, &s.scratch.contact, &mut s.state.contact, &mut f);
+        f
+    }
+
+    fn pair_scene(first: (&str, &str, [f64; 3]), second: (&str, &str, [f64; 3])) -> String {
+        let grain = |(name, shape, c): (&str, &str, [f64; 3])| {
+            format!("[[grains]]\nname = \"{name}\"\nmaterial = \"glass\"\nshape = {shape}\ncentre = {c:?}\n")
+        };
+        format!(
+            "[simulation]\nduration = 1e-6\n{GLASS}\n[contact]\nfriction = 0.3\n{}{}",
+            grain(first),
+            grain(second)
+        )
+    }
+
+    /// Swapping the order of two grains in the scene swaps master and slave roles of the
+    /// passes: the contact forces on every node must stay the same (up to summation order).
+    #[test]
+    fn two_pass_contact_does_not_depend_on_grain_order() {
+        let sphere = "{ sphere = { radius = 1.0e-3, seeding = 2.5e-4 } }";
+        let block = "{ block = { size = [1.0e-3, 1.0e-3, 5.0e-4], divisions = [5, 4, 3] } }";
+        // block spans z ∈ [0, 0.5 mm] from its corner at the origin; sphere centre above
+        // its top face, shifted off the block's nodes so that contact is node-on-facet
+        let a = ("ball", sphere, [4.3e-4, 4.7e-4, 1.5e-3 + 1e-7]);
+        let b = ("slab", block, [0.0; 3]);
+        let mut s1 = solver(&pair_scene(a, b));
+        let mut s2 = solver(&pair_scene(b, a));
+        // Push the sphere 25 µm (3 × the facet sagitta) into the block (and give it a sideways velocity so that
+        // friction acts), identically in both solvers.
+        let press = |s: &mut Solver, grain: usize| {
+            let g = s.model.grains[grain].nodes.clone();
+            for n in g {
+                s.state.x[n][2] -= 2.5e-5;
+                s.state.v[n] = [0.3, 0.1, 0.0];
+            }
+        };
+        press(&mut s1, 0);
+        press(&mut s2, 1);
+        let f1 = contact_forces(&mut s1);
+        let f2 = contact_forces(&mut s2);
+        let (n_ball, n_slab) = (
+            s1.model.grains[0].nodes.len(),
+            s1.model.grains[1].nodes.len(),
+        );
+        assert!(s1.state.contact.stats.points > 4, "{:?}", s1.state.contact.stats);
+        assert_eq!(s1.state.contact.stats.points, s2.state.contact.stats.points);
+        let scale = f1.iter().map(|f| norm(*f)).fold(0.0, f64::max);
+        assert!(scale > 0.0);
+        // node k of the ball: index k in s1, n_slab + k in s2; slab: n_ball + k vs k
+        for k in 0..n_ball {
+            let d = norm(sub(f1[k], f2[n_slab + k]));
+            assert!(d <= 1e-12 * scale, "ball node {k}: {:?} vs {:?}", f1[k], f2[n_slab + k]);
+        }
+        for k in 0..n_slab {
+            let d = norm(sub(f1[n_ball + k], f2[k]));
+            assert!(d <= 1e-12 * scale, "slab node {k}");
+        }
+        // action = reaction, and the resultant pushes the ball up
+        let gf = &s1.state.contact.stats.grain_force;
+        assert!(norm([gf[0][0] + gf[1][0], gf[0][1] + gf[1][1], gf[0][2] + gf[1][2]]) < 1e-12 * norm(gf[0]));
+        assert!(gf[0][2] > 0.0);
+        // friction opposes the ball's sliding velocity
+        assert!(gf[0][0] < 0.0 && gf[0][1] < 0.0, "{:?}", gf[0]);
+        assert!((s1.state.contact.stats.energy - s2.state.contact.stats.energy).abs() <= 1e-12 * s1.state.contact.stats.energy);
+    }
+
+    /// A block dropped on a fixed frictionless wall stops on it without penetrating, and at
+    /// rest the wall carries the block's weight.
+    #[test]
+    fn block_dropped_on_a_wall_stops_with_zero_penetration() {
+        let text = format!(
+            r#"
+[simulation]
+duration = 1e-4
+gravity = [0.0, 0.0, -2.0e5]
+damping = 2.0e5
+{GLASS}
+[[grains]]
+name = "cube"
+material = "glass"
+shape = {{ block = {{ size = [4.0e-4, 4.0e-4, 4.0e-4], divisions = [2, 2, 2] }} }}
+centre = [0.0, 0.0, 2.0e-6]
+velocity = [0.0, 0.0, -0.5]
+
+[[walls]]
+name = "floor"
+point = [0.0, 0.0, 0.0]
+normal = [0.0, 0.0, 1.0]
+"#
+        );
+        let mut s = solver(&text);
+        let weight = s.model.total_physical_mass() * 2.0e5;
+        let mut lowest = f64::INFINITY;
+        let mut touched = false;
+        let steps = (1e-4 / s.model.dt) as usize;
+        for _ in 0..steps {
+            s.step().unwrap();
+            for x in &s.state.x {
+                lowest = lowest.min(x[2]);
+            }
+            touched |= s.state.contact.walls[0].contacts > 0;
+        }
+        assert!(touched);
+        assert!(lowest >= -1e-18, "penetration {lowest:e}");
+        // at rest on the wall: bottom nodes exactly on it, wall force = weight
+        let bottom = s.state.x.iter().map(|x| x[2]).fold(f64::INFINITY, f64::min);
+        assert!(bottom.abs() < 1e-18, "{bottom:e}");
+        let fz = s.state.contact.walls[0].force[2];
+        assert!((fz - weight).abs() < 1e-3 * weight, "wall force {fz} vs weight {weight}");
+        let vmax = s.state.v.iter().map(|v| norm(*v)).fold(0.0, f64::max);
+        assert!(vmax < 1e-3, "{vmax}");
+    }
+}
