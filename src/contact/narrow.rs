@@ -341,6 +341,11 @@ pub struct PointResult {
     pub normal: [f64; 3],
     /// Normal pressure ε_n g (Pa).
     pub pressure: f64,
+    /// Penalty ε_n of this point (Pa/m).
+    pub penalty: f64,
+    /// Area the pressure acts on: slave tributary area × pass weight (m²); the point's
+    /// normal spring stiffness is `penalty × area`.
+    pub area: f64,
     /// Stored penalty energy (normal + tangential spring) of this point (J).
     pub energy: f64,
     /// Energy dissipated by slip in this step (J).
@@ -532,6 +537,8 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
     r.gap = gap;
     r.normal = normal;
     r.pressure = pressure;
+    r.penalty = eps;
+    r.area = area;
     r.energy = energy;
     r.dissipation = dissipation;
     r.traction = traction;

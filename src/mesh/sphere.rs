@@ -916,6 +916,12 @@ mod tests {
                     SphereMeshSpec::uniform(R, s).with_graded(3.0 * s, R / 4.0),
                 ),
                 (
+                    "graded + patch s/4",
+                    SphereMeshSpec::uniform(R, s)
+                        .with_graded(3.0 * s, R / 4.0)
+                        .with_refinement([0.0, 0.0, 1.0], s / 4.0, 2.0 * s),
+                ),
+                (
                     "patch s/4",
                     SphereMeshSpec::uniform(R, s).with_refinement(
                         [0.0, 0.0, 1.0],
