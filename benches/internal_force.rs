@@ -3,7 +3,7 @@
 //! How to run:  cargo bench --bench internal_force
 //!   (quick look: cargo bench --bench internal_force -- --quick)
 //!
-//! Model: one glass sphere, R = 1.1 mm, uniform seeding 70 µm (≈ 1.4·10⁵ tets), built
+//! Model: one glass sphere, R = 1.1 mm, uniform seeding 70 µm (≈ 1.5·10⁵ tets), built
 //! through the real scene path (`parse_scene` + `build_solver`), deformed by a rigid
 //! rotation of 0.3 rad plus a 10⁻³ stretch so every element has stress. One iteration is
 //! one `compute_internal_forces_into` call (element kernel + node gather), run inside a
@@ -120,7 +120,7 @@ fn internal_force(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(10));
     for (threads, pool) in &pools {
         group.bench_with_input(
-            BenchmarkId::new("sphere_140k_tets", format!("{threads}_threads")),
+            BenchmarkId::new("sphere_150k_tets", format!("{threads}_threads")),
             threads,
             |b, _| {
                 b.iter(|| {

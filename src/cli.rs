@@ -62,6 +62,27 @@ pub enum Command {
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
     },
+    /// Run analytic validation cases (hertz, mindlin, torsion, rolling) over meshing ratios;
+    /// print a table, write DIR/validation.json and one PNG per case.
+    Validate {
+        /// Cases to run (default: all).
+        cases: Vec<String>,
+        /// Output directory.
+        #[arg(long, default_value = "out/validation")]
+        out: PathBuf,
+        /// Meshing ratios at the contact, comma separated (default: per case).
+        #[arg(long, value_name = "LIST")]
+        mr: Option<String>,
+        /// Coarse meshes and looser documented tolerances (what `cargo test` runs).
+        #[arg(long)]
+        quick: bool,
+        /// Threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Override a field of every case scene.
+        #[arg(long = "set", value_name = "PATH=VALUE")]
+        set: Vec<String>,
+    },
 }
 
 /// Runs the CLI and returns the process exit code.
@@ -116,6 +137,30 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                 .build_global()
                 .map_err(|e| MufeError::Run(format!("cannot start {threads} threads: {e}")))?;
             run(&domain, &loaded, &RunOptions { out, threads, max_steps, quiet }).map(|_| ())
+        }
+        Command::Validate { cases, out, mr, quick, threads, set } => {
+            let mrs = mr.as_deref().map(crate::validate::runner::parse_mr_list).transpose()?;
+            let selected = crate::validate::select_cases(&cases)?;
+            if let Some(t) = threads {
+                if t == 0 {
+                    return Err(InputError::new("<command line>", "--threads", "must be ≥ 1").into());
+                }
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(t)
+                    .build_global()
+                    .map_err(|e| MufeError::Run(format!("cannot start {t} threads: {e}")))?;
+            }
+            let outcomes = crate::validate::runner::run_cases(&selected, mrs.as_deref(), quick, &out, &set)?;
+            let failed: Vec<String> = outcomes.iter().filter(|o| !o.pass).map(|o| format!("{} at MR {}", o.case, o.mr)).collect();
+            // The finest MR of each case must meet its target; coarser ones document convergence.
+            let finest_failed = crate::validate::finest_failures(&outcomes);
+            if !finest_failed.is_empty() {
+                return Err(MufeError::Run(format!("validation target missed at the finest MR: {}", finest_failed.join(", "))));
+            }
+            if !failed.is_empty() {
+                println!("note: coarser meshes above target: {}", failed.join(", "));
+            }
+            Ok(())
         }
         Command::Partition {
             scene,

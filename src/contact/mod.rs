@@ -89,6 +89,9 @@ use std::ops::Range;
 /// contact radius spans a few elements (measured in the hard-case tests and reported by
 /// `mufe run` as max penetration).
 pub const DEFAULT_PENALTY_FACTOR: f64 = 10.0;
+/// Default normal contact damping (fraction of the critical damping of each contact point's
+/// penalty spring on its slave node's mass). See the module docs.
+pub const DEFAULT_CONTACT_DAMPING: f64 = 0.05;
 /// Default broad-phase margin as a fraction of the smallest surface edge of the scene.
 pub const DEFAULT_MARGIN_FRACTION: f64 = 0.5;
 /// Initial overlap beyond this fraction of the smallest surface edge of the two grains is an
@@ -240,6 +243,8 @@ pub struct ContactModel {
     /// Coulomb μ between grains.
     pub friction: f64,
     pub penalty_factor: f64,
+    /// Normal contact damping ζ (fraction of critical).
+    pub damping: f64,
     /// Broad-phase margin (m).
     pub margin: f64,
     /// The scene has at least two grains.
@@ -279,6 +284,7 @@ impl ContactModel {
             penalty_factor: spec
                 .penalty_factor
                 .unwrap_or(DEFAULT_PENALTY_FACTOR),
+            damping: spec.damping.unwrap_or(DEFAULT_CONTACT_DAMPING),
             grain_contact: scene.grains.len() >= 2,
             surface_index: vec![NONE; x0.len()],
             min_edge: f64::INFINITY,
@@ -469,6 +475,7 @@ impl ContactModel {
                 report.critical_node = Some(node);
             }
             if let Some(wt) = omega_t {
+                let wt = wt * ((1.0 + self.damping * self.damping).sqrt() - self.damping);
                 let m = mass[node];
                 let w2s = w2_scaled[s] + 2.0 * k / m;
                 if w2s > wt * wt {
@@ -479,7 +486,9 @@ impl ContactModel {
                 }
             }
         }
-        report.contact_dt = safety * 2.0 / worst.sqrt();
+        // central differences with a lagged damper of ratio ζ: Δt ≤ (2/ω)(√(1+ζ²) − ζ)
+        let z = self.damping;
+        report.contact_dt = safety * 2.0 / worst.sqrt() * ((1.0 + z * z).sqrt() - z);
         let dt = report.contact_dt;
         self.stable_step = report;
         dt
@@ -508,6 +517,7 @@ impl ContactModel {
             candidates: &lists.candidates,
             x: x0,
             v: &zeros,
+            mass: &[],
             dt: 0.0,
             history: &[],
             friction: false,
@@ -612,6 +622,7 @@ pub fn evaluate(
         candidates: &lists.candidates,
         x,
         v,
+        mass: &model.mass,
         dt,
         history: &scratch.history_old,
         friction: cm.friction > 0.0,
@@ -710,6 +721,38 @@ pub fn add_forces(
             gf[pass.master as usize][i] -= f[i];
         }
     }
+}
+
+/// Power sums of the contact damping forces of the last [`evaluate`] with the velocities
+/// `v_before` (v_{n−½}) and `v_after` (v_{n+½}), for the ledger's trapezoidal work rule
+/// (see `crate::energy`). Both are ≤ 0 when the damper only resists.
+pub fn damping_power(
+    model: &Model,
+    v_before: &[[f64; 3]],
+    v_after: &[[f64; 3]],
+    scratch: &ContactScratch,
+) -> (f64, f64) {
+    let (mut before, mut after) = (0.0, 0.0);
+    if model.contact.damping == 0.0 {
+        return (0.0, 0.0);
+    }
+    for r in &scratch.results {
+        if !r.active || r.damping_force == 0.0 {
+            continue;
+        }
+        let rel = |v: &[[f64; 3]]| {
+            let mut u = v[r.slave as usize];
+            for (k, &m) in r.masters.iter().enumerate() {
+                for i in 0..3 {
+                    u[i] -= r.weights[k] * v[m as usize][i];
+                }
+            }
+            dot(u, r.normal)
+        };
+        before += r.damping_force * rel(v_before);
+        after += r.damping_force * rel(v_after);
+    }
+    (before, after)
 }
 
 /// Stage 3: kinematic walls on v_{n+½} (see [`walls`]). `t` = t_n.

@@ -346,6 +346,8 @@ pub struct PointResult {
     /// Area the pressure acts on: slave tributary area × pass weight (m²); the point's
     /// normal spring stiffness is `penalty × area`.
     pub area: f64,
+    /// Normal contact damping force on the slave along `normal` (N), included in `force`.
+    pub damping_force: f64,
     /// Stored penalty energy (normal + tangential spring) of this point (J).
     pub energy: f64,
     /// Energy dissipated by slip in this step (J).
@@ -364,6 +366,8 @@ pub struct EvalContext<'a> {
     pub candidates: &'a [u32],
     pub x: &'a [[f64; 3]],
     pub v: &'a [[f64; 3]],
+    /// Nodal masses used by the integrator (for the contact damping).
+    pub mass: &'a [f64],
     pub dt: f64,
     /// Friction history of the previous step, sorted by key.
     pub history: &'a [FrictionPoint],
@@ -502,7 +506,18 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
     let eps = cm.penalty(sg.e_prime.max(mg.e_prime), h_s, h_m);
     let area = cm.node_area[s_flat] * PASS_WEIGHT;
     let pressure = eps * gap;
-    let mut force = scale(normal, pressure * area);
+    let mut vm = [0.0; 3];
+    for (i, &m) in masters.iter().enumerate() {
+        vm = add(vm, scale(ctx.v[m as usize], cl.bary[i]));
+    }
+    let v_rel = sub(ctx.v[s as usize], vm);
+    // Normal damping c ġ, c = 2ζ√(k m_s), ġ = −v_rel·n; never pulling (no adhesion).
+    let mut damping_force = 0.0;
+    if cm.damping > 0.0 && !ctx.mass.is_empty() {
+        let c = 2.0 * cm.damping * (eps * area * ctx.mass[s as usize]).sqrt();
+        damping_force = (-c * dot(v_rel, normal)).max(-pressure * area);
+    }
+    let mut force = scale(normal, pressure * area + damping_force);
     let mut energy = 0.5 * pressure * gap * area;
     let mut dissipation = 0.0;
     let mut traction = [0.0; 3];
@@ -516,11 +531,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
             Ok(i) => rotate_onto_plane(ctx.history[i].traction, normal),
             Err(_) => [0.0; 3],
         };
-        let mut vm = [0.0; 3];
-        for (i, &m) in masters.iter().enumerate() {
-            vm = add(vm, scale(ctx.v[m as usize], cl.bary[i]));
-        }
-        let du = scale(sub(ctx.v[s as usize], vm), ctx.dt);
+        let du = scale(v_rel, ctx.dt);
         let du_t = tangential(du, normal);
         let eps_t = eps; // ε_t = ε_n (see module docs of `contact`)
         let rm = return_map(t_old, du_t, eps_t, cm.friction * pressure);
@@ -539,6 +550,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
     r.pressure = pressure;
     r.penalty = eps;
     r.area = area;
+    r.damping_force = damping_force;
     r.energy = energy;
     r.dissipation = dissipation;
     r.traction = traction;

@@ -180,6 +180,7 @@ pub struct BoundarySpec {
 /// friction = 0.22        # Coulomb μ between grains (default 0: frictionless)
 /// penalty_factor = 10.0  # ε_n = factor × E'/h (default `contact::DEFAULT_PENALTY_FACTOR`)
 /// margin = 5e-6          # broad-phase margin (m); default ½ × smallest surface edge
+/// damping = 0.05         # normal contact damping, fraction of critical (default 0.05)
 /// ```
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -196,6 +197,11 @@ pub struct ContactSpec {
     /// moved more than margin/2. Default ½ × the smallest surface edge of the scene.
     #[serde(default)]
     pub margin: Option<f64>,
+    /// Normal contact damping as a fraction ζ of the critical damping of each contact
+    /// point's penalty spring (–), 0 ≤ ζ ≤ 1. It suppresses node-level chatter; its
+    /// dissipation is reported in ALLVD. Default [`crate::contact::DEFAULT_CONTACT_DAMPING`].
+    #[serde(default)]
+    pub damping: Option<f64>,
 }
 
 /// A rigid plane wall (`[[walls]]`), enforced kinematically (grains land exactly on it).

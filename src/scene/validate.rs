@@ -168,6 +168,15 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     if let Some(m) = ct.margin {
         c.positive("contact.margin", m)?;
     }
+    if let Some(z) = ct.damping {
+        c.non_negative("contact.damping", z)?;
+        if z > 1.0 {
+            return Err(c.err(
+                "contact.damping",
+                format!("must be ≤ 1 (fraction of critical damping), got {z}"),
+            ));
+        }
+    }
     for (i, w) in scene.walls.iter().enumerate() {
         validate_wall(&c, scene, i, w)?;
     }

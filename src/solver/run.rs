@@ -82,7 +82,7 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
         HistoryColumn::new("plastic_dissipation", "J", Some("ALLPD"), "energy dissipated by plastic flow"),
         HistoryColumn::new("friction_dissipation", "J", Some("ALLFD"), "energy dissipated by Coulomb friction, Σ f_t·Δslip"),
         HistoryColumn::new("external_work", "J", Some("ALLWK"), "work of prescribed motions, walls and body forces"),
-        HistoryColumn::new("damping_dissipation", "J", Some("ALLVD"), "energy removed by mass-proportional damping"),
+        HistoryColumn::new("damping_dissipation", "J", Some("ALLVD"), "energy removed by mass-proportional damping and normal contact damping"),
         HistoryColumn::new("energy_balance", "J", Some("ETOTAL"), "ALLKE + ALLIE + ALLVD + ALLFD − ALLWK"),
     ];
     for m in &solver.motions {

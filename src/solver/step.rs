@@ -174,6 +174,12 @@ impl Solver {
             )
         });
 
+        // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
+        // before integration overwrites v.
+        let contact_damping = timers.time(Stage::Contact, || {
+            crate::contact::damping_power(model, &state.v, &scratch.v_next, &scratch.contact)
+        });
+
         let partials = timers.time(Stage::Integrate, || {
             integrate_and_sum(model, state, scratch, dt)
         });
@@ -195,8 +201,11 @@ impl Solver {
             e.recoverable_strain = summary.strain_energy;
             e.body_force
                 .record(dt, partials.gravity_before, partials.gravity_after);
-            e.damping
-                .record(dt, partials.damping_before, partials.damping_after);
+            e.damping.record(
+                dt,
+                partials.damping_before + contact_damping.0,
+                partials.damping_after + contact_damping.1,
+            );
             e.friction_dissipation = state.contact.friction_dissipation_total();
             e.contact_energy = state.contact.stats.energy;
             e.boundary_work = state.motion_work.iter().map(|w| w.work).sum::<f64>()

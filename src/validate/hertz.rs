@@ -75,6 +75,7 @@ impl Case for HertzCase {
         let sample_every = ((loaded.scene.output.history_interval.unwrap_or(5e-8) / solver.model.dt).round() as u64).max(1);
         let max_steps = (loaded.scene.simulation.duration / solver.model.dt).ceil() as u64;
         let mut curve = Vec::new();
+        let mut error_curve = Vec::new();
         let (mut err, mut err_hertz, mut ke_ie, mut pen_ratio): (f64, f64, f64, f64) = (0.0, 0.0, 0.0, 0.0);
         let mut in_range = 0;
         while solver.state.step < max_steps {
@@ -95,6 +96,7 @@ impl Case for HertzCase {
                 if f_ref >= FORCE_RANGE.0 && f_ref <= FORCE_RANGE.1 {
                     in_range += 1;
                     err = err.max((force - f_ref).abs() / f_ref);
+                    error_curve.push((f_ref, 100.0 * (force - f_ref) / f_ref));
                     err_hertz = err_hertz.max((force - hertz.force(delta)).abs() / hertz.force(delta));
                     let ie = probe.get("internal_energy")?;
                     ke_ie = ke_ie.max(probe.get("kinetic_energy")? / ie.max(1e-300));
@@ -127,7 +129,12 @@ impl Case for HertzCase {
             pass: err <= target,
             details,
             curve,
+            error_curve,
         })
+    }
+
+    fn error_axis(&self) -> (&'static str, Scale) {
+        ("reference force F_ref (N)", Scale::Log)
     }
 
     fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>) {

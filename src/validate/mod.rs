@@ -7,3 +7,36 @@ pub mod plot;
 pub mod reference;
 pub mod hertz;
 pub mod runner;
+
+use crate::error::InputError;
+use runner::{Case, CaseOutcome};
+
+/// All cases, in the order they run.
+pub const CASE_NAMES: [&str; 1] = ["hertz"];
+
+/// Resolves case names (empty: all) to case objects.
+pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> {
+    let names: Vec<String> = if names.is_empty() { CASE_NAMES.iter().map(|s| s.to_string()).collect() } else { names.to_vec() };
+    names
+        .iter()
+        .map(|n| -> Result<Box<dyn Case>, InputError> {
+            match n.as_str() {
+                "hertz" => Ok(Box::new(hertz::HertzCase)),
+                other => Err(InputError::new("<command line>", "CASE", format!("unknown validation case '{other}' (known: {})", CASE_NAMES.join(", ")))),
+            }
+        })
+        .collect()
+}
+
+/// Cases whose finest meshing ratio missed its target.
+pub fn finest_failures(outcomes: &[CaseOutcome]) -> Vec<String> {
+    let mut names: Vec<&str> = outcomes.iter().map(|o| o.case.as_str()).collect();
+    names.dedup();
+    names
+        .into_iter()
+        .filter_map(|n| {
+            let finest = outcomes.iter().filter(|o| o.case == n).min_by(|a, b| a.mr.total_cmp(&b.mr))?;
+            (!finest.pass).then(|| format!("{} (MR {}, error {:.2}% > {:.1}%)", n, finest.mr, 100.0 * finest.error, 100.0 * finest.target))
+        })
+        .collect()
+}

@@ -71,6 +71,7 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
                 .draw()
                 .map_err(|e| e.to_string())?;
             let mut colour = 0;
+            let mut theory_count = 0;
             for s in &plot.series {
                 let pts: Vec<(f64, f64)> = s
                     .points
@@ -80,11 +81,14 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
                     .filter(|p| (plot.x_scale == Scale::Linear || p.0 > 0.0) && (plot.y_scale == Scale::Linear || p.1 > 0.0))
                     .collect();
                 if s.theory {
+                    // first theory curve black, further ones grey
+                    let c = if theory_count == 0 { BLACK } else { RGBColor(150, 150, 150) };
+                    theory_count += 1;
                     chart
-                        .draw_series(LineSeries::new(pts, BLACK.stroke_width(3)))
+                        .draw_series(LineSeries::new(pts, c.stroke_width(3)))
                         .map_err(|e| e.to_string())?
                         .label(s.label.clone())
-                        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(3)));
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
                 } else {
                     let c = PALETTE[colour % PALETTE.len()];
                     colour += 1;

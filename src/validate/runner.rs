@@ -28,6 +28,10 @@ pub struct CaseOutcome {
     /// The FE curve (x, y) in the case's plot units.
     #[serde(skip)]
     pub curve: Vec<(f64, f64)>,
+    /// Signed relative error along the loading range (x in the case's load units, y in %),
+    /// drawn as `<case>_error.png` when present.
+    #[serde(skip)]
+    pub error_curve: Vec<(f64, f64)>,
 }
 
 /// A validation case.
@@ -39,6 +43,10 @@ pub trait Case {
     fn target(&self, quick: bool) -> f64;
     /// Runs at one meshing ratio.
     fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome>;
+    /// Label and scale of the x axis of the error plot.
+    fn error_axis(&self) -> (&'static str, Scale) {
+        ("load", Scale::Linear)
+    }
     /// Theory curve over the range of the given outcomes, and the plot axes.
     fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>);
 }
@@ -114,6 +122,19 @@ pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out:
         p.series = series;
         let png = out.join(format!("{}.png", case.name()));
         plot::draw(&png, &p).map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
+        if outcomes.iter().any(|o| !o.error_curve.is_empty()) {
+            let png = out.join(format!("{}_error.png", case.name()));
+            let series = outcomes
+                .iter()
+                .map(|o| Series { label: format!("MR = {:.4}", o.mr), points: o.error_curve.clone(), theory: false })
+                .collect();
+            let (x_label, x_scale) = case.error_axis();
+            plot::draw(
+                &png,
+                &Plot { title: "signed error vs reference along the loading", x_label, y_label: "(FE − reference)/reference (%)", x_scale, y_scale: Scale::Linear, series },
+            )
+            .map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
+        }
         all.extend(outcomes);
     }
     write_json(&out.join("validation.json"), &all)?;
