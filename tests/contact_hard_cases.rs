@@ -309,7 +309,7 @@ velocity = {vr:?}
 /// fraction of the approach).
 #[test]
 fn head_on_elastic_impact_conserves_energy() {
-    let r = 1.0e-3;
+    let r: f64 = 1.0e-3;
     let gap = 1.0e-6;
     let v = 1.0;
     let text = two_spheres(
@@ -381,7 +381,7 @@ fn head_on_elastic_impact_conserves_energy() {
 /// no node may tunnel.
 #[test]
 fn oblique_impact_with_friction_balances_energy() {
-    let r = 1.0e-3;
+    let r: f64 = 1.0e-3;
     let gap = 1.0e-6;
     let v = 10.0;
     let angle = 30f64.to_radians();
@@ -453,8 +453,8 @@ fn oblique_impact_with_friction_balances_energy() {
 /// overlap less, and they deflect apart).
 #[test]
 fn grazing_contact_has_no_force_spikes() {
-    let r = 1.0e-3;
-    let overlap = 1.0e-5;
+    let r: f64 = 1.0e-3;
+    let overlap: f64 = 1.0e-5;
     let v = 2.0;
     // start 0.3 mm apart along x, offset in y by 2R − overlap
     let offset = [2.0 * (2.0 * r * overlap).sqrt() + 3.0e-4, 2.0 * r - overlap, 0.0];
@@ -679,7 +679,7 @@ friction = {mu}
 /// velocities, energies and friction history.
 #[test]
 fn contact_is_bitwise_identical_on_1_and_2_threads() {
-    let r = 1.0e-3;
+    let r: f64 = 1.0e-3;
     let angle = 30f64.to_radians();
     let d = 2.0 * r + 1.0e-6;
     let text = two_spheres(

@@ -7,12 +7,13 @@ pub mod plot;
 pub mod reference;
 pub mod hertz;
 pub mod runner;
+pub mod two_sphere;
 
 use crate::error::InputError;
 use runner::{Case, CaseOutcome};
 
 /// All cases, in the order they run.
-pub const CASE_NAMES: [&str; 1] = ["hertz"];
+pub const CASE_NAMES: [&str; 4] = ["hertz", "mindlin", "torsion", "rolling"];
 
 /// Resolves case names (empty: all) to case objects.
 pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> {
@@ -22,6 +23,9 @@ pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> 
         .map(|n| -> Result<Box<dyn Case>, InputError> {
             match n.as_str() {
                 "hertz" => Ok(Box::new(hertz::HertzCase)),
+                "mindlin" => Ok(Box::new(two_sphere::TwoSphereCase { kind: two_sphere::Kind::Mindlin })),
+                "torsion" => Ok(Box::new(two_sphere::TwoSphereCase { kind: two_sphere::Kind::Torsion })),
+                "rolling" => Ok(Box::new(two_sphere::TwoSphereCase { kind: two_sphere::Kind::Rolling })),
                 other => Err(InputError::new("<command line>", "CASE", format!("unknown validation case '{other}' (known: {})", CASE_NAMES.join(", ")))),
             }
         })

@@ -1,0 +1,239 @@
+//! Two identical spheres touching at the origin: the lower one's far hemisphere is fixed,
+//! the upper one's far hemisphere (boundary `drive`) is moved rigidly — first down to the
+//! normal force N, then tangentially (Mindlin), twisted about the normal (torsion) or
+//! rotated about its own centre (rolling). N is measured at the drive during the second
+//! phase and the reference is evaluated with it, so a mesh whose normal stiffness differs
+//! a little from Hertz is still judged on the tangential law alone.
+//!
+//! Error metrics (fractions of the limit value):
+//! - mindlin: max |Q − Q_MD(δt)| / μN over the first loading branch;
+//! - torsion: max |M − M_Lubkin(2β)| / M_max over the loading branch (exact parametric curve);
+//! - rolling: max |M − M_ref(θ)| / μNR over the loading branch.
+
+use super::plot::{Plot, Scale, Series};
+use super::reference::{Lubkin, Mindlin, Rolling};
+use super::runner::{case_solver, load_case_scene, Case, CaseOutcome, Probe};
+use crate::error::{MufeError, Result};
+use crate::material::ElasticParameters;
+use crate::scene::ShapeSpec;
+use serde_json::json;
+
+/// Which tangential law a case checks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Kind {
+    Mindlin,
+    Torsion,
+    Rolling,
+}
+
+pub struct TwoSphereCase {
+    pub kind: Kind,
+}
+
+pub const MINDLIN_SCENE: &str = include_str!("../../jobs/validation/mindlin.toml");
+pub const TORSION_SCENE: &str = include_str!("../../jobs/validation/torsion.toml");
+pub const ROLLING_SCENE: &str = include_str!("../../jobs/validation/rolling.toml");
+
+struct Setup {
+    material: ElasticParameters,
+    radius: f64,
+    mu: f64,
+}
+
+impl TwoSphereCase {
+    fn scene_text(&self) -> &'static str {
+        match self.kind {
+            Kind::Mindlin => MINDLIN_SCENE,
+            Kind::Torsion => TORSION_SCENE,
+            Kind::Rolling => ROLLING_SCENE,
+        }
+    }
+
+    fn setup(&self, scene: &crate::scene::Scene) -> Result<Setup> {
+        let g = &scene.grains[0];
+        let m = &scene.materials[&g.material];
+        let ShapeSpec::Sphere(s) = &g.shape else {
+            return Err(MufeError::Run(format!("{}: grains must be spheres", self.name())));
+        };
+        Ok(Setup {
+            material: ElasticParameters { youngs_modulus: m.youngs_modulus, poisson_ratio: m.poisson_ratio, density: m.density },
+            radius: s.radius,
+            mu: scene.contact.friction,
+        })
+    }
+
+    /// (x, y) of the curve at the current sample: tangential displacement/angle and
+    /// force/moment, in plot units.
+    fn sample(&self, probe: &Probe) -> Result<(f64, f64)> {
+        Ok(match self.kind {
+            Kind::Mindlin => (probe.get("drive_displacement_x")?, probe.get("drive_force_x")?),
+            Kind::Torsion => (probe.get("drive_rotation_z")?, probe.get("drive_moment_z")?),
+            Kind::Rolling => (probe.get("drive_rotation_x")?, probe.get("drive_moment_x")?),
+        })
+    }
+
+    fn reference(&self, s: &Setup, n: f64, x: f64) -> f64 {
+        match self.kind {
+            Kind::Mindlin => Mindlin::identical_spheres(&s.material, s.radius, s.mu, n).loading(x),
+            Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).moment_at_relative_twist(x),
+            Kind::Rolling => Rolling { radius: s.radius, mindlin: Mindlin::identical_spheres(&s.material, s.radius, s.mu, n) }.moment(x),
+        }
+    }
+
+    fn limit(&self, s: &Setup, n: f64) -> f64 {
+        match self.kind {
+            Kind::Mindlin => s.mu * n,
+            Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).full_slip_moment(),
+            Kind::Rolling => s.mu * n * s.radius,
+        }
+    }
+
+    fn units(&self) -> (&'static str, &'static str, f64, f64) {
+        match self.kind {
+            Kind::Mindlin => ("relative tangential displacement δt (µm)", "tangential force Q (N)", 1e6, 1.0),
+            Kind::Torsion => ("relative twist 2β (mrad)", "twisting moment M (mN·m)", 1e3, 1e3),
+            Kind::Rolling => ("rotation θ (mrad)", "rolling moment M (mN·m)", 1e3, 1e3),
+        }
+    }
+}
+
+impl Case for TwoSphereCase {
+    fn name(&self) -> &'static str {
+        match self.kind {
+            Kind::Mindlin => "mindlin",
+            Kind::Torsion => "torsion",
+            Kind::Rolling => "rolling",
+        }
+    }
+
+    fn default_mrs(&self, quick: bool) -> Vec<f64> {
+        if quick {
+            vec![0.009]
+        } else {
+            vec![0.009, 0.0045, 0.0023]
+        }
+    }
+
+    fn target(&self, quick: bool) -> f64 {
+        let t = match self.kind {
+            Kind::Mindlin => 0.05,
+            Kind::Torsion => 0.08,
+            Kind::Rolling => 0.10,
+        };
+        if quick {
+            2.5 * t
+        } else {
+            t
+        }
+    }
+
+    fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome> {
+        let name = self.name();
+        let base = load_case_scene(name, self.scene_text(), &[])?;
+        let setup = self.setup(&base.scene)?;
+        let s = mr * 2.0 * setup.radius;
+        let mut sets = vec![format!("grains[0].shape.sphere.refine[0].seeding={s:e}"), format!("grains[1].shape.sphere.refine[0].seeding={s:e}")];
+        sets.extend_from_slice(overrides);
+        let loaded = load_case_scene(name, self.scene_text(), &sets)?;
+        let mut solver = case_solver(&loaded)?;
+        let mut probe = Probe::new(&solver);
+        let sample_every = ((loaded.scene.output.history_interval.unwrap_or(2e-8) / solver.model.dt).round() as u64).max(1);
+        let max_steps = (loaded.scene.simulation.duration / solver.model.dt).ceil() as u64;
+
+        let (mut curve, mut raw) = (Vec::new(), Vec::new());
+        let (mut n_min, mut n_max) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut ke_ie: f64 = 0.0;
+        let mut tangential_started = false;
+        while solver.state.step < max_steps {
+            solver.step()?;
+            if solver.state.step % sample_every != 0 {
+                continue;
+            }
+            probe.sample(&solver);
+            let (x, y) = self.sample(&probe)?;
+            // the second phase starts when the drive first moves in the case's direction
+            if !tangential_started && x.abs() > 0.0 {
+                tangential_started = true;
+            }
+            if tangential_started {
+                let n = -probe.get("drive_force_z")?;
+                n_min = n_min.min(n);
+                n_max = n_max.max(n);
+                raw.push((x, y, n));
+                ke_ie = ke_ie.max(probe.get("kinetic_energy")? / probe.get("internal_energy")?.max(1e-300));
+            }
+        }
+        if raw.len() < 10 {
+            return Err(MufeError::Run(format!("{name} at MR {mr}: the drive never moved tangentially")));
+        }
+        let n_mean = raw.iter().map(|r| r.2).sum::<f64>() / raw.len() as f64;
+        let limit = self.limit(&setup, n_mean);
+        // loading branch: from the start until the first reversal of x
+        let x_peak_index = raw.iter().enumerate().fold(0, |best, (i, r)| if r.0.abs() > raw[best].0.abs() { i } else { best });
+        let (ux, uy) = (self.units().2, self.units().3);
+        let mut err: f64 = 0.0;
+        let mut error_curve = Vec::new();
+        for &(x, y, _) in &raw[..=x_peak_index] {
+            let y_ref = self.reference(&setup, n_mean, x);
+            err = err.max((y - y_ref).abs() / limit);
+            error_curve.push((x * ux, 100.0 * (y - y_ref) / limit));
+        }
+        curve.extend(raw.iter().map(|r| (r.0 * ux, r.1 * uy)));
+        let target = self.target(quick);
+        let mut details = serde_json::Map::new();
+        details.insert("normal_force_mean_n".into(), json!(n_mean));
+        details.insert("normal_force_range_n".into(), json!([n_min, n_max]));
+        details.insert("limit_value".into(), json!(limit));
+        details.insert("max_kinetic_over_internal".into(), json!(ke_ie));
+        details.insert("seeding_at_contact_m".into(), json!(s));
+        details.insert("friction_dissipation_j".into(), json!(solver.state.energy.friction_dissipation));
+        details.insert("energy_balance_error".into(), json!(solver.state.energy.relative_balance_error()));
+        Ok(CaseOutcome {
+            case: name.into(),
+            mr,
+            elements: solver.model.num_elements(),
+            steps: solver.state.step,
+            wall_s: 0.0,
+            error: err,
+            target,
+            pass: err <= target,
+            details,
+            curve,
+            error_curve,
+        })
+    }
+
+    fn error_axis(&self) -> (&'static str, Scale) {
+        (self.units().0, Scale::Linear)
+    }
+
+    fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>) {
+        let base = load_case_scene(self.name(), self.scene_text(), &[]).ok();
+        let setup = base.and_then(|b| self.setup(&b.scene).ok());
+        let n = outcomes.first().and_then(|o| o.details.get("normal_force_mean_n")).and_then(|v| v.as_f64());
+        let (ux, uy) = (self.units().2, self.units().3);
+        let mut theory = Vec::new();
+        if let (Some(s), Some(n)) = (setup, n) {
+            let x_max = outcomes.iter().flat_map(|o| o.curve.iter().map(|p| p.0.abs())).fold(0.0, f64::max) / ux;
+            let pts: Vec<(f64, f64)> = (0..=200).map(|i| x_max * i as f64 / 200.0).map(|x| (x * ux, self.reference(&s, n, x) * uy)).collect();
+            theory.push(Series { label: format!("theory (N = {n:.2} N, loading)"), points: pts, theory: true });
+            if self.kind == Kind::Mindlin {
+                // Masing unloading from the FE reversal point and reloading from the other end
+                let md = Mindlin::identical_spheres(&s.material, s.radius, s.mu, n);
+                let d_star = x_max;
+                let q_star = md.loading(d_star);
+                let unload: Vec<(f64, f64)> = (0..=200).map(|i| d_star - 2.0 * d_star * i as f64 / 200.0).map(|x| (x * ux, md.unloading(d_star, q_star, x) * uy)).collect();
+                let reload: Vec<(f64, f64)> = (0..=200).map(|i| -d_star + 2.0 * d_star * i as f64 / 200.0).map(|x| (x * ux, md.unloading(-d_star, -q_star, x) * uy)).collect();
+                theory.push(Series { label: "Masing unloading / reloading".into(), points: unload, theory: true });
+                theory.push(Series { label: String::new(), points: reload, theory: true });
+            }
+        }
+        let (xl, yl, _, _) = self.units();
+        let title = match self.kind {
+            Kind::Mindlin => "Mindlin–Deresiewicz: tangential loading at constant N",
+            Kind::Torsion => "Torsion about the contact normal (Lubkin)",
+            Kind::Rolling => "Rolling about a fixed centre",
+        };
+        (Plot { title, x_label: xl, y_label: yl, x_scale: Scale::Linear, y_scale: Scale::Linear, series: vec![] }, theory)
+    }
+}
