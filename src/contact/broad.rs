@@ -115,8 +115,7 @@ impl BroadPhase {
         self.built = true;
         self.moved = 0.0;
         self.x_ref.clear();
-        self.x_ref
-            .extend(cm.node.iter().map(|&n| x[n as usize]));
+        self.x_ref.extend(cm.node.iter().map(|&n| x[n as usize]));
         self.wall_ref.clear();
         self.wall_ref.extend_from_slice(wall_now);
         let ng = cm.surfaces.len();
@@ -193,7 +192,8 @@ impl BroadPhase {
                 if lists.query.is_empty() {
                     continue;
                 }
-                let d0 = locate(cm, x, p, &lists.query).map_or(f64::INFINITY, |l| (-l.depth).max(0.0));
+                let d0 =
+                    locate(cm, x, p, &lists.query).map_or(f64::INFINITY, |l| (-l.depth).max(0.0));
                 let start = lists.candidates.len() as u32;
                 lists.candidates.extend_from_slice(&lists.query);
                 lists.entries.push(Entry {
@@ -206,7 +206,6 @@ impl BroadPhase {
             }
         }
 
-        if std::env::var("MUFE_DEBUG_CONTACT").is_ok() { eprintln!("rebuild: {} pairs, {} entries, {} candidates", self.pairs.len(), lists.entries.len(), lists.candidates.len()); }
         // Walls: surface nodes within 1.5 margin of the plane.
         lists.wall_nodes.clear();
         for (w, wall) in cm.walls.iter().enumerate() {

@@ -133,7 +133,10 @@ mod tests {
         assert!((19..=20).contains(&stuck_steps), "{stuck_steps}");
         let moved = 1000.0 * step;
         let expected = limit * (moved - limit / eps);
-        assert!((dissipated - expected).abs() < 1e-9 * expected, "{dissipated} vs {expected}");
+        assert!(
+            (dissipated - expected).abs() < 1e-9 * expected,
+            "{dissipated} vs {expected}"
+        );
         assert!((t[0] + limit).abs() < 1e-12);
     }
 
@@ -145,6 +148,9 @@ mod tests {
         let r = rotate_onto_plane(t, n);
         assert!(dot(r, n).abs() < 1e-14);
         assert!((norm(r) - 3.0).abs() < 1e-14);
-        assert_eq!(rotate_onto_plane([0.0, 0.0, 1.0], [0.0, 0.0, 1.0]), [0.0; 3]);
+        assert_eq!(
+            rotate_onto_plane([0.0, 0.0, 1.0], [0.0, 0.0, 1.0]),
+            [0.0; 3]
+        );
     }
 }

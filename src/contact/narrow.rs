@@ -83,7 +83,11 @@ pub fn closest_point_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64;
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return done(add(b, scale(sub(c, b), w)), [0.0, 1.0 - w, w], Feature::Edge(1));
+        return done(
+            add(b, scale(sub(c, b), w)),
+            [0.0, 1.0 - w, w],
+            Feature::Edge(1),
+        );
     }
     let denom = 1.0 / (va + vb + vc);
     let v = vb * denom;
@@ -128,9 +132,9 @@ impl Aabb {
 
     #[inline]
     pub fn grow(&mut self, p: [f64; 3]) {
-        for i in 0..3 {
-            self.min[i] = self.min[i].min(p[i]);
-            self.max[i] = self.max[i].max(p[i]);
+        for (i, &c) in p.iter().enumerate() {
+            self.min[i] = self.min[i].min(c);
+            self.max[i] = self.max[i].max(c);
         }
     }
 
@@ -432,7 +436,12 @@ pub struct Located {
 
 /// Closest point of the candidate facets to `xs` and whether `xs` is inside the master
 /// (pseudo-normal test). `None` without candidates.
-pub fn locate(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], candidates: &[u32]) -> Option<Located> {
+pub fn locate(
+    cm: &ContactModel,
+    x: &[[f64; 3]],
+    xs: [f64; 3],
+    candidates: &[u32],
+) -> Option<Located> {
     let mut best: Option<(Closest, usize)> = None;
     for &f in candidates {
         let [a, b, c] = cm.facet[f as usize].map(|n| x[n as usize]);
@@ -568,11 +577,14 @@ mod tests {
     fn check(p: [f64; 3], point: [f64; 3], feature: Feature) {
         let cl = closest_point_on_triangle(p, A, B, C);
         assert_eq!(cl.feature, feature, "{p:?}");
-        for i in 0..3 {
-            assert!((cl.point[i] - point[i]).abs() < 1e-14, "{cl:?}");
+        for (a, b) in cl.point.iter().zip(&point) {
+            assert!((a - b).abs() < 1e-14, "{cl:?}");
         }
         // barycentric coordinates reproduce the point and sum to one
-        let q = add(add(scale(A, cl.bary[0]), scale(B, cl.bary[1])), scale(C, cl.bary[2]));
+        let q = add(
+            add(scale(A, cl.bary[0]), scale(B, cl.bary[1])),
+            scale(C, cl.bary[2]),
+        );
         for i in 0..3 {
             assert!((q[i] - point[i]).abs() < 1e-14);
         }

@@ -56,6 +56,11 @@ pub struct Simulation {
     /// accounted as `damping_dissipation`.
     #[serde(default)]
     pub damping: f64,
+    /// Mass-proportional damping of the velocity relative to each grain's rigid-body motion
+    /// (1/s): removes vibration without a net force or moment on any grain, so quasi-static
+    /// runs settle without biasing reaction forces. Accounted in `damping_dissipation`.
+    #[serde(default)]
+    pub deformation_damping: f64,
     /// Body acceleration (m/s²).
     #[serde(default)]
     pub gravity: [f64; 3],

@@ -100,6 +100,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         c.positive("simulation.dt", t)?;
     }
     c.non_negative("simulation.damping", s.damping)?;
+    c.non_negative("simulation.deformation_damping", s.deformation_damping)?;
     c.vec3("simulation.gravity", &s.gravity)?;
 
     for (name, m) in &scene.materials {

@@ -74,6 +74,11 @@ pub struct Model {
     pub gravity: [f64; 3],
     /// Mass-proportional damping α (1/s).
     pub damping: f64,
+    /// Mass-proportional damping of each grain's velocity relative to its rigid-body
+    /// motion (1/s): damps vibration without any net force or moment on the grain.
+    pub deformation_damping: f64,
+    /// Grain (index into `grains`) of every node.
+    pub node_grain: Vec<u32>,
     /// Surfaces, penalty data and walls for contact.
     pub contact: ContactModel,
 }
@@ -337,6 +342,12 @@ pub fn build_model(
     };
 
     // Prescribed motions
+    let mut node_grain = vec![0u32; n];
+    for (gi, g) in grains.iter().enumerate() {
+        for slot in &mut node_grain[g.nodes.clone()] {
+            *slot = gi as u32;
+        }
+    }
     let mut driven = vec![0u8; n];
     let mut motions = Vec::new();
     for (bi, b) in scene.boundaries.iter().enumerate() {
@@ -444,6 +455,8 @@ pub fn build_model(
             scaled_elements,
             gravity: sim.gravity,
             damping: sim.damping,
+            deformation_damping: sim.deformation_damping,
+            node_grain,
             contact,
         },
         motions,

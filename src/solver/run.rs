@@ -351,16 +351,21 @@ pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u
     let cm = &m.contact;
     if cm.active() {
         let st = &cm.stable_step;
-        println!(
-            "contact: friction {}, penalty factor {} (max ε_n {:.3e} Pa/m), margin {:.3e} m, {} surface nodes, {} facets, {} walls",
-            cm.friction,
-            cm.penalty_factor,
-            st.max_penalty,
-            cm.margin,
-            cm.node.len(),
-            cm.facet.len(),
-            cm.walls.len()
-        );
+        if cm.grain_contact {
+            println!(
+                "contact: friction {}, penalty factor {} (max ε_n {:.3e} Pa/m), damping {} of critical, margin {:.3e} m, {} surface nodes, {} facets, {} walls",
+                cm.friction,
+                cm.penalty_factor,
+                st.max_penalty,
+                cm.damping,
+                cm.margin,
+                cm.node.len(),
+                cm.facet.len(),
+                cm.walls.len()
+            );
+        } else {
+            println!("contact: {} walls (kinematic), margin {:.3e} m", cm.walls.len(), cm.margin);
+        }
         if st.contact_dt.is_finite() {
             println!(
                 "contact stable step: {:.4e} s (node {}) vs {:.4e} s from elements alone (×{:.3}){}",

@@ -62,6 +62,87 @@ pub struct Scratch {
     /// Cached contact candidate lists and per-point results.
     pub contact: ContactScratch,
     node_partials: Vec<NodePartials>,
+    /// Rigid-body velocity field of each grain (for deformation damping).
+    grain_rigid: Vec<RigidVelocity>,
+}
+
+/// A grain's rigid-body velocity field v(x) = v_c + ω × (x − x_c), from its linear and
+/// angular momentum (so that damping relative to it exerts no net force or moment).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RigidVelocity {
+    pub centre: [f64; 3],
+    pub velocity: [f64; 3],
+    pub omega: [f64; 3],
+}
+
+impl RigidVelocity {
+    #[inline(always)]
+    pub fn at(&self, x: &[f64; 3]) -> [f64; 3] {
+        let r = [x[0] - self.centre[0], x[1] - self.centre[1], x[2] - self.centre[2]];
+        let w = &self.omega;
+        [
+            self.velocity[0] + w[1] * r[2] - w[2] * r[1],
+            self.velocity[1] + w[2] * r[0] - w[0] * r[2],
+            self.velocity[2] + w[0] * r[1] - w[1] * r[0],
+        ]
+    }
+}
+
+/// Rigid-body velocity of every grain from v_{n−½} at x_n: mass-weighted centre and
+/// velocity, ω = I⁻¹L about the centre.
+fn compute_grain_rigid_velocities(model: &Model, state: &State, out: &mut [RigidVelocity]) {
+    out.par_iter_mut().zip(model.grains.par_iter()).for_each(|(rv, g)| {
+        let (mut m_tot, mut mx, mut mv) = (0.0, [0.0; 3], [0.0; 3]);
+        for n in g.nodes.clone() {
+            let m = model.mass[n];
+            m_tot += m;
+            for i in 0..3 {
+                mx[i] += m * state.x[n][i];
+                mv[i] += m * state.v[n][i];
+            }
+        }
+        if m_tot <= 0.0 {
+            *rv = RigidVelocity::default();
+            return;
+        }
+        let c = mx.map(|v| v / m_tot);
+        let vc = mv.map(|v| v / m_tot);
+        let mut l = [0.0; 3];
+        let mut inertia = nalgebra::Matrix3::<f64>::zeros();
+        for n in g.nodes.clone() {
+            let m = model.mass[n];
+            let r = [state.x[n][0] - c[0], state.x[n][1] - c[1], state.x[n][2] - c[2]];
+            let u = [state.v[n][0] - vc[0], state.v[n][1] - vc[1], state.v[n][2] - vc[2]];
+            l[0] += m * (r[1] * u[2] - r[2] * u[1]);
+            l[1] += m * (r[2] * u[0] - r[0] * u[2]);
+            l[2] += m * (r[0] * u[1] - r[1] * u[0]);
+            let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            for i in 0..3 {
+                for j in 0..3 {
+                    inertia[(i, j)] += m * (if i == j { rr } else { 0.0 } - r[i] * r[j]);
+                }
+            }
+        }
+        let omega = inertia
+            .try_inverse()
+            .map(|inv| inv * nalgebra::Vector3::new(l[0], l[1], l[2]))
+            .map_or([0.0; 3], |w| [w[0], w[1], w[2]]);
+        *rv = RigidVelocity { centre: c, velocity: vc, omega };
+    });
+}
+
+/// Damping force on node n: −α m v − α_def m (v − v_rigid(x)) (N).
+#[inline(always)]
+fn damping_force(model: &Model, rigid: &[RigidVelocity], n: usize, x: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
+    let m = model.mass[n];
+    let mut f = [-model.damping * m * v[0], -model.damping * m * v[1], -model.damping * m * v[2]];
+    if model.deformation_damping > 0.0 {
+        let vr = rigid[model.node_grain[n] as usize].at(x);
+        for i in 0..3 {
+            f[i] -= model.deformation_damping * m * (v[i] - vr[i]);
+        }
+    }
+    f
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -106,6 +187,7 @@ impl Solver {
             elements: ElementScratch::new(&model),
             contact: ContactScratch::default(),
             node_partials: vec![NodePartials::default(); n.div_ceil(NODE_CHUNK)],
+            grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
         };
         Self {
             model,
@@ -273,7 +355,10 @@ impl Solver {
 /// mass only: mass added by scaling is numerical and must not weigh anything.
 fn apply_body_and_damping_forces(model: &Model, state: &State, scratch: &mut Scratch, dt: f64) {
     let g = model.gravity;
-    let alpha = model.damping;
+    if model.deformation_damping > 0.0 {
+        compute_grain_rigid_velocities(model, state, &mut scratch.grain_rigid);
+    }
+    let rigid = &scratch.grain_rigid;
     scratch
         .force
         .par_chunks_mut(NODE_CHUNK)
@@ -284,8 +369,9 @@ fn apply_body_and_damping_forces(model: &Model, state: &State, scratch: &mut Scr
             for k in 0..f.len() {
                 let n = base + k;
                 let (m, mp, v) = (model.mass[n], model.physical_mass[n], state.v[n]);
+                let fd = damping_force(model, rigid, n, &state.x[n], &v);
                 for i in 0..3 {
-                    f[k][i] += mp * g[i] - alpha * m * v[i];
+                    f[k][i] += mp * g[i] + fd[i];
                     vn[k][i] = v[i] + dt * f[k][i] / m;
                 }
             }
@@ -368,7 +454,7 @@ fn integrate_and_sum(
     dt: f64,
 ) -> NodePartials {
     let g = model.gravity;
-    let alpha = model.damping;
+    let rigid = &scratch.grain_rigid;
     state
         .x
         .par_chunks_mut(NODE_CHUNK)
@@ -384,12 +470,12 @@ fn integrate_and_sum(
                 let (m, mp) = (model.mass[n], model.physical_mass[n]);
                 let (a, b) = (v[k], vn[k]);
                 let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-                let aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+                let fd = damping_force(model, rigid, n, &x[k], &a);
                 p.kinetic += 0.5 * m * ab;
                 p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
                 p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
-                p.damping_before -= alpha * m * aa;
-                p.damping_after -= alpha * m * ab;
+                p.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
+                p.damping_after += fd[0] * b[0] + fd[1] * b[1] + fd[2] * b[2];
                 if p.bad_node.is_none()
                     && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite())
                 {

@@ -62,13 +62,22 @@ impl TwoSphereCase {
         })
     }
 
-    /// (x, y) of the curve at the current sample: tangential displacement/angle and
-    /// force/moment, in plot units.
-    fn sample(&self, probe: &Probe) -> Result<(f64, f64)> {
+    /// (x, y, N) at the current sample: the drive's tangential displacement or angle, and
+    /// the force or moment transmitted through the contact, read at the fixed base of the
+    /// lower sphere. The base barely moves, so its reaction is the contact force without
+    /// the inertia of the driven sphere (which the drive's own reaction includes whenever
+    /// the drive accelerates). Signs follow the drive: positive motion, positive response.
+    fn sample(&self, probe: &Probe, radius: f64) -> Result<(f64, f64, f64)> {
+        let n = probe.get("base_force_z")?;
         Ok(match self.kind {
-            Kind::Mindlin => (probe.get("drive_displacement_x")?, probe.get("drive_force_x")?),
-            Kind::Torsion => (probe.get("drive_rotation_z")?, probe.get("drive_moment_z")?),
-            Kind::Rolling => (probe.get("drive_rotation_x")?, probe.get("drive_moment_x")?),
+            Kind::Mindlin => (probe.get("drive_displacement_x")?, -probe.get("base_force_x")?, n),
+            Kind::Torsion => (probe.get("drive_rotation_z")?, -probe.get("base_moment_z")?, n),
+            Kind::Rolling => {
+                // moment about the upper sphere's centre (0,0,R) of the contact force,
+                // from the base reaction about the lower centre (0,0,−R)
+                let m = probe.get("base_moment_x")? + 2.0 * radius * probe.get("base_force_y")?;
+                (probe.get("drive_rotation_x")?, -m, n)
+            }
         })
     }
 
@@ -150,13 +159,12 @@ impl Case for TwoSphereCase {
                 continue;
             }
             probe.sample(&solver);
-            let (x, y) = self.sample(&probe)?;
+            let (x, y, n) = self.sample(&probe, setup.radius)?;
             // the second phase starts when the drive first moves in the case's direction
             if !tangential_started && x.abs() > 0.0 {
                 tangential_started = true;
             }
             if tangential_started {
-                let n = -probe.get("drive_force_z")?;
                 n_min = n_min.min(n);
                 n_max = n_max.max(n);
                 raw.push((x, y, n));
@@ -169,7 +177,15 @@ impl Case for TwoSphereCase {
         let n_mean = raw.iter().map(|r| r.2).sum::<f64>() / raw.len() as f64;
         let limit = self.limit(&setup, n_mean);
         // loading branch: from the start until the first reversal of x
-        let x_peak_index = raw.iter().enumerate().fold(0, |best, (i, r)| if r.0.abs() > raw[best].0.abs() { i } else { best });
+        // loading branch: up to the first reversal (|x| falls back from its running maximum)
+        let mut x_peak_index = 0;
+        for (i, r) in raw.iter().enumerate() {
+            if r.0.abs() >= raw[x_peak_index].0.abs() {
+                x_peak_index = i;
+            } else if r.0.abs() < 0.99 * raw[x_peak_index].0.abs() {
+                break;
+            }
+        }
         let (ux, uy) = (self.units().2, self.units().3);
         let mut err: f64 = 0.0;
         let mut error_curve = Vec::new();
