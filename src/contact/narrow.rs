@@ -337,7 +337,7 @@ pub struct PointResult {
     pub masters: [u32; 3],
     /// Barycentric weights of the contact point on the master facet.
     pub weights: [f64; 3],
-    /// Force on the slave node (N); the master corners get −weights[i]·force.
+    /// Force on the slave node (N); master corner k gets −`weights[k]`·force.
     pub force: [f64; 3],
     /// Penetration depth g ≥ 0 (m).
     pub gap: f64,

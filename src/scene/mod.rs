@@ -183,7 +183,7 @@ pub struct BoundarySpec {
 /// ```toml
 /// [contact]
 /// friction = 0.22        # Coulomb μ between grains (default 0: frictionless)
-/// penalty_factor = 10.0  # ε_n = factor × E'/h (default `contact::DEFAULT_PENALTY_FACTOR`)
+/// penalty_factor = 20.0  # ε_n = factor × E'/h (default `contact::DEFAULT_PENALTY_FACTOR`)
 /// margin = 5e-6          # broad-phase margin (m); default ½ × smallest surface edge
 /// damping = 0.05         # normal contact damping, fraction of critical (default 0.05)
 /// ```

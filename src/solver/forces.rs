@@ -41,11 +41,8 @@ pub struct InternalForceSummary {
 impl ElementScratch {
     pub fn new(model: &Model) -> Self {
         Self {
-            corner_forces: vec![[[0.0; 3]; 4]; model.num_elements()],
-            chunk_results: vec![
-                ChunkResult::default();
-                model.num_elements().div_ceil(ELEMENT_CHUNK)
-            ],
+            corner_forces: vec![[[0.0; 3]; 4]; model.owned_elements],
+            chunk_results: vec![ChunkResult::default(); model.owned_elements.div_ceil(ELEMENT_CHUNK)],
         }
     }
 }
@@ -96,7 +93,10 @@ pub fn compute_internal_forces_into(
 
     let corner_forces = &scratch.corner_forces;
     let inc = &model.incidence;
-    force
+    // ghost nodes (after the owned ones) carry no element forces here
+    let (owned, ghosts) = force.split_at_mut(model.owned_nodes);
+    ghosts.fill([0.0; 3]);
+    owned
         .par_chunks_mut(NODE_CHUNK)
         .enumerate()
         .for_each(|(chunk, out)| {

@@ -81,6 +81,11 @@ pub struct Model {
     pub node_grain: Vec<u32>,
     /// Surfaces, penalty data and walls for contact.
     pub contact: ContactModel,
+    /// Grains, nodes and elements owned (advanced) by this rank: `grains[..owned_grains]`,
+    /// nodes `..owned_nodes`, elements `..owned_elements`; the rest are ghosts.
+    pub owned_grains: usize,
+    pub owned_nodes: usize,
+    pub owned_elements: usize,
 }
 
 impl Model {
@@ -113,6 +118,18 @@ pub fn build_model(
     loaded: &LoadedScene,
     owned: &[usize],
 ) -> Result<(Model, Vec<PrescribedMotion>), InputError> {
+    build_model_with_ghosts(loaded, owned, &[])
+}
+
+/// Builds the model of this rank: the `owned` grains (advanced here) followed by `ghosts`
+/// (other ranks' grains mirrored for contact; their surfaces are refreshed by the halo
+/// exchange, their elements only give them the masses their owners use). Both lists are
+/// global grain ids, ascending.
+pub fn build_model_with_ghosts(
+    loaded: &LoadedScene,
+    owned: &[usize],
+    ghosts: &[usize],
+) -> Result<(Model, Vec<PrescribedMotion>), InputError> {
     let scene = &loaded.scene;
     let file = &loaded.path;
     let mat_names: Vec<&String> = scene.materials.keys().collect();
@@ -132,7 +149,11 @@ pub fn build_model(
     let mut x0: Vec<[f64; 3]> = Vec::new();
     let mut tets: Vec<[u32; 4]> = Vec::new();
     let mut tet_law: Vec<u16> = Vec::new();
-    for &gi in owned {
+    let (mut owned_nodes, mut owned_elements) = (0, 0);
+    for (slot, &gi) in owned.iter().chain(ghosts).enumerate() {
+        if slot == owned.len() {
+            (owned_nodes, owned_elements) = (x0.len(), tets.len());
+        }
         let g = &scene.grains[gi];
         let key = serde_json::to_string(&g.shape).unwrap_or_default();
         let m = match cache.get(&key) {
@@ -207,6 +228,9 @@ pub fn build_model(
             quality,
         });
     }
+    if ghosts.is_empty() {
+        (owned_nodes, owned_elements) = (x0.len(), tets.len());
+    }
 
     let mut tet_reference = Vec::with_capacity(tets.len());
     for (e, t) in tets.iter().enumerate() {
@@ -260,7 +284,9 @@ pub fn build_model(
             }
             _ => 1.0,
         };
-        added_mass += 4.0 * m_phys * (scale - 1.0);
+        if e < owned_elements {
+            added_mass += 4.0 * m_phys * (scale - 1.0);
+        }
         elem_scale[e] = scale;
         for &node in t {
             physical_mass[node as usize] += m_phys;
@@ -351,7 +377,7 @@ pub fn build_model(
     let mut driven = vec![0u8; n];
     let mut motions = Vec::new();
     for (bi, b) in scene.boundaries.iter().enumerate() {
-        let Some(grain) = grains.iter().find(|g| g.name == b.grain) else {
+        let Some(grain) = grains[..owned.len()].iter().find(|g| g.name == b.grain) else {
             continue; // grain owned by another rank
         };
         let sel: Vec<u32> = grain
@@ -457,6 +483,9 @@ pub fn build_model(
             damping: sim.damping,
             deformation_damping: sim.deformation_damping,
             node_grain,
+            owned_grains: owned.len(),
+            owned_nodes,
+            owned_elements,
             contact,
         },
         motions,

@@ -91,7 +91,8 @@ impl RigidVelocity {
 /// Rigid-body velocity of every grain from v_{n−½} at x_n: mass-weighted centre and
 /// velocity, ω = I⁻¹L about the centre.
 fn compute_grain_rigid_velocities(model: &Model, state: &State, out: &mut [RigidVelocity]) {
-    out.par_iter_mut().zip(model.grains.par_iter()).for_each(|(rv, g)| {
+    let owned = model.owned_grains;
+    out[..owned].par_iter_mut().zip(model.grains[..owned].par_iter()).for_each(|(rv, g)| {
         let (mut m_tot, mut mx, mut mv) = (0.0, [0.0; 3], [0.0; 3]);
         for n in g.nodes.clone() {
             let m = model.mass[n];
@@ -186,7 +187,7 @@ impl Solver {
             v_next: vec![[0.0; 3]; n],
             elements: ElementScratch::new(&model),
             contact: ContactScratch::default(),
-            node_partials: vec![NodePartials::default(); n.div_ceil(NODE_CHUNK)],
+            node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
         };
         Self {
@@ -359,10 +360,10 @@ fn apply_body_and_damping_forces(model: &Model, state: &State, scratch: &mut Scr
         compute_grain_rigid_velocities(model, state, &mut scratch.grain_rigid);
     }
     let rigid = &scratch.grain_rigid;
-    scratch
-        .force
+    let owned = model.owned_nodes;
+    scratch.force[..owned]
         .par_chunks_mut(NODE_CHUNK)
-        .zip(scratch.v_next.par_chunks_mut(NODE_CHUNK))
+        .zip(scratch.v_next[..owned].par_chunks_mut(NODE_CHUNK))
         .enumerate()
         .for_each(|(chunk, (f, vn))| {
             let base = chunk * NODE_CHUNK;
@@ -455,11 +456,11 @@ fn integrate_and_sum(
 ) -> NodePartials {
     let g = model.gravity;
     let rigid = &scratch.grain_rigid;
-    state
-        .x
+    let owned = model.owned_nodes;
+    state.x[..owned]
         .par_chunks_mut(NODE_CHUNK)
-        .zip(state.v.par_chunks_mut(NODE_CHUNK))
-        .zip(scratch.v_next.par_chunks(NODE_CHUNK))
+        .zip(state.v[..owned].par_chunks_mut(NODE_CHUNK))
+        .zip(scratch.v_next[..owned].par_chunks(NODE_CHUNK))
         .zip(scratch.node_partials.par_iter_mut())
         .enumerate()
         .for_each(|(chunk, (((x, v), vn), out))| {

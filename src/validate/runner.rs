@@ -52,7 +52,14 @@ pub trait Case {
 }
 
 /// Loads a case scene (embedded copy of `jobs/validation/<case>.toml`) with overrides.
+/// With the environment variable `MUFE_VALIDATION_SCENES=DIR` set, `DIR/<case>.toml` is
+/// read instead (for trying scene variants without rebuilding).
 pub fn load_case_scene(name: &str, text: &str, overrides: &[String]) -> Result<LoadedScene> {
+    if let Some(dir) = std::env::var_os("MUFE_VALIDATION_SCENES") {
+        let path = Path::new(&dir).join(format!("{name}.toml"));
+        let text = std::fs::read_to_string(&path).map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
+        return Ok(parse_scene(&path.display().to_string(), &text, overrides)?);
+    }
     Ok(parse_scene(&format!("jobs/validation/{name}.toml"), text, overrides)?)
 }
 
@@ -135,6 +142,7 @@ pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out:
             )
             .map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
         }
+        write_curves(&out.join(format!("{}_curves.csv", case.name())), &outcomes)?;
         all.extend(outcomes);
     }
     write_json(&out.join("validation.json"), &all)?;
@@ -146,6 +154,57 @@ pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out:
 fn write_json(path: &PathBuf, outcomes: &[CaseOutcome]) -> Result<()> {
     let text = serde_json::to_string_pretty(outcomes).map_err(|e| MufeError::Io(e.to_string()))?;
     std::fs::write(path, text).map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
+}
+
+/// The FE curves (plot units) and signed error curves of one case, for re-plotting.
+fn write_curves(path: &Path, outcomes: &[CaseOutcome]) -> Result<()> {
+    let mut text = String::from("# series,mr,x,y  (series: curve = FE curve in plot units, error = signed error % vs load)\n");
+    for o in outcomes {
+        for (name, pts) in [("curve", &o.curve), ("error", &o.error_curve)] {
+            for p in pts.iter() {
+                text.push_str(&format!("{name},{},{:.9e},{:.9e}\n", o.mr, p.0, p.1));
+            }
+        }
+    }
+    std::fs::write(path, text).map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
+}
+
+/// Kinetic energy of the motion relative to each grain's rigid-body velocity field (from
+/// its linear and angular momentum): the vibration part of ALLKE, without the energy of a
+/// driven grain's rigid translation or rotation (J).
+pub fn deformation_kinetic_energy(solver: &Solver) -> f64 {
+    use nalgebra::{Matrix3, Vector3};
+    let (model, state) = (&solver.model, &solver.state);
+    let mut total = 0.0;
+    for g in &model.grains {
+        let nodes = g.nodes.clone();
+        let (mut m_sum, mut c, mut p) = (0.0, Vector3::zeros(), Vector3::zeros());
+        for n in nodes.clone() {
+            let m = model.mass[n];
+            m_sum += m;
+            c += m * Vector3::from(state.x[n]);
+            p += m * Vector3::from(state.v[n]);
+        }
+        if m_sum <= 0.0 {
+            continue;
+        }
+        c /= m_sum;
+        let vc = p / m_sum;
+        let (mut l, mut inertia) = (Vector3::zeros(), Matrix3::zeros());
+        for n in nodes.clone() {
+            let m = model.mass[n];
+            let r = Vector3::from(state.x[n]) - c;
+            l += m * r.cross(&(Vector3::from(state.v[n]) - vc));
+            inertia += m * (Matrix3::identity() * r.dot(&r) - r * r.transpose());
+        }
+        let w = inertia.try_inverse().map(|i| i * l).unwrap_or_else(Vector3::zeros);
+        for n in nodes {
+            let r = Vector3::from(state.x[n]) - c;
+            let dv = Vector3::from(state.v[n]) - vc - w.cross(&r);
+            total += 0.5 * model.mass[n] * dv.norm_squared();
+        }
+    }
+    total
 }
 
 fn speed_vs_error_plot(path: &Path, outcomes: &[CaseOutcome]) -> Result<()> {

@@ -12,7 +12,7 @@
 
 use super::plot::{Plot, Scale, Series};
 use super::reference::{Lubkin, Mindlin, Rolling};
-use super::runner::{case_solver, load_case_scene, Case, CaseOutcome, Probe};
+use super::runner::{case_solver, deformation_kinetic_energy, load_case_scene, Case, CaseOutcome, Probe};
 use crate::error::{MufeError, Result};
 use crate::material::ElasticParameters;
 use crate::scene::ShapeSpec;
@@ -38,6 +38,9 @@ struct Setup {
     material: ElasticParameters,
     radius: f64,
     mu: f64,
+    /// Rolling: distance from the upper sphere's centre to the contact plane, R − δn/2
+    /// (δn = approach of the centres), the lever of the tangential force and of δt = lever·θ.
+    lever: f64,
 }
 
 impl TwoSphereCase {
@@ -59,6 +62,7 @@ impl TwoSphereCase {
             material: ElasticParameters { youngs_modulus: m.youngs_modulus, poisson_ratio: m.poisson_ratio, density: m.density },
             radius: s.radius,
             mu: scene.contact.friction,
+            lever: s.radius,
         })
     }
 
@@ -67,16 +71,18 @@ impl TwoSphereCase {
     /// lower sphere. The base barely moves, so its reaction is the contact force without
     /// the inertia of the driven sphere (which the drive's own reaction includes whenever
     /// the drive accelerates). Signs follow the drive: positive motion, positive response.
-    fn sample(&self, probe: &Probe, radius: f64) -> Result<(f64, f64, f64)> {
+    /// Also returns the drive's z displacement (the approach of the centres, negative).
+    fn sample(&self, probe: &Probe, radius: f64) -> Result<(f64, f64, f64, f64)> {
         let n = probe.get("base_force_z")?;
+        let dz = probe.get("drive_displacement_z")?;
         Ok(match self.kind {
-            Kind::Mindlin => (probe.get("drive_displacement_x")?, -probe.get("base_force_x")?, n),
-            Kind::Torsion => (probe.get("drive_rotation_z")?, -probe.get("base_moment_z")?, n),
+            Kind::Mindlin => (probe.get("drive_displacement_x")?, -probe.get("base_force_x")?, n, dz),
+            Kind::Torsion => (probe.get("drive_rotation_z")?, -probe.get("base_moment_z")?, n, dz),
             Kind::Rolling => {
-                // moment about the upper sphere's centre (0,0,R) of the contact force,
-                // from the base reaction about the lower centre (0,0,−R)
-                let m = probe.get("base_moment_x")? + 2.0 * radius * probe.get("base_force_y")?;
-                (probe.get("drive_rotation_x")?, -m, n)
+                // moment about the upper sphere's current centre (0,0,R+dz) of the contact
+                // force and couple, from the base reaction about the lower centre (0,0,−R)
+                let m = probe.get("base_moment_x")? + (2.0 * radius + dz) * probe.get("base_force_y")?;
+                (probe.get("drive_rotation_x")?, -m, n, dz)
             }
         })
     }
@@ -85,7 +91,7 @@ impl TwoSphereCase {
         match self.kind {
             Kind::Mindlin => Mindlin::identical_spheres(&s.material, s.radius, s.mu, n).loading(x),
             Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).moment_at_relative_twist(x),
-            Kind::Rolling => Rolling { radius: s.radius, mindlin: Mindlin::identical_spheres(&s.material, s.radius, s.mu, n) }.moment(x),
+            Kind::Rolling => Rolling { radius: s.lever, mindlin: Mindlin::identical_spheres(&s.material, s.radius, s.mu, n) }.moment(x),
         }
     }
 
@@ -93,7 +99,7 @@ impl TwoSphereCase {
         match self.kind {
             Kind::Mindlin => s.mu * n,
             Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).full_slip_moment(),
-            Kind::Rolling => s.mu * n * s.radius,
+            Kind::Rolling => s.mu * n * s.lever,
         }
     }
 
@@ -151,7 +157,7 @@ impl Case for TwoSphereCase {
 
         let (mut curve, mut raw) = (Vec::new(), Vec::new());
         let (mut n_min, mut n_max) = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut ke_ie: f64 = 0.0;
+        let (mut ke_ie, mut ke_def_ie): (f64, f64) = (0.0, 0.0);
         let mut tangential_started = false;
         while solver.state.step < max_steps {
             solver.step()?;
@@ -159,7 +165,7 @@ impl Case for TwoSphereCase {
                 continue;
             }
             probe.sample(&solver);
-            let (x, y, n) = self.sample(&probe, setup.radius)?;
+            let (x, y, n, dz) = self.sample(&probe, setup.radius)?;
             // the second phase starts when the drive first moves in the case's direction
             if !tangential_started && x.abs() > 0.0 {
                 tangential_started = true;
@@ -167,14 +173,19 @@ impl Case for TwoSphereCase {
             if tangential_started {
                 n_min = n_min.min(n);
                 n_max = n_max.max(n);
-                raw.push((x, y, n));
-                ke_ie = ke_ie.max(probe.get("kinetic_energy")? / probe.get("internal_energy")?.max(1e-300));
+                raw.push((x, y, n, dz));
+                let ie = probe.get("internal_energy")?.max(1e-300);
+                ke_ie = ke_ie.max(probe.get("kinetic_energy")? / ie);
+                ke_def_ie = ke_def_ie.max(deformation_kinetic_energy(&solver) / ie);
             }
         }
         if raw.len() < 10 {
             return Err(MufeError::Run(format!("{name} at MR {mr}: the drive never moved tangentially")));
         }
         let n_mean = raw.iter().map(|r| r.2).sum::<f64>() / raw.len() as f64;
+        let dz_mean = raw.iter().map(|r| r.3).sum::<f64>() / raw.len() as f64;
+        let mut setup = setup;
+        setup.lever = setup.radius + 0.5 * dz_mean;
         let limit = self.limit(&setup, n_mean);
         // loading branch: from the start until the first reversal of x
         // loading branch: up to the first reversal (|x| falls back from its running maximum)
@@ -189,7 +200,7 @@ impl Case for TwoSphereCase {
         let (ux, uy) = (self.units().2, self.units().3);
         let mut err: f64 = 0.0;
         let mut error_curve = Vec::new();
-        for &(x, y, _) in &raw[..=x_peak_index] {
+        for &(x, y, _, _) in &raw[..=x_peak_index] {
             let y_ref = self.reference(&setup, n_mean, x);
             err = err.max((y - y_ref).abs() / limit);
             error_curve.push((x * ux, 100.0 * (y - y_ref) / limit));
@@ -200,7 +211,12 @@ impl Case for TwoSphereCase {
         details.insert("normal_force_mean_n".into(), json!(n_mean));
         details.insert("normal_force_range_n".into(), json!([n_min, n_max]));
         details.insert("limit_value".into(), json!(limit));
+        details.insert("approach_of_centres_m".into(), json!(-dz_mean));
+        details.insert("lever_arm_m".into(), json!(setup.lever));
+        // ALLKE includes the driven sphere's rigid rotation; the vibration part is the
+        // quasi-static measure
         details.insert("max_kinetic_over_internal".into(), json!(ke_ie));
+        details.insert("max_deformation_kinetic_over_internal".into(), json!(ke_def_ie));
         details.insert("seeding_at_contact_m".into(), json!(s));
         details.insert("friction_dissipation_j".into(), json!(solver.state.energy.friction_dissipation));
         details.insert("energy_balance_error".into(), json!(solver.state.energy.relative_balance_error()));
@@ -225,8 +241,11 @@ impl Case for TwoSphereCase {
 
     fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>) {
         let base = load_case_scene(self.name(), self.scene_text(), &[]).ok();
-        let setup = base.and_then(|b| self.setup(&b.scene).ok());
+        let mut setup = base.and_then(|b| self.setup(&b.scene).ok());
         let n = outcomes.first().and_then(|o| o.details.get("normal_force_mean_n")).and_then(|v| v.as_f64());
+        if let (Some(s), Some(lever)) = (setup.as_mut(), outcomes.first().and_then(|o| o.details.get("lever_arm_m")).and_then(|v| v.as_f64())) {
+            s.lever = lever;
+        }
         let (ux, uy) = (self.units().2, self.units().3);
         let mut theory = Vec::new();
         if let (Some(s), Some(n)) = (setup, n) {
