@@ -1,7 +1,8 @@
 //! Internal-force throughput (tet updates per second) with 1 and 2 threads.
 //!
 //! How to run:  cargo bench --bench internal_force
-//!   (quick look: cargo bench --bench internal_force -- --quick)
+//!   (shorter: cargo bench --bench internal_force -- --measurement-time 3 --warm-up-time 1;
+//!    one thread count: cargo bench --bench internal_force -- 2_threads)
 //!
 //! Model: one glass sphere, R = 1.1 mm, uniform seeding 70 µm (≈ 1.5·10⁵ tets), built
 //! through the real scene path (`parse_scene` + `build_solver`), deformed by a rigid
@@ -116,8 +117,6 @@ fn internal_force(c: &mut Criterion) {
 
     let mut group = c.benchmark_group("internal_force");
     group.throughput(Throughput::Elements(ne as u64));
-    group.sample_size(60);
-    group.measurement_time(Duration::from_secs(10));
     for (threads, pool) in &pools {
         group.bench_with_input(
             BenchmarkId::new("sphere_150k_tets", format!("{threads}_threads")),
@@ -134,5 +133,13 @@ fn internal_force(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, internal_force);
+// Defaults (60 samples, 10 s per thread count); command-line flags such as
+// `--measurement-time 3 --warm-up-time 1` override them.
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .sample_size(60)
+        .measurement_time(Duration::from_secs(10));
+    targets = internal_force
+}
 criterion_main!(benches);

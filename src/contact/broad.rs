@@ -146,7 +146,8 @@ impl BroadPhase {
                     if bb.min[0] > ba.max[0] {
                         break;
                     }
-                    if ba.overlaps(&bb) {
+                    // a pair of two ghosts is another rank's business
+                    if ba.overlaps(&bb) && (cm.surfaces[a].owned || cm.surfaces[b].owned) {
                         self.pairs.push((a.min(b) as u32, a.max(b) as u32));
                     }
                 }
@@ -175,7 +176,11 @@ impl BroadPhase {
                 }
             }
         }
-        lists.passes.sort_unstable_by_key(|p| (p.slave, p.master));
+        // Global ids, not model indices: a rank holds owned grains first and ghosts after,
+        // and the force accumulation order must not depend on that layout.
+        lists.passes.sort_unstable_by_key(|p| {
+            (cm.surfaces[p.slave as usize].global_id, cm.surfaces[p.master as usize].global_id)
+        });
         lists.entries.clear();
         lists.candidates.clear();
         for (pi, pass) in lists.passes.iter().enumerate() {
@@ -212,6 +217,9 @@ impl BroadPhase {
             let p = wall.point_at_displacement(wall_now[w]);
             let n = wall.normal;
             for (g, surf) in cm.surfaces.iter().enumerate() {
+                if !surf.owned {
+                    continue; // a ghost's wall contact is computed by its owner
+                }
                 let b = &self.boxes[g];
                 // signed distance of the box's lowest corner along n
                 let mut lowest = 0.0;

@@ -231,6 +231,10 @@ pub struct GrainSurface {
     pub facets: Range<usize>,
     /// Global id of the grain.
     pub global_id: u32,
+    /// The grain is advanced by this rank (false: a ghost mirrored from another rank).
+    /// Energies, statistics and wall contacts count owned slave nodes only, so that the
+    /// sums over ranks equal the serial ones.
+    pub owned: bool,
     /// First model node of the grain (for node indices within the grain).
     pub node_base: u32,
     /// Plane-strain modulus E/(1−ν²) of the grain's material (Pa).
@@ -289,6 +293,9 @@ pub struct ContactModel {
     pub walls: Vec<walls::Wall>,
     /// Smallest surface edge of the scene (m).
     pub min_edge: f64,
+    /// Largest plane-strain modulus E/(1−ν²) of any material of the scene (Pa): the same
+    /// on every rank, whichever grains it holds.
+    pub e_prime_max: f64,
     pub stable_step: StableStepReport,
 }
 
@@ -299,6 +306,7 @@ impl ContactModel {
         grains: &[GrainBlock],
         x0: &[[f64; 3]],
         e_prime: &[f64],
+        owned_grains: usize,
     ) -> ContactModel {
         let spec = &scene.contact;
         let mut cm = ContactModel {
@@ -311,7 +319,8 @@ impl ContactModel {
             ..Default::default()
         };
         let mut edges: Vec<(u32, u32, u32)> = Vec::new();
-        for g in grains {
+        cm.e_prime_max = e_prime.iter().cloned().fold(0.0, f64::max);
+        for (gi, g) in grains.iter().enumerate() {
             let n0 = cm.node.len();
             let f0 = cm.facet.len();
             for (k, &n) in g.surface.nodes.iter().enumerate() {
@@ -367,6 +376,7 @@ impl ContactModel {
                 nodes: n0..cm.node.len(),
                 facets: f0..cm.facet.len(),
                 global_id: g.global_id,
+                owned: gi < owned_grains,
                 node_base: g.nodes.start as u32,
                 e_prime: e_prime[g.material],
                 h_min: hs.iter().cloned().fold(f64::INFINITY, f64::min),
@@ -460,7 +470,7 @@ impl ContactModel {
             self.stable_step = report;
             return f64::INFINITY;
         }
-        let e_max = self.surfaces.iter().map(|s| s.e_prime).fold(0.0, f64::max);
+        let e_max = self.e_prime_max;
         // ω_el² per surface node, physical and scaled
         let n = self.node.len();
         let mut w2_phys = vec![0.0f64; n];
@@ -609,9 +619,17 @@ pub fn evaluate(
     state: &mut ContactState,
     scratch: &mut ContactScratch,
 ) -> Result<(), MufeError> {
+    let rebuild = needs_rebuild(model, x, time, dt, scratch);
+    evaluate_with(model, x, v, time, step, dt, rebuild, state, scratch)
+}
+
+/// Whether the cached candidate lists must be rebuilt before evaluating at x_n (t_n =
+/// `time`). Under MPI the ranks OR their answers so that all rebuild at the same step, as
+/// the serial run would.
+pub fn needs_rebuild(model: &Model, x: &[[f64; 3]], time: f64, dt: f64, scratch: &mut ContactScratch) -> bool {
     let cm = &model.contact;
     if !cm.active() {
-        return Ok(());
+        return false;
     }
     scratch.wall_now.clear();
     scratch.wall_next.clear();
@@ -619,7 +637,30 @@ pub fn evaluate(
         scratch.wall_now.push(w.displacement_at(time));
         scratch.wall_next.push(w.displacement_at(time + dt));
     }
-    if scratch.broad.needs_rebuild(cm, x, &scratch.wall_next) {
+    scratch.broad.needs_rebuild(cm, x, &scratch.wall_next)
+}
+
+/// [`evaluate`] with the rebuild decision taken by the caller (see [`needs_rebuild`]).
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate_with(
+    model: &Model,
+    x: &[[f64; 3]],
+    v: &[[f64; 3]],
+    time: f64,
+    step: u64,
+    dt: f64,
+    rebuild: bool,
+    state: &mut ContactState,
+    scratch: &mut ContactScratch,
+) -> Result<(), MufeError> {
+    let cm = &model.contact;
+    if !cm.active() {
+        return Ok(());
+    }
+    if scratch.wall_now.len() != cm.walls.len() {
+        needs_rebuild(model, x, time, dt, scratch);
+    }
+    if rebuild {
         scratch
             .broad
             .rebuild(cm, x, &scratch.wall_now, &mut scratch.lists);
@@ -678,10 +719,12 @@ pub fn evaluate(
                 cm.node_h[e.slave as usize]
             )));
         }
-        stats.points += 1;
-        stats.max_penetration = stats.max_penetration.max(r.gap);
-        stats.energy += r.energy;
-        dissipation += r.dissipation;
+        if cm.surfaces[pass.slave as usize].owned {
+            stats.points += 1;
+            stats.max_penetration = stats.max_penetration.max(r.gap);
+            stats.energy += r.energy;
+            dissipation += r.dissipation;
+        }
         if ctx.friction {
             let (sg, mg) = (
                 &cm.surfaces[pass.slave as usize],
@@ -758,21 +801,27 @@ pub fn damping_power(
     if model.contact.damping == 0.0 {
         return (0.0, 0.0);
     }
+    // Power of the damper on each node it acts on, counted for owned nodes only: every node
+    // belongs to exactly one rank, so the sum over ranks is the serial one (and no ghost
+    // v_{n+½}, which only its owner knows, is needed).
+    let owned = model.owned_nodes;
     for r in &scratch.results {
         if !r.active || r.damping_force == 0.0 {
             continue;
         }
-        let rel = |v: &[[f64; 3]]| {
-            let mut u = v[r.slave as usize];
-            for (k, &m) in r.masters.iter().enumerate() {
-                for i in 0..3 {
-                    u[i] -= r.weights[k] * v[m as usize][i];
-                }
+        let f = r.damping_force;
+        let s = r.slave as usize;
+        if s < owned {
+            before += f * dot(v_before[s], r.normal);
+            after += f * dot(v_after[s], r.normal);
+        }
+        for (k, &m) in r.masters.iter().enumerate() {
+            let m = m as usize;
+            if m < owned {
+                before -= f * r.weights[k] * dot(v_before[m], r.normal);
+                after -= f * r.weights[k] * dot(v_after[m], r.normal);
             }
-            dot(u, r.normal)
-        };
-        before += r.damping_force * rel(v_before);
-        after += r.damping_force * rel(v_after);
+        }
     }
     (before, after)
 }

@@ -24,6 +24,7 @@
 //! job within seconds instead of leaving the other ranks waiting forever in a collective.
 
 pub mod decomposition;
+pub mod halo;
 
 use std::marker::PhantomData;
 use std::os::raw::{c_int, c_void};

@@ -3,6 +3,7 @@
 pub mod diagnose;
 pub mod forces;
 pub mod model;
+pub mod parallel;
 pub mod progress;
 pub mod run;
 pub mod step;

@@ -86,6 +86,9 @@ pub struct Model {
     pub owned_grains: usize,
     pub owned_nodes: usize,
     pub owned_elements: usize,
+    /// Names of all prescribed motions of the scene (on every rank, whichever grains it
+    /// owns), so that history columns are the same everywhere.
+    pub boundary_names: Vec<String>,
 }
 
 impl Model {
@@ -330,7 +333,7 @@ pub fn build_model_with_ghosts(
         .iter()
         .map(|m| m.youngs_modulus / (1.0 - m.poisson_ratio * m.poisson_ratio))
         .collect();
-    let mut contact = ContactModel::build(scene, &grains, &x0, &e_prime);
+    let mut contact = ContactModel::build(scene, &grains, &x0, &e_prime, owned.len());
     let dt_contact = contact.account_stable_step(
         &tets,
         &elem_dt,
@@ -484,6 +487,7 @@ pub fn build_model_with_ghosts(
             deformation_damping: sim.deformation_damping,
             node_grain,
             owned_grains: owned.len(),
+            boundary_names: scene.boundaries.iter().map(|b| b.name.clone()).collect(),
             owned_nodes,
             owned_elements,
             contact,

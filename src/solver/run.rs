@@ -3,6 +3,8 @@
 //! never touches an existing output directory.
 
 use super::model::build_model;
+use super::parallel::{build_rank_solver, gather_rows, global_ledger, partition_grains, reduce_row, GlobalMesh, RankHooks};
+use crate::domain::halo::Halo;
 use super::progress::Progress;
 use super::step::Solver;
 use super::timing::Stage;
@@ -85,7 +87,7 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
         HistoryColumn::new("damping_dissipation", "J", Some("ALLVD"), "energy removed by mass-proportional damping and normal contact damping"),
         HistoryColumn::new("energy_balance", "J", Some("ETOTAL"), "ALLKE + ALLIE + ALLVD + ALLFD − ALLWK"),
     ];
-    for m in &solver.motions {
+    for name in &solver.model.boundary_names {
         for (what, units, desc) in [
             ("force", "N", "reaction force the prescribed motion exerts on the grain"),
             ("moment", "N*m", "reaction moment about the motion's current centre"),
@@ -93,7 +95,7 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
             ("rotation", "rad", "rotation vector of the prescribed rotation"),
         ] {
             for axis in ["x", "y", "z"] {
-                c.push(HistoryColumn::new(&format!("{}_{what}_{axis}", m.name), units, None, desc));
+                c.push(HistoryColumn::new(&format!("{name}_{what}_{axis}"), units, None, desc));
             }
         }
     }
@@ -116,6 +118,22 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
     c
 }
 
+/// How each column of [`history_columns`] combines over ranks.
+pub fn history_reductions(solver: &Solver) -> Vec<super::parallel::Reduce> {
+    use super::parallel::Reduce;
+    let mut k = vec![Reduce::Same, Reduce::Same];
+    k.extend([Reduce::Sum; 9]);
+    k.extend(std::iter::repeat_n(Reduce::Sum, 12 * solver.model.boundary_names.len()));
+    if solver.model.contact.active() {
+        k.extend([Reduce::Sum, Reduce::Max, Reduce::Sum]);
+    }
+    for _ in &solver.model.contact.walls {
+        k.extend([Reduce::Sum; 3]);
+        k.extend([Reduce::Same; 3]);
+    }
+    k
+}
+
 /// One history row matching [`history_columns`].
 pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
     let s = &solver.state;
@@ -134,11 +152,18 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
         e.damping_dissipation(),
         e.total(),
     ]);
-    for r in &s.reactions {
-        row.extend_from_slice(&r.force);
-        row.extend_from_slice(&r.moment);
-        row.extend_from_slice(&r.displacement);
-        row.extend_from_slice(&r.rotation);
+    // a motion lives on the rank owning its grain; other ranks report zeros (summed)
+    for name in &solver.model.boundary_names {
+        match solver.motions.iter().position(|m| &m.name == name) {
+            Some(k) => {
+                let r = &s.reactions[k];
+                row.extend_from_slice(&r.force);
+                row.extend_from_slice(&r.moment);
+                row.extend_from_slice(&r.displacement);
+                row.extend_from_slice(&r.rotation);
+            }
+            None => row.extend_from_slice(&[0.0; 12]),
+        }
     }
     if solver.model.contact.active() {
         let c = &s.contact;
@@ -166,28 +191,37 @@ pub fn element_stresses(solver: &Solver) -> (Vec<f64>, Vec<f64>) {
     (stress, vm)
 }
 
-fn write_frame(writer: &mut ResultsWriter, solver: &Solver, index: usize, root_writes: bool) -> Result<()> {
+/// Writes one frame: every rank contributes its owned grains' rows, rank 0 gathers them in
+/// global order and writes them (all ranks must call).
+fn write_frame(writer: &mut ResultsWriter, domain: &Domain, solver: &Solver, global: &GlobalMesh, owner: &[u32], index: usize) -> Result<()> {
     let m = &solver.model;
-    let n = m.num_nodes();
-    let disp: Vec<f64> = solver.state.x.iter().zip(&m.x0).flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]]).collect();
-    let vel: Vec<f64> = solver.state.v.iter().flatten().copied().collect();
+    let (nn, ne) = (m.owned_nodes, m.owned_elements);
+    let disp: Vec<f64> = solver.state.x[..nn].iter().zip(&m.x0[..nn]).flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]]).collect();
+    let vel: Vec<f64> = solver.state.v[..nn].iter().flatten().copied().collect();
     let (stress, vm) = element_stresses(solver);
-    let ne = m.num_elements();
-    // Until grains are distributed, every rank holds the whole model and rank 0 writes it.
-    let (rows_n, rows_e) = if root_writes { (n, ne) } else { (0, 0) };
+    let gather = |local: &[f64], offsets: &[usize], k: usize| gather_rows(domain, owner, offsets, local, k).unwrap_or_default();
+    let disp = gather(&disp, &global.node_offset, 3);
+    let vel = gather(&vel, &global.node_offset, 3);
+    let stress = gather(&stress[..6 * ne], &global.element_offset, 6);
+    let vm = gather(&vm[..ne], &global.element_offset, 1);
+    let (n, e) = (global.total_nodes() as u64, global.total_elements() as u64);
     let fields = [
-        FieldPart { name: "displacement", units: "m", components: 3, data: &disp[..3 * rows_n], offset: 0, total: n as u64 },
-        FieldPart { name: "velocity", units: "m/s", components: 3, data: &vel[..3 * rows_n], offset: 0, total: n as u64 },
-        FieldPart { name: "stress", units: "Pa", components: 6, data: &stress[..6 * rows_e], offset: 0, total: ne as u64 },
-        FieldPart { name: "von_mises_stress", units: "Pa", components: 1, data: &vm[..rows_e], offset: 0, total: ne as u64 },
+        FieldPart { name: "displacement", units: "m", components: 3, data: &disp, offset: 0, total: n },
+        FieldPart { name: "velocity", units: "m/s", components: 3, data: &vel, offset: 0, total: n },
+        FieldPart { name: "stress", units: "Pa", components: 6, data: &stress, offset: 0, total: e },
+        FieldPart { name: "von_mises_stress", units: "Pa", components: 1, data: &vm, offset: 0, total: e },
     ];
     writer.write_frame(index, solver.state.time, &fields)
 }
 
-/// Runs a scene to its duration (or `max_steps`) and writes the results.
+/// Runs a scene to its duration (or `max_steps`) and writes the results: serially, or
+/// under `mpirun` with the grains partitioned over the ranks (all ranks must call).
 pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<RunSummary> {
     let wall0 = Instant::now();
-    let mut solver = build_solver(loaded)?;
+    let global = GlobalMesh::build(loaded)?;
+    let owner = partition_grains(domain, loaded, &global)?;
+    let (mut solver, plan, halo_plan) = build_rank_solver(domain, loaded, &global, &owner)?;
+    let mut hooks = RankHooks { domain, halo: Halo::new(domain, halo_plan) };
     let root = domain.is_root();
     let talk = root && !opts.quiet;
     let scene = &loaded.scene;
@@ -196,6 +230,15 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     if talk {
         print_model_summary(&solver, loaded, total_steps);
+        if domain.size() > 1 {
+            println!(
+                "ranks: {} (METIS), rank 0 owns {} grains and mirrors {} ghosts; halo {} bytes/step from rank 0",
+                domain.size(),
+                plan.owned.len(),
+                plan.ghosts.len(),
+                hooks.halo.plan.bytes_per_step()
+            );
+        }
     }
 
     std::fs::create_dir_all(&opts.out)
@@ -203,21 +246,28 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let results = opts.out.join(crate::io::results::RESULTS_FILE_NAME);
     let provenance = Provenance::collect(domain, opts.threads);
     let mut writer = ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
-    let m = &solver.model;
-    let tets64: Vec<[u64; 4]> = m.tets.iter().map(|t| t.map(u64::from)).collect();
-    let grain_of_tet: Vec<u32> = m.grains.iter().flat_map(|g| g.elements.clone().map(move |_| g.global_id)).collect();
-    let owner = vec![0u32; scene.grains.len()];
-    let (rn, re) = if root { (m.num_nodes(), m.num_elements()) } else { (0, 0) };
+    // /mesh from the global layout (identical on all ranks); rank 0 writes it.
+    let (mut nodes, mut tets64, mut grain_of_tet) = (Vec::new(), Vec::new(), Vec::new());
+    if root {
+        for (g, spec) in scene.grains.iter().enumerate() {
+            let mesh = &global.meshes[g];
+            let base = global.node_offset[g] as u64;
+            nodes.extend(mesh.nodes.iter().map(|p| [p[0] + spec.centre[0], p[1] + spec.centre[1], p[2] + spec.centre[2]]));
+            tets64.extend(mesh.tets.iter().map(|t| t.map(|n| n as u64 + base)));
+            grain_of_tet.extend(std::iter::repeat_n(g as u32, mesh.tets.len()));
+        }
+    }
     writer.write_mesh(&MeshPart {
-        nodes: &m.x0[..rn],
+        nodes: &nodes,
         node_offset: 0,
-        total_nodes: m.num_nodes() as u64,
-        tets: &tets64[..re],
+        total_nodes: global.total_nodes() as u64,
+        tets: &tets64,
         tet_offset: 0,
-        total_tets: m.num_elements() as u64,
-        grain_of_tet: &grain_of_tet[..re],
+        total_tets: global.total_elements() as u64,
+        grain_of_tet: &grain_of_tet,
         grain_owner_rank: &owner,
     })?;
+    drop((nodes, tets64, grain_of_tet));
     writer.define_history(&history_columns(&solver))?;
 
     let history_interval = scene.output.history_interval.unwrap_or(scene.simulation.duration / 1000.0);
@@ -225,14 +275,20 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let frame_every = scene.output.frame_interval.map(|f| ((f / dt).round() as u64).max(1));
     let mut frame_index = 0;
     if scene.output.frames {
-        write_frame(&mut writer, &solver, frame_index, root)?;
+        write_frame(&mut writer, domain, &solver, &global, &owner, frame_index)?;
         frame_index += 1;
     }
+    let reductions = history_reductions(&solver);
     let mut progress = Progress::new(talk, "run");
     let mut row = Vec::new();
     let mut failure = None;
     while solver.state.step < last_step {
-        if let Err(e) = solver.step() {
+        if let Err(e) = solver.step_with(&mut hooks) {
+            if domain.size() > 1 {
+                // the other ranks cannot know: stop the whole job rather than hang
+                eprintln!("rank {}: error: {e}", domain.rank());
+                domain.abort(e.exit_code().max(1));
+            }
             failure = Some(e);
             break;
         }
@@ -240,11 +296,12 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         let t_out = Instant::now();
         if n % history_every == 0 || n == last_step {
             history_row(&solver, &mut row);
+            reduce_row(domain, &reductions, &mut row);
             writer.push_history(&row)?;
         }
         if let Some(fe) = frame_every {
             if n % fe == 0 && n != last_step && scene.output.frames {
-                write_frame(&mut writer, &solver, frame_index, root)?;
+                write_frame(&mut writer, domain, &solver, &global, &owner, frame_index)?;
                 frame_index += 1;
                 writer.flush_history()?;
             }
@@ -255,11 +312,16 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     progress.finish();
     // Keep what was computed up to a failure: history and a last frame help diagnose it.
     history_row(&solver, &mut row);
+    reduce_row(domain, &reductions, &mut row);
     writer.push_history(&row)?;
     if scene.output.frames {
-        write_frame(&mut writer, &solver, frame_index, root)?;
+        write_frame(&mut writer, domain, &solver, &global, &owner, frame_index)?;
     }
     writer.close()?;
+    // the summary reports global quantities
+    let energy = global_ledger(domain, &solver.state.energy);
+    let mut maxima = [solver.state.contact.stats.max_penetration_run, solver.state.contact.stats.max_contacts_run as f64];
+    domain.max_in_place(&mut maxima);
     if let Some(e) = failure {
         return Err(e);
     }
@@ -270,11 +332,11 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         wall_s: wall0.elapsed().as_secs_f64(),
         elements: solver.model.num_elements(),
         nodes: solver.model.num_nodes(),
-        energy: solver.state.energy.clone(),
+        energy,
         timing_table: solver.timers.table(solver.state.step),
         results: results.clone(),
-        max_contacts: solver.state.contact.stats.max_contacts_run,
-        max_penetration: solver.state.contact.stats.max_penetration_run,
+        max_contacts: maxima[1] as usize,
+        max_penetration: maxima[0],
         contact_share: solver.timers.share(Stage::Contact),
     };
     if talk {

@@ -51,6 +51,29 @@ pub struct State {
     pub contact: ContactState,
 }
 
+/// What a step needs from other ranks. The serial implementation ([`Serial`]) does
+/// nothing; the MPI one lives in `crate::domain` (the only module that talks to MPI).
+pub trait StepHooks {
+    /// Completes the ghost update: ghost surface x_n and v_{n−½} from their owners.
+    fn ghosts_in(&mut self, _x: &mut [[f64; 3]], _v: &mut [[f64; 3]]) -> Result<(), MufeError> {
+        Ok(())
+    }
+    /// Starts sending owned surface x_{n+1}, v_{n+½} to the ranks that mirror them.
+    fn ghosts_out(&mut self, _x: &[[f64; 3]], _v: &[[f64; 3]]) -> Result<(), MufeError> {
+        Ok(())
+    }
+    /// Logical OR over ranks (all ranks must call).
+    fn any(&mut self, local: bool) -> bool {
+        local
+    }
+    /// Sums over ranks in place (all ranks must call).
+    fn sum(&mut self, _values: &mut [f64]) {}
+}
+
+/// One rank, nothing to exchange.
+pub struct Serial;
+impl StepHooks for Serial {}
+
 /// Per-step scratch buffers (never serialised).
 #[derive(Debug, Default)]
 pub struct Scratch {
@@ -200,30 +223,42 @@ impl Solver {
         }
     }
 
-    /// Advances one step. Errors name time, step and the element or node that failed.
+    /// Advances one step on one rank. Errors name time, step and the element or node that
+    /// failed.
     pub fn step(&mut self) -> Result<(), MufeError> {
+        self.step_with(&mut Serial)
+    }
+
+    /// Advances one step, using `hooks` for what other ranks contribute (ghost surfaces,
+    /// the common contact rebuild decision, global energy sums).
+    pub fn step_with(&mut self, hooks: &mut dyn StepHooks) -> Result<(), MufeError> {
         let dt = self.model.dt;
         let model = &self.model;
         let state = &mut self.state;
         let scratch = &mut self.scratch;
         let timers = &mut self.timers;
 
+        // Internal forces first: they need only owned data, so they overlap the halo
+        // exchange begun at the end of the previous step.
+        let summary = timers.time(Stage::InternalForces, || {
+            compute_internal_forces_into(model, &state.x, &mut scratch.elements, &mut scratch.force)
+        });
+        timers.time(Stage::Halo, || hooks.ghosts_in(&mut state.x, &mut state.v))?;
         timers.time(Stage::Contact, || {
-            crate::contact::evaluate(
+            let local = crate::contact::needs_rebuild(model, &state.x, state.time, dt, &mut scratch.contact);
+            let rebuild = hooks.any(local);
+            crate::contact::evaluate_with(
                 model,
                 &state.x,
                 &state.v,
                 state.time,
                 state.step,
                 dt,
+                rebuild,
                 &mut state.contact,
                 &mut scratch.contact,
             )
         })?;
-
-        let summary = timers.time(Stage::InternalForces, || {
-            compute_internal_forces_into(model, &state.x, &mut scratch.elements, &mut scratch.force)
-        });
         timers.time(Stage::Contact, || {
             crate::contact::add_forces(model, &scratch.contact, &mut state.contact, &mut scratch.force)
         });
@@ -266,6 +301,7 @@ impl Solver {
         let partials = timers.time(Stage::Integrate, || {
             integrate_and_sum(model, state, scratch, dt)
         });
+        timers.time(Stage::Halo, || hooks.ghosts_out(&state.x, &state.v))?;
         if let Some(node) = partials.bad_node {
             let g = &model.grains[model.grains.partition_point(|g| g.nodes.end <= node)];
             return Err(MufeError::Run(format!(
@@ -304,12 +340,15 @@ impl Solver {
         // Exploding energy: with every force accounted for, KE + U cannot exceed the energy
         // supplied; an unstable integration grows it exponentially past any such bound.
         let e = &state.energy;
-        self.energy_scale = self.energy_scale.max(
-            e.external_work().abs()
-                + e.initial_total.unwrap_or(0.0).abs()
-                + e.damping_dissipation().abs(),
-        );
-        let stored = e.kinetic + e.strain;
+        let mut global = [
+            e.external_work(),
+            e.initial_total.unwrap_or(0.0),
+            e.damping_dissipation(),
+            e.kinetic + e.strain,
+        ];
+        hooks.sum(&mut global);
+        self.energy_scale = self.energy_scale.max(global[0].abs() + global[1].abs() + global[2].abs());
+        let stored = global[3];
         if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > 1e-30) {
             let (e, density) = super::diagnose::most_strained_element(&self.model, &state.x);
             let g = &self.model.grains[self.model.grain_of_element(e)];

@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 /// The stages of one explicit step, in pipeline order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
+    Halo,
     Contact,
     InternalForces,
     Boundary,
@@ -14,7 +15,8 @@ pub enum Stage {
 }
 
 impl Stage {
-    pub const ALL: [Stage; 6] = [
+    pub const ALL: [Stage; 7] = [
+        Stage::Halo,
         Stage::Contact,
         Stage::InternalForces,
         Stage::Boundary,
@@ -25,6 +27,7 @@ impl Stage {
 
     pub fn name(self) -> &'static str {
         match self {
+            Stage::Halo => "halo",
             Stage::Contact => "contact",
             Stage::InternalForces => "internal_forces",
             Stage::Boundary => "boundary",
@@ -38,7 +41,7 @@ impl Stage {
 /// Accumulated wall time per stage.
 #[derive(Debug, Clone, Default)]
 pub struct StageTimers {
-    totals: [Duration; 6],
+    totals: [Duration; 7],
 }
 
 impl StageTimers {
