@@ -42,20 +42,21 @@ PARAMS = {
         cycle=True,                               # unload to −amplitude, reload to +amplitude
         target_dt=2.0e-9, damping=2.0e6, seeding=2.75e-4,
         refine_radius=2.0e-5, growth=0.15, history_interval=2.0e-8,
+        clamp=1.0,            # driven/fixed parts: beyond the planes at ±clamp·R from the contact
     ),
     "torsion": dict(
         force=70.0, vn=0.5, n_ramp=3.0e-6, settle=3.0e-6,
         twist_param=0.6,      # final G a² β/(μN) (c/a ≈ 0.1)
         cruise=12e-6, t_ramp=3.0e-6,
         target_dt=2.0e-9, damping=2.0e6, seeding=2.75e-4,
-        refine_radius=1.1e-4, growth=0.15, history_interval=2.0e-8,
+        refine_radius=1.1e-4, growth=0.15, history_interval=2.0e-8, clamp=1.0,
     ),
     "rolling": dict(
         force=70.0, vn=0.5, n_ramp=3.0e-6, settle=3.0e-6,
         amplitude=1.5,        # final Rθ in units of δt,max
         cruise=12e-6, t_ramp=3.0e-6,
         target_dt=2.0e-9, damping=2.0e6, seeding=2.75e-4,
-        refine_radius=1.1e-4, growth=0.15, history_interval=2.0e-8,
+        refine_radius=1.1e-4, growth=0.15, history_interval=2.0e-8, clamp=1.0,
     ),
 }
 
@@ -212,7 +213,7 @@ shape = {{ sphere = {{ radius = {R:e}, seeding = {p['seeding']:.4e}, refine = [
 [[boundaries]]
 name = "base"
 grain = "lower"
-select = {{ beyond_plane = {{ point = [0.0, 0.0, {-R:e}], normal = [0.0, 0.0, -1.0] }} }}
+select = {{ beyond_plane = {{ point = [0.0, 0.0, {-p['clamp']*R:e}], normal = [0.0, 0.0, -1.0] }} }}
 # moments of the base reaction are taken about the lower sphere's centre
 centre = [0.0, 0.0, {-R:e}]
 
@@ -229,11 +230,11 @@ def normal_phase(p):
     return normal, t + p["settle"]
 
 
-def drive_block(velocity, angular=None):
+def drive_block(p, velocity, angular=None):
     lines = f'''[[boundaries]]
 name = "drive"
 grain = "upper"
-select = {{ beyond_plane = {{ point = [0.0, 0.0, {R:e}], normal = [0.0, 0.0, 1.0] }} }}
+select = {{ beyond_plane = {{ point = [0.0, 0.0, {p['clamp']*R:e}], normal = [0.0, 0.0, 1.0] }} }}
 centre = [0.0, 0.0, {R:e}]
 velocity = {velocity}'''
     if angular:
@@ -255,7 +256,7 @@ def mindlin(p):
         tangential += seg2[1:] + seg3[1:]
     text = two_sphere_scene("mindlin", "Mindlin–Deresiewicz: two glass spheres, tangential loading at constant N"
                             + (", unloading, reloading" if p["cycle"] else "") + " (THEORY.md §2)",
-                            p, drive_block(merge(normal, tangential)), t + 0.2e-6)
+                            p, drive_block(p, merge(normal, tangential)), t + 0.2e-6)
     return text
 
 
@@ -268,7 +269,7 @@ def torsion(p):
     w_max = twist / (p["cruise"] + p["t_ramp"])
     seg, t_end = trapezoid(t, twist, w_max, p["t_ramp"])
     return two_sphere_scene("torsion", "Torsion about the contact normal of two glass spheres vs Lubkin's exact curve (THEORY.md §3)",
-                            p, drive_block(fmt_hist(normal, 2), fmt_hist([(0.0, 0.0)] + seg, 2)), t_end + 0.2e-6)
+                            p, drive_block(p, fmt_hist(normal, 2), fmt_hist([(0.0, 0.0)] + seg, 2)), t_end + 0.2e-6)
 
 
 def rolling(p):
@@ -280,7 +281,7 @@ def rolling(p):
     w_max = theta_max / (p["cruise"] + p["t_ramp"])
     seg, t_end = trapezoid(t, theta_max, w_max, p["t_ramp"])
     return two_sphere_scene("rolling", "Rolling: upper glass sphere rotated about its own fixed centre, moment vs angle (THEORY.md §4)",
-                            p, drive_block(fmt_hist(normal, 2), fmt_hist([(0.0, 0.0)] + seg, 0)), t_end + 0.2e-6)
+                            p, drive_block(p, fmt_hist(normal, 2), fmt_hist([(0.0, 0.0)] + seg, 0)), t_end + 0.2e-6)
 
 
 def main():

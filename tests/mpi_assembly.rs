@@ -26,7 +26,7 @@ fn run(ranks: usize, threads: usize, name: &str, extra: &[&str]) -> (PathBuf, st
     let out_s = out.to_string_lossy().into_owned();
     let threads_s = threads.to_string();
     let scene = scene();
-    let mut args = vec!["run", scene.to_str().unwrap(), "--out", &out_s, "--max-steps", STEPS, "--threads", &threads_s, "--quiet"];
+    let mut args = vec!["run", scene.to_str().unwrap(), "--out", &out_s, "--max-steps", STEPS, "--threads", &threads_s];
     args.extend_from_slice(extra);
     let output = mpi_launch::run_under_mpirun(ranks, Path::new(env!("CARGO_BIN_EXE_mufe")), &args, &[], Duration::from_secs(240));
     (out.join("results.h5"), output)
@@ -53,9 +53,16 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
     assert!(get("top_force_z").last().unwrap().abs() > 1.0, "the moving wall pushes");
     assert_eq!(get("step").last(), Some(&300.0));
 
-    for (ranks, threads) in [(1, 2), (2, 1), (2, 2), (3, 1)] {
-        let (path, out) = run(ranks, threads, &format!("r{ranks}t{threads}"), &[]);
+    // the last configuration also re-partitions at steps 100 and 200 (threshold 0), so
+    // grains migrate with their full state in the middle of the run
+    let migrate = ["--set", "parallel.imbalance_threshold=0.0", "--set", "parallel.check_interval=100"];
+    for (ranks, threads, extra) in [(1, 2, &[][..]), (2, 1, &[][..]), (2, 2, &[][..]), (3, 1, &[][..]), (3, 1, &migrate[..])] {
+        let (path, out) = run(ranks, threads, &format!("r{ranks}t{threads}_{}", extra.len()), extra);
         mpi_launch::assert_success(&out);
+        if !extra.is_empty() {
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(stdout.contains("re-partitioned at step 100"), "migration happened: {stdout}");
+        }
         let h = history(&path);
         assert_eq!(h.len(), golden.len(), "{ranks} ranks: same columns");
         for ((name, a), (name_b, b)) in golden.iter().zip(&h) {

@@ -231,6 +231,21 @@ impl Domain {
         all
     }
 
+    /// Personalised all-to-all of one count per rank: `send[q]` goes to rank q, and the
+    /// result's entry p is what rank p sent here (used to size migration messages).
+    ///
+    /// All ranks must call, with `send.len()` equal to the number of ranks.
+    pub fn all_to_all_u64(&self, send: &[u64]) -> Vec<u64> {
+        assert_eq!(send.len(), self.size, "all_to_all_u64: one count per rank");
+        let mut recv = vec![0u64; self.size];
+        if self.size == 1 {
+            recv[0] = send[0];
+        } else {
+            self.world.all_to_all_into(send, &mut recv[..]);
+        }
+        recv
+    }
+
     /// Replaces `root_bytes` on every rank by rank 0's bytes (length sent first, so other
     /// ranks may pass any vector, e.g. an empty one). Used to make every rank use the same
     /// scene text, provenance and restart data.

@@ -34,6 +34,35 @@ pub struct Scene {
     pub walls: Vec<WallSpec>,
     #[serde(default)]
     pub output: OutputSpec,
+    #[serde(default)]
+    pub parallel: ParallelSpec,
+}
+
+/// Load balancing under MPI (ignored on one rank).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParallelSpec {
+    /// Re-partition when the measured load imbalance (max/mean − 1 of the ranks' compute
+    /// time over the last check interval) exceeds this (–).
+    #[serde(default = "default_imbalance_threshold")]
+    pub imbalance_threshold: f64,
+    /// Steps between imbalance checks and ghost re-planning checks.
+    #[serde(default = "default_check_interval")]
+    pub check_interval: u64,
+}
+
+impl Default for ParallelSpec {
+    fn default() -> Self {
+        Self { imbalance_threshold: default_imbalance_threshold(), check_interval: default_check_interval() }
+    }
+}
+
+fn default_imbalance_threshold() -> f64 {
+    0.2
+}
+
+fn default_check_interval() -> u64 {
+    500
 }
 
 /// Time integration settings.

@@ -50,6 +50,9 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), St
     }
 }
 
+/// Top-level scene tables that have defaults and may be created by `--set`.
+const OPTIONAL_SECTIONS: [&str; 3] = ["contact", "output", "parallel"];
+
 fn step_into<'v>(
     node: &'v mut toml::Value,
     seg: &str,
@@ -61,9 +64,14 @@ fn step_into<'v>(
         format!("{walked}.{seg}")
     };
     match node {
-        toml::Value::Table(t) => t
-            .get_mut(seg)
-            .ok_or_else(|| format!("no field '{here}' in the scene")),
+        // Optional top-level sections may be absent from the file: `--set contact.friction=0.3`
+        // creates `[contact]` (serde then validates its fields as usual).
+        toml::Value::Table(t) => {
+            if walked.is_empty() && OPTIONAL_SECTIONS.contains(&seg) && !t.contains_key(seg) {
+                t.insert(seg.to_string(), toml::Value::Table(toml::Table::new()));
+            }
+            t.get_mut(seg).ok_or_else(|| format!("no field '{here}' in the scene"))
+        }
         toml::Value::Array(a) => {
             let i: usize = seg
                 .parse()

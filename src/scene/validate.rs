@@ -182,6 +182,10 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         validate_wall(&c, scene, i, w)?;
     }
 
+    c.non_negative("parallel.imbalance_threshold", scene.parallel.imbalance_threshold)?;
+    if scene.parallel.check_interval == 0 {
+        return Err(c.err("parallel.check_interval", "must be ≥ 1 step"));
+    }
     let o = &scene.output;
     if let Some(h) = o.history_interval {
         c.positive("output.history_interval", h)?;

@@ -214,6 +214,72 @@ fn write_frame(writer: &mut ResultsWriter, domain: &Domain, solver: &Solver, glo
     writer.write_frame(index, solver.state.time, &fields)
 }
 
+/// Measured load balance and ghost re-planning between steps (MPI runs only).
+struct LoadBalance {
+    /// Compute time (s) of this rank at the last check.
+    last_compute: f64,
+    /// Owned node positions at the last (re)plan, for the ghost-margin check.
+    x_at_plan: Vec<[f64; 3]>,
+    /// Halo plan of a new decomposition, handed to the caller.
+    halo: Option<crate::domain::halo::HaloPlan>,
+    /// The solver when nothing changed.
+    kept: Option<Solver>,
+}
+
+impl LoadBalance {
+    fn new(solver: &Solver) -> Self {
+        Self { last_compute: 0.0, x_at_plan: solver.state.x[..solver.model.owned_nodes].to_vec(), halo: None, kept: None }
+    }
+
+    fn compute_seconds(solver: &Solver) -> f64 {
+        let t = &solver.timers;
+        t.seconds(Stage::InternalForces) + t.seconds(Stage::Contact) + t.seconds(Stage::Boundary) + t.seconds(Stage::Integrate)
+    }
+
+    fn take_back(&mut self) -> Solver {
+        self.kept.take().expect("solver kept by the last check")
+    }
+
+    /// Re-partitions when the measured imbalance exceeds the threshold (vertex weights: each
+    /// rank's measured compute time spread over its grains by the static cost model), or
+    /// re-plans the ghosts when some grain moved by more than a quarter of the ghost margin.
+    /// Returns the new solver and owner table when grains or ghosts changed. All ranks
+    /// must call.
+    fn check(&mut self, domain: &Domain, loaded: &LoadedScene, global: &GlobalMesh, solver: Solver, owner: &[u32]) -> Result<Option<(Solver, Vec<u32>, usize)>> {
+        let spec = &loaded.scene.parallel;
+        let now = Self::compute_seconds(&solver);
+        let mine = now - self.last_compute;
+        self.last_compute = now;
+        let times: Vec<f64> = domain.all_gather_u64(mine.to_bits()).into_iter().map(f64::from_bits).collect();
+        let imbalance = crate::domain::decomposition::imbalance(&times);
+        let moved = solver.state.x[..solver.model.owned_nodes]
+            .iter()
+            .zip(&self.x_at_plan)
+            .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
+            .fold(0.0, f64::max);
+        let mut flags = [if imbalance > spec.imbalance_threshold { 1.0 } else { 0.0 }, moved];
+        domain.max_in_place(&mut flags);
+        let replan_ghosts = flags[1] > 0.25 * super::parallel::ghost_margin(global);
+        if flags[0] == 0.0 && !replan_ghosts {
+            self.kept = Some(solver);
+            return Ok(None);
+        }
+        let n = loaded.scene.grains.len();
+        let bounds = super::parallel::current_bounds(domain, &solver, owner, n);
+        let new_owner = if flags[0] > 0.0 {
+            super::parallel::repartition_measured(domain, global, &bounds, owner, &times)?
+        } else {
+            owner.to_vec()
+        };
+        let migrated = owner.iter().zip(&new_owner).filter(|(a, b)| a != b).count();
+        let (s, _plan, halo) = super::parallel::redistribute(domain, loaded, global, solver, owner, &new_owner, &bounds)?;
+        self.x_at_plan = s.state.x[..s.model.owned_nodes].to_vec();
+        self.last_compute = Self::compute_seconds(&s);
+        self.halo = Some(halo);
+        Ok(Some((s, new_owner, migrated)))
+    }
+}
+
 /// Runs a scene to its duration (or `max_steps`) and writes the results: serially, or
 /// under `mpirun` with the grains partitioned over the ranks (all ranks must call).
 pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<RunSummary> {
@@ -282,6 +348,8 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let mut progress = Progress::new(talk, "run");
     let mut row = Vec::new();
     let mut failure = None;
+    let mut owner = owner;
+    let mut balance = LoadBalance::new(&solver);
     while solver.state.step < last_step {
         if let Err(e) = solver.step_with(&mut hooks) {
             if domain.size() > 1 {
@@ -308,6 +376,21 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         }
         solver.timers.add(Stage::Output, t_out.elapsed());
         progress.update(n as f64 / last_step as f64, n, solver.state.time);
+        if domain.size() > 1 && n % scene.parallel.check_interval == 0 && n != last_step {
+            // complete the halo in flight before grains may change hands
+            hooks.halo.end(&mut solver.state.x, &mut solver.state.v)?;
+            if let Some((s, new_owner, moved)) = balance.check(domain, loaded, &global, solver, &owner)? {
+                solver = s;
+                if talk {
+                    println!("re-partitioned at step {n}: {moved} grains migrated (imbalance above {})", scene.parallel.imbalance_threshold);
+                }
+                owner = new_owner;
+                hooks = RankHooks { domain, halo: Halo::new(domain, balance.halo.take().unwrap_or_default()) };
+            } else {
+                solver = balance.take_back();
+                hooks.halo.begin(&solver.state.x, &solver.state.v)?;
+            }
+        }
     }
     progress.finish();
     // Keep what was computed up to a failure: history and a last frame help diagnose it.
