@@ -91,7 +91,7 @@ pub struct PrescribedMotion {
     pub angular_velocity: Option<History3>,
     /// Driven translation components (all three for rigid motions).
     pub components: [bool; 3],
-    /// Current rotation Q(t_n) (row-major), integrated from the angular velocity.
+    /// Rotation at t = 0 (row-major identity); the current one is solver state.
     pub rotation: [f64; 9],
 }
 
@@ -133,15 +133,14 @@ impl PrescribedMotion {
         ]
     }
 
-    /// Rotation at t_{n+1} from the one at t_n: Q ← exp(ω(t_{n+½})Δt)·Q. Returns the new
-    /// rotation without storing it (the caller commits it after the step).
-    pub fn rotation_after(&self, t_n: f64, dt: f64) -> [f64; 9] {
+    /// Rotation at t_{n+1} from the one at t_n (`current`): Q ← exp(ω(t_{n+½})Δt)·Q.
+    pub fn rotation_after(&self, current: &[f64; 9], t_n: f64, dt: f64) -> [f64; 9] {
         match &self.angular_velocity {
-            None => self.rotation,
+            None => *current,
             Some(h) => {
                 let w = h.value_at(t_n + 0.5 * dt);
                 let inc = rotation_from_vector([w[0] * dt, w[1] * dt, w[2] * dt]);
-                crate::material::mat_mul(&inc, &self.rotation)
+                crate::material::mat_mul(&inc, current)
             }
         }
     }

@@ -405,6 +405,8 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let energy = global_ledger(domain, &solver.state.energy);
     let mut maxima = [solver.state.contact.stats.max_penetration_run, solver.state.contact.stats.max_contacts_run as f64];
     domain.max_in_place(&mut maxima);
+    let mut contacts_now = [solver.state.contact.contacts() as f64, solver.state.contact.stats.rebuilds as f64];
+    domain.sum_in_place(&mut contacts_now[..1]);
     if let Some(e) = failure {
         return Err(e);
     }
@@ -441,14 +443,13 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
             e.relative_balance_error()
         );
         if solver.model.contact.active() {
-            let c = &solver.state.contact;
             println!(
                 "contact: {} points now, at most {}; max penetration {:.3e} m ({:.2e} × smallest surface edge); {} broad-phase rebuilds; {:.1}% of step time in contact",
-                c.contacts(),
+                contacts_now[0],
                 summary.max_contacts,
                 summary.max_penetration,
                 summary.max_penetration / solver.model.contact.min_edge.max(f64::MIN_POSITIVE),
-                c.stats.rebuilds,
+                contacts_now[1],
                 100.0 * summary.contact_share
             );
         }

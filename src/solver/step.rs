@@ -429,9 +429,8 @@ fn drive_prescribed_motions(
 ) {
     let t = state.time;
     for (k, motion) in motions.iter().enumerate() {
-        let mut working = motion.clone();
-        working.rotation = state.motion_rotation[k];
-        let q_next = working.rotation_after(t, dt);
+        let working = motion;
+        let q_next = working.rotation_after(&state.motion_rotation[k], t, dt);
         let c_next = working.centre_at(t + dt);
         let c_now = working.centre_at(t);
         let mut reaction = Reaction::default();
