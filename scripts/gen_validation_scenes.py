@@ -27,7 +27,8 @@ E_FLAT = E / (1 - NU**2)
 PARAMS = {
     "hertz": dict(
         v_plate=0.6,          # plate speed after the ramp
-        ramp=3.0e-6,          # raised-cosine ramp of the plate speed
+        ramp=3.0e-6,          # raised-cosine ramp of the plate speed (0: constant speed)
+        gap=0.0,              # initial gap between each plate and its pole
         delta_end=7.2e-6,     # plate travel covered by the duration (F_ref ≈ 55 N)
         target_dt=3.0e-9,     # mass scaling of the fine contact elements
         seeding=1.5e-4,       # global surface seeding
@@ -113,15 +114,24 @@ def merge(z_pts, x_pts):
 
 def hertz_scene(p):
     v_plate, ramp, delta_end = p["v_plate"], p["ramp"], p["delta_end"]
-    up = [(ramp * k / RAMP_POINTS, v_plate * 0.5 * (1 - math.cos(math.pi * k / RAMP_POINTS))) for k in range(RAMP_POINTS + 1)]
-    duration = ramp + (delta_end - 0.5 * v_plate * ramp) / v_plate
+    # the plates start `gap` away from the poles and are at full speed before they touch
+    # (no acceleration of the mass-scaled contact zone during the loading)
+    gap = p["gap"] if p["gap"] > 0 else 0.0
+    if ramp > 0:
+        up = [(ramp * k / RAMP_POINTS, v_plate * 0.5 * (1 - math.cos(math.pi * k / RAMP_POINTS))) for k in range(RAMP_POINTS + 1)]
+        travel_ramp = 0.5 * v_plate * ramp
+    else:
+        up, travel_ramp = [(0.0, v_plate)], 0.0
+    duration = ramp + (gap + delta_end - travel_ramp) / v_plate
+    motion = (f"raised-cosine ramp to {v_plate} m/s over {ramp*1e6:.1f} µs, then constant" if ramp > 0
+              else f"constant {v_plate} m/s from t = 0")
     damping = f"\n# damps vibration relative to the sphere's rigid motion\ndeformation_damping = {p['damping']:.3e}" if p["damping"] > 0 else ""
     refine = "\n".join(
         f"    {{ direction = [0.0, 0.0, {d}], seeding = 1.0e-5, radius = {p['refine_radius']:.4e}, growth = {p['growth']} }},"
         for d in ("1.0", "-1.0"))
     return f'''# Hertz normal contact: a glass sphere squeezed between two rigid frictionless plates
 # (THEORY.md §1, finite-sphere reference). Both plates approach the centre plane at the
-# same speed (raised-cosine ramp to {v_plate} m/s over {ramp*1e6:.1f} µs, then constant), so
+# same speed ({motion}), starting {gap*1e6:.2f} µm from the poles, so
 # δ = approach of each plate from first touch and F = plate force.
 #
 # How to run:  mufe validate hertz            (sweep of meshing ratios, plots, JSON)
@@ -153,13 +163,13 @@ friction = 0.0
 
 [[walls]]
 name = "top"
-point = [0.0, 0.0, {R:e}]
+point = [0.0, 0.0, {R + gap:.9e}]
 normal = [0.0, 0.0, -1.0]
 velocity = {fmt_hist([(t, -v) for t, v in up], 2)}
 
 [[walls]]
 name = "bottom"
-point = [0.0, 0.0, {-R:e}]
+point = [0.0, 0.0, {-R - gap:.9e}]
 normal = [0.0, 0.0, 1.0]
 velocity = {fmt_hist(up, 2)}
 

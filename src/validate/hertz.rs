@@ -65,11 +65,15 @@ impl Case for HertzCase {
         let reference = FiniteSphereReference::load();
         let hertz = Hertz::sphere_on_flat(&material, radius);
 
-        // first touch: the plates start at ±R; the faceted sphere's extreme nodes are at
-        // z_max ≤ R, so δ = plate travel − (R − z_max).
+        // first touch: the plates start at z_top ≥ R and z_bottom ≤ −R (a small gap lets them
+        // reach their constant speed before touching); the faceted sphere's extreme nodes are
+        // at z_max ≤ R, so δ = plate travel − (z_top − z_max).
+        let wall_z = |name: &str| -> Result<f64> {
+            loaded.scene.walls.iter().find(|w| w.name == name).map(|w| w.point[2]).ok_or_else(|| MufeError::Run(format!("hertz: no wall '{name}'")))
+        };
         let z_max = solver.state.x.iter().map(|p| p[2]).fold(f64::NEG_INFINITY, f64::max);
         let z_min = solver.state.x.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min);
-        let (gap_top, gap_bottom) = (radius - z_max, z_min + radius);
+        let (gap_top, gap_bottom) = (wall_z("top")? - z_max, z_min - wall_z("bottom")?);
         let delta_end = hertz.approach(1.04 * FORCE_RANGE.1 / 1.05);
         let mut probe = Probe::new(&solver);
         let sample_every = ((loaded.scene.output.history_interval.unwrap_or(5e-8) / solver.model.dt).round() as u64).max(1);
