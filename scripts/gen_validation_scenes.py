@@ -40,7 +40,7 @@ PARAMS = {
     "mindlin": dict(
         force=5.0, vn=0.3, n_ramp=3.0e-6, settle=3.0e-6,
         vt=0.15, t_ramp=2.0e-6, amplitude=1.5,   # tangential amplitude in units of δt,max
-        cycle=True,                               # unload to −amplitude, reload to +amplitude
+        reversals=2,          # 1: unload to −amplitude; 2: then reload to +amplitude
         target_dt=2.0e-9, damping=2.0e6, seeding=2.75e-4,
         refine_radius=2.0e-5, growth=0.15, history_interval=2.0e-8,
         clamp=1.0,            # driven/fixed parts: beyond the planes at ±clamp·R from the contact
@@ -260,12 +260,11 @@ def mindlin(p):
     amp = p["amplitude"] * dtmax
     seg, t = trapezoid(t, amp, p["vt"], p["t_ramp"])
     tangential = [(0.0, 0.0)] + seg
-    if p["cycle"]:
-        seg2, t = trapezoid(t, -2 * amp, p["vt"], p["t_ramp"])
-        seg3, t = trapezoid(t, 2 * amp, p["vt"], p["t_ramp"])
-        tangential += seg2[1:] + seg3[1:]
-    text = two_sphere_scene("mindlin", "Mindlin–Deresiewicz: two glass spheres, tangential loading at constant N"
-                            + (", unloading, reloading" if p["cycle"] else "") + " (THEORY.md §2)",
+    for k in range(p["reversals"]):
+        seg, t = trapezoid(t, (-2 if k % 2 == 0 else 2) * amp, p["vt"], p["t_ramp"])
+        tangential += seg[1:]
+    what = ["", ", unloading", ", unloading, reloading"][min(p["reversals"], 2)]
+    text = two_sphere_scene("mindlin", f"Mindlin–Deresiewicz: two glass spheres, tangential loading at constant N{what} (THEORY.md §2)",
                             p, drive_block(p, merge(normal, tangential)), t + 0.2e-6)
     return text
 
@@ -303,7 +302,7 @@ def main():
         key, value = item.split("=", 1)
         case, field = key.split(".", 1)
         old = PARAMS[case][field]
-        PARAMS[case][field] = (value.lower() in ("1", "true", "yes")) if isinstance(old, bool) else type(old)(float(value))
+        PARAMS[case][field] = type(old)(float(value))
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     texts = {"hertz": hertz_scene(PARAMS["hertz"]), "mindlin": mindlin(PARAMS["mindlin"]),

@@ -140,8 +140,10 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
     let e = &s.energy;
     row.clear();
     row.extend_from_slice(&[
-        s.time,
-        s.step as f64,
+        // energies, reactions and wall forces of a step describe t_n, the start of the step
+        // that has just been taken
+        if s.step > 0 { s.time - solver.model.dt } else { s.time },
+        s.step.saturating_sub(1) as f64,
         e.kinetic,
         e.strain,
         e.recoverable_strain,
