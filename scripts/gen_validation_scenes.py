@@ -27,7 +27,7 @@ E_FLAT = E / (1 - NU**2)
 PARAMS = {
     "hertz": dict(
         v_plate=0.6,          # plate speed after the ramp
-        ramp=3.0e-6,          # raised-cosine ramp of the plate speed (0: constant speed)
+        ramp=6.0e-6,          # raised-cosine ramp of the plate speed (0: constant speed)
         gap=0.0,              # initial gap between each plate and its pole
         delta_end=7.2e-6,     # plate travel covered by the duration (F_ref ≈ 55 N)
         target_dt=3.0e-9,     # mass scaling of the fine contact elements
@@ -38,26 +38,30 @@ PARAMS = {
         history_interval=2.5e-8,
     ),
     "mindlin": dict(
-        force=5.0, vn=0.3, n_ramp=3.0e-6, settle=3.0e-6,
-        vt=0.15, t_ramp=2.0e-6, amplitude=1.5,   # tangential amplitude in units of δt,max
+        force=5.0, approach_scale=0.92,
+        vn=1.0, n_ramp=2.0e-6, settle=2.0e-6,     # normal approach of the drive, then rest
+        vt=0.4, t_ramp=1.5e-6, amplitude=1.2,    # tangential amplitude in units of δt,max
         reversals=2,          # 1: unload to −amplitude; 2: then reload to +amplitude
         target_dt=2.0e-9, damping=2.0e6, seeding=2.75e-4,
         refine_radius=2.0e-5, growth=0.15, history_interval=2.0e-8,
-        clamp=1.0,            # driven/fixed parts: beyond the planes at ±clamp·R from the contact
+        # held/driven parts: beyond the planes at ∓clamp·R from the contact (1 = the far
+        # hemispheres). The half-space references leave out the compliance of the spheres
+        # between the contact and the held parts; see docs/BENCHMARKS.md (Validation).
+        clamp=0.5,
     ),
     "torsion": dict(
-        force=70.0, vn=0.5, n_ramp=3.0e-6, settle=3.0e-6,
+        force=70.0, approach_scale=0.92, vn=4.0, n_ramp=2.0e-6, settle=2.0e-6,
         twist_param=0.6,      # final G a² β/(μN) (c/a ≈ 0.1)
-        cruise=12e-6, t_ramp=3.0e-6,
+        cruise=5e-6, t_ramp=2.0e-6,
         target_dt=2.0e-9, damping=2.0e6, seeding=2.75e-4,
-        refine_radius=1.1e-4, growth=0.15, history_interval=2.0e-8, clamp=1.0,
+        refine_radius=1.1e-4, growth=0.3, history_interval=2.0e-8, clamp=0.5,
     ),
     "rolling": dict(
-        force=70.0, vn=0.5, n_ramp=3.0e-6, settle=3.0e-6,
+        force=70.0, approach_scale=0.92, vn=4.0, n_ramp=2.0e-6, settle=2.0e-6,
         amplitude=1.5,        # final Rθ in units of δt,max
-        cruise=12e-6, t_ramp=3.0e-6,
+        cruise=5e-6, t_ramp=2.0e-6,
         target_dt=2.0e-9, damping=2.0e6, seeding=2.75e-4,
-        refine_radius=1.1e-4, growth=0.15, history_interval=2.0e-8, clamp=1.0,
+        refine_radius=1.1e-4, growth=0.3, history_interval=2.0e-8, clamp=0.5,
     ),
 }
 
@@ -236,7 +240,9 @@ frames = false
 
 
 def normal_phase(p):
-    normal, t = trapezoid(0.0, -approach_pair(p["force"]), p["vn"], p["n_ramp"])
+    # approach_scale: the held parts at ±clamp·R make the pair stiffer than two Hertz
+    # half-spaces; the scale brings the measured N close to `force`
+    normal, t = trapezoid(0.0, -p["approach_scale"] * approach_pair(p["force"]), p["vn"], p["n_ramp"])
     return normal, t + p["settle"]
 
 
