@@ -216,6 +216,32 @@ fn write_frame(writer: &mut ResultsWriter, domain: &Domain, solver: &Solver, glo
     writer.write_frame(index, solver.state.time, &fields)
 }
 
+/// The energy ledger over time, drawn as `DIR/energy.png` at the end of a run.
+#[derive(Default)]
+struct EnergyPlot {
+    /// (t, ALLKE, ALLIE, ALLWK, ALLFD, ALLVD, ETOTAL) per history row.
+    rows: Vec<[f64; 7]>,
+}
+
+impl EnergyPlot {
+    /// Takes the columns it needs from a history row (layout of [`history_columns`]).
+    fn push(&mut self, row: &[f64]) {
+        self.rows.push([row[0], row[2], row[5], row[8], row[7], row[9], row[10]]);
+    }
+
+    fn draw(&self, path: &std::path::Path) -> Result<()> {
+        use crate::validate::plot::{draw, Plot, Scale, Series};
+        let names = ["kinetic ALLKE", "internal ALLIE", "external work ALLWK", "friction ALLFD", "damping ALLVD", "balance ETOTAL"];
+        let series = names
+            .iter()
+            .enumerate()
+            .map(|(k, name)| Series { label: (*name).into(), points: self.rows.iter().map(|r| (r[0] * 1e6, r[k + 1])).collect(), theory: k == 5 })
+            .collect();
+        draw(path, &Plot { title: "energy ledger", x_label: "time (µs)", y_label: "energy (J)", x_scale: Scale::Linear, y_scale: Scale::Linear, series })
+            .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
+    }
+}
+
 /// Measured load balance and ghost re-planning between steps (MPI runs only).
 struct LoadBalance {
     /// Compute time (s) of this rank at the last check.
@@ -347,6 +373,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         frame_index += 1;
     }
     let reductions = history_reductions(&solver);
+    let mut energy_plot = EnergyPlot::default();
     let mut progress = Progress::new(talk, "run");
     let mut row = Vec::new();
     let mut failure = None;
@@ -368,6 +395,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
             history_row(&solver, &mut row);
             reduce_row(domain, &reductions, &mut row);
             writer.push_history(&row)?;
+            energy_plot.push(&row);
         }
         if let Some(fe) = frame_every {
             if n % fe == 0 && n != last_step && scene.output.frames {
@@ -396,13 +424,19 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     }
     progress.finish();
     // Keep what was computed up to a failure: history and a last frame help diagnose it.
-    history_row(&solver, &mut row);
-    reduce_row(domain, &reductions, &mut row);
-    writer.push_history(&row)?;
+    if failure.is_some() || solver.state.step == 0 {
+        history_row(&solver, &mut row);
+        reduce_row(domain, &reductions, &mut row);
+        writer.push_history(&row)?;
+        energy_plot.push(&row);
+    }
     if scene.output.frames {
         write_frame(&mut writer, domain, &solver, &global, &owner, frame_index)?;
     }
     writer.close()?;
+    if root {
+        energy_plot.draw(&opts.out.join("energy.png"))?;
+    }
     // the summary reports global quantities
     let energy = global_ledger(domain, &solver.state.energy);
     let mut maxima = [solver.state.contact.stats.max_penetration_run, solver.state.contact.stats.max_contacts_run as f64];

@@ -21,7 +21,7 @@ pub const FORCE_RANGE: (f64, f64) = (0.5, 50.0);
 pub const TARGET: f64 = 0.03;
 
 /// Meshing ratio of the quick run (`--quick`, `cargo test`).
-pub const QUICK_MR: f64 = 0.0032;
+pub const QUICK_MR: f64 = 0.0023;
 
 pub struct HertzCase;
 

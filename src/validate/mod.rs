@@ -14,7 +14,7 @@ use runner::{Case, CaseOutcome};
 
 /// Quick runs (`mufe validate --quick`, `tests/validation_quick.rs`) use one coarse
 /// meshing ratio per case and this multiple of the full accuracy target.
-pub const QUICK_TOLERANCE_FACTOR: f64 = 2.5;
+pub const QUICK_TOLERANCE_FACTOR: f64 = 1.5;
 
 /// All cases, in the order they run.
 pub const CASE_NAMES: [&str; 4] = ["hertz", "mindlin", "torsion", "rolling"];

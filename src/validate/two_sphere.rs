@@ -62,8 +62,6 @@ fn momentum(solver: &crate::solver::Solver, grain: usize, centre: [f64; 3]) -> (
     (p, l)
 }
 
-/// Meshing ratio at the contact of the quick runs (`--quick`, `cargo test`).
-pub const QUICK_MR: f64 = 0.018;
 
 pub const MINDLIN_SCENE: &str = include_str!("../../jobs/validation/mindlin.toml");
 pub const TORSION_SCENE: &str = include_str!("../../jobs/validation/torsion.toml");
@@ -138,11 +136,27 @@ impl TwoSphereCase {
         }
     }
 
-    fn units(&self) -> (&'static str, &'static str, f64, f64) {
+    /// Axis labels of the dimensionless plots: x / x_scale(N), y / limit(N), so that every
+    /// meshing ratio (each with its own measured N) is drawn against one theory curve.
+    fn labels(&self) -> (&'static str, &'static str) {
         match self.kind {
-            Kind::Mindlin => ("relative tangential displacement δt (µm)", "tangential force Q (N)", 1e6, 1.0),
-            Kind::Torsion => ("relative twist 2β (mrad)", "twisting moment M (mN·m)", 1e3, 1e3),
-            Kind::Rolling => ("rotation θ (mrad)", "rolling moment M (mN·m)", 1e3, 1e3),
+            Kind::Mindlin => ("relative tangential displacement δt / δt,max", "tangential force Q / μN"),
+            Kind::Torsion => ("twist per sphere G a² β / (μN)", "twisting moment M / M_max (M_max = 3πμNa/16)"),
+            Kind::Rolling => ("rotation θ / θ_slip (θ_slip = δt,max / R')", "rolling moment M / (μN R'), R' = R − δn/2"),
+        }
+    }
+
+    /// The drive coordinate's natural scale at normal force n: δt,max (Mindlin), μN/(G a²)
+    /// per sphere, i.e. 2μN/(G a²) of relative twist (torsion), δt,max / lever (rolling).
+    fn x_scale(&self, s: &Setup, n: f64) -> f64 {
+        let md = Mindlin::identical_spheres(&s.material, s.radius, s.mu, n);
+        match self.kind {
+            Kind::Mindlin => md.slip_displacement,
+            Kind::Torsion => {
+                let l = Lubkin::identical_spheres(&s.material, s.radius, s.mu, n);
+                2.0 * l.mu * l.normal_force / (l.shear_modulus * l.a * l.a)
+            }
+            Kind::Rolling => md.slip_displacement / s.lever,
         }
     }
 }
@@ -158,7 +172,11 @@ impl Case for TwoSphereCase {
 
     fn default_mrs(&self, quick: bool) -> Vec<f64> {
         if quick {
-            vec![QUICK_MR]
+            // coarsest meshing ratio that meets the full target (docs/BENCHMARKS.md)
+            vec![match self.kind {
+                Kind::Mindlin => 0.009,
+                Kind::Torsion | Kind::Rolling => 0.018,
+            }]
         } else {
             vec![0.036, 0.018, 0.009, 0.0045]
         }
@@ -258,15 +276,15 @@ impl Case for TwoSphereCase {
                 break;
             }
         }
-        let (ux, uy) = (self.units().2, self.units().3);
+        let x_scale = self.x_scale(&setup, n_mean);
         let mut err: f64 = 0.0;
         let mut error_curve = Vec::new();
         for &(x, y, _, _) in &raw[..=x_peak_index] {
             let y_ref = self.reference(&setup, n_mean, x);
             err = err.max((y - y_ref).abs() / limit);
-            error_curve.push((x * ux, 100.0 * (y - y_ref) / limit));
+            error_curve.push((x / x_scale, 100.0 * (y - y_ref) / limit));
         }
-        curve.extend(raw.iter().map(|r| (r.0 * ux, r.1 * uy)));
+        curve.extend(raw.iter().map(|r| (r.0 / x_scale, r.1 / limit)));
         // Mindlin: the first unloading branch against the Masing rule from the FE's own
         // reversal point (a check of the hysteresis, beside the loading-branch metric)
         let masing_error = (self.kind == Kind::Mindlin && x_peak_index + 1 < raw.len()).then(|| {
@@ -318,34 +336,38 @@ impl Case for TwoSphereCase {
     }
 
     fn error_axis(&self) -> (&'static str, Scale) {
-        (self.units().0, Scale::Linear)
+        (self.labels().0, Scale::Linear)
     }
 
     fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>) {
-        let base = load_case_scene(self.name(), self.scene_text(), &[]).ok();
-        let mut setup = base.and_then(|b| self.setup(&b.scene).ok());
-        let n = outcomes.first().and_then(|o| o.details.get("normal_force_mean_n")).and_then(|v| v.as_f64());
-        if let (Some(s), Some(lever)) = (setup.as_mut(), outcomes.first().and_then(|o| o.details.get("lever_arm_m")).and_then(|v| v.as_f64())) {
-            s.lever = lever;
-        }
-        let (ux, uy) = (self.units().2, self.units().3);
+        // dimensionless: one theory curve for all meshing ratios (each FE curve is scaled
+        // with its own measured N)
+        let x_max = outcomes.iter().flat_map(|o| o.curve.iter().map(|p| p.0.abs())).fold(0.0, f64::max).max(1e-9);
+        let xs = |from: f64, to: f64| (0..=200).map(move |i| from + (to - from) * i as f64 / 200.0);
+        let unit = Mindlin { mu: 1.0, normal_force: 1.0, slip_displacement: 1.0 };
         let mut theory = Vec::new();
-        if let (Some(s), Some(n)) = (setup, n) {
-            let x_max = outcomes.iter().flat_map(|o| o.curve.iter().map(|p| p.0.abs())).fold(0.0, f64::max) / ux;
-            let pts: Vec<(f64, f64)> = (0..=200).map(|i| x_max * i as f64 / 200.0).map(|x| (x * ux, self.reference(&s, n, x) * uy)).collect();
-            theory.push(Series { label: format!("theory (N = {n:.2} N, loading)"), points: pts, theory: true });
-            if self.kind == Kind::Mindlin {
-                // Masing unloading from the FE reversal point and reloading from the other end
-                let md = Mindlin::identical_spheres(&s.material, s.radius, s.mu, n);
-                let d_star = x_max;
-                let q_star = md.loading(d_star);
-                let unload: Vec<(f64, f64)> = (0..=200).map(|i| d_star - 2.0 * d_star * i as f64 / 200.0).map(|x| (x * ux, md.unloading(d_star, q_star, x) * uy)).collect();
-                let reload: Vec<(f64, f64)> = (0..=200).map(|i| -d_star + 2.0 * d_star * i as f64 / 200.0).map(|x| (x * ux, md.unloading(-d_star, -q_star, x) * uy)).collect();
-                theory.push(Series { label: "Masing unloading / reloading".into(), points: unload, theory: true });
-                theory.push(Series { label: String::new(), points: reload, theory: true });
+        match self.kind {
+            Kind::Mindlin | Kind::Rolling => {
+                theory.push(Series { label: "theory, loading (Mindlin)".into(), points: xs(0.0, x_max).map(|x| (x, unit.loading(x))).collect(), theory: true });
+                if self.kind == Kind::Mindlin {
+                    // Masing unloading from the reversal point and reloading from the other end
+                    let (d, q) = (x_max, unit.loading(x_max));
+                    theory.push(Series { label: "Masing unloading / reloading".into(), points: xs(d, -d).map(|x| (x, unit.unloading(d, q, x))).collect(), theory: true });
+                    theory.push(Series { label: String::new(), points: xs(-d, d).map(|x| (x, unit.unloading(-d, -q, x))).collect(), theory: true });
+                }
+            }
+            Kind::Torsion => {
+                // Lubkin's curve is universal in these coordinates: evaluate it for any N
+                let base = load_case_scene(self.name(), self.scene_text(), &[]).ok();
+                if let Some(s) = base.and_then(|b| self.setup(&b.scene).ok()) {
+                    let l = Lubkin::identical_spheres(&s.material, s.radius, s.mu, 1.0);
+                    let scale = self.x_scale(&s, 1.0);
+                    let pts = xs(0.0, x_max).map(|x| (x, l.moment_at_relative_twist(x * scale) / l.full_slip_moment())).collect();
+                    theory.push(Series { label: "theory (Lubkin, exact)".into(), points: pts, theory: true });
+                }
             }
         }
-        let (xl, yl, _, _) = self.units();
+        let (xl, yl) = self.labels();
         let title = match self.kind {
             Kind::Mindlin => "Mindlin–Deresiewicz: tangential loading at constant N",
             Kind::Torsion => "Torsion about the contact normal (Lubkin)",
