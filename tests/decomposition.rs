@@ -53,7 +53,7 @@ fn halo_plans_of_two_ranks_pair_up_node_for_node() {
 fn a_packed_grain_arrives_with_its_exact_state() {
     let loaded = assembly();
     let mut serial = build_solver(&loaded).unwrap();
-    for _ in 0..150 {
+    for _ in 0..300 {
         serial.step().unwrap();
     }
     assert!(!serial.state.contact.history.is_empty(), "friction history exists to migrate");
