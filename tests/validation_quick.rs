@@ -14,7 +14,9 @@ fn run_quick(name: &str) {
     let target = case.target(true);
     for mr in case.default_mrs(true) {
         let t0 = std::time::Instant::now();
-        let o = case.run(mr, true, &[]).unwrap_or_else(|e| panic!("{name} at MR {mr}: {e}"));
+        let o = case
+            .run(mr, true, &[])
+            .unwrap_or_else(|e| panic!("{name} at MR {mr}: {e}"));
         println!(
             "{name}: MR {mr}, {} elements, {} steps, {:.1} s, error {:.2}% (quick target {:.1}%), details {}",
             o.elements,
@@ -24,7 +26,12 @@ fn run_quick(name: &str) {
             100.0 * target,
             serde_json::Value::Object(o.details.clone())
         );
-        assert!(o.error.is_finite() && o.error <= target, "{name} at MR {mr}: error {:.2}% above the quick target {:.1}%", 100.0 * o.error, 100.0 * target);
+        assert!(
+            o.error.is_finite() && o.error <= target,
+            "{name} at MR {mr}: error {:.2}% above the quick target {:.1}%",
+            100.0 * o.error,
+            100.0 * target
+        );
         assert!(o.curve.len() > 20, "{name}: too few samples on the curve");
     }
 }

@@ -3,9 +3,9 @@
 //! ratios; the documented error metric compares the FE curve with the reference over the
 //! whole loading range.
 
+pub mod hertz;
 pub mod plot;
 pub mod reference;
-pub mod hertz;
 pub mod runner;
 pub mod two_sphere;
 
@@ -21,16 +21,33 @@ pub const CASE_NAMES: [&str; 4] = ["hertz", "mindlin", "torsion", "rolling"];
 
 /// Resolves case names (empty: all) to case objects.
 pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> {
-    let names: Vec<String> = if names.is_empty() { CASE_NAMES.iter().map(|s| s.to_string()).collect() } else { names.to_vec() };
+    let names: Vec<String> = if names.is_empty() {
+        CASE_NAMES.iter().map(|s| s.to_string()).collect()
+    } else {
+        names.to_vec()
+    };
     names
         .iter()
         .map(|n| -> Result<Box<dyn Case>, InputError> {
             match n.as_str() {
                 "hertz" => Ok(Box::new(hertz::HertzCase)),
-                "mindlin" => Ok(Box::new(two_sphere::TwoSphereCase { kind: two_sphere::Kind::Mindlin })),
-                "torsion" => Ok(Box::new(two_sphere::TwoSphereCase { kind: two_sphere::Kind::Torsion })),
-                "rolling" => Ok(Box::new(two_sphere::TwoSphereCase { kind: two_sphere::Kind::Rolling })),
-                other => Err(InputError::new("<command line>", "CASE", format!("unknown validation case '{other}' (known: {})", CASE_NAMES.join(", ")))),
+                "mindlin" => Ok(Box::new(two_sphere::TwoSphereCase {
+                    kind: two_sphere::Kind::Mindlin,
+                })),
+                "torsion" => Ok(Box::new(two_sphere::TwoSphereCase {
+                    kind: two_sphere::Kind::Torsion,
+                })),
+                "rolling" => Ok(Box::new(two_sphere::TwoSphereCase {
+                    kind: two_sphere::Kind::Rolling,
+                })),
+                other => Err(InputError::new(
+                    "<command line>",
+                    "CASE",
+                    format!(
+                        "unknown validation case '{other}' (known: {})",
+                        CASE_NAMES.join(", ")
+                    ),
+                )),
             }
         })
         .collect()
@@ -43,8 +60,19 @@ pub fn finest_failures(outcomes: &[CaseOutcome]) -> Vec<String> {
     names
         .into_iter()
         .filter_map(|n| {
-            let finest = outcomes.iter().filter(|o| o.case == n).min_by(|a, b| a.mr.total_cmp(&b.mr))?;
-            (!finest.pass).then(|| format!("{} (MR {}, error {:.2}% > {:.1}%)", n, finest.mr, 100.0 * finest.error, 100.0 * finest.target))
+            let finest = outcomes
+                .iter()
+                .filter(|o| o.case == n)
+                .min_by(|a, b| a.mr.total_cmp(&b.mr))?;
+            (!finest.pass).then(|| {
+                format!(
+                    "{} (MR {}, error {:.2}% > {:.1}%)",
+                    n,
+                    finest.mr,
+                    100.0 * finest.error,
+                    100.0 * finest.target
+                )
+            })
         })
         .collect()
 }

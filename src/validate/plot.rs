@@ -30,11 +30,23 @@ pub struct Plot<'a> {
     pub series: Vec<Series>,
 }
 
-const PALETTE: [RGBColor; 6] = [RGBColor(31, 119, 180), RGBColor(214, 39, 40), RGBColor(44, 160, 44), RGBColor(148, 103, 189), RGBColor(255, 127, 14), RGBColor(23, 190, 207)];
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(255, 127, 14),
+    RGBColor(23, 190, 207),
+];
 
 fn bounds(series: &[Series], scale: Scale, pick: impl Fn(&(f64, f64)) -> f64) -> (f64, f64) {
-    let vals = series.iter().flat_map(|s| s.points.iter().map(&pick)).filter(|v| v.is_finite() && (scale == Scale::Linear || *v > 0.0));
-    let (mut lo, mut hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    let vals = series
+        .iter()
+        .flat_map(|s| s.points.iter().map(&pick))
+        .filter(|v| v.is_finite() && (scale == Scale::Linear || *v > 0.0));
+    let (mut lo, mut hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+        (a.min(v), b.max(v))
+    });
     if !lo.is_finite() {
         return (0.0, 1.0);
     }
@@ -58,7 +70,11 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
     let (x0, x1) = bounds(&plot.series, plot.x_scale, |p| p.0);
     let (y0, y1) = bounds(&plot.series, plot.y_scale, |p| p.1);
     let mut builder = ChartBuilder::on(&root);
-    builder.caption(plot.title, ("sans-serif", 26)).margin(20).x_label_area_size(55).y_label_area_size(90);
+    builder
+        .caption(plot.title, ("sans-serif", 26))
+        .margin(20)
+        .x_label_area_size(55)
+        .y_label_area_size(90);
     macro_rules! body {
         ($chart:expr) => {{
             let mut chart = $chart;
@@ -78,21 +94,32 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
                     .iter()
                     .copied()
                     .filter(|p| p.0.is_finite() && p.1.is_finite())
-                    .filter(|p| (plot.x_scale == Scale::Linear || p.0 > 0.0) && (plot.y_scale == Scale::Linear || p.1 > 0.0))
+                    .filter(|p| {
+                        (plot.x_scale == Scale::Linear || p.0 > 0.0)
+                            && (plot.y_scale == Scale::Linear || p.1 > 0.0)
+                    })
                     .collect();
                 if s.theory {
                     // first theory curve black, further ones grey
-                    let c = if theory_count == 0 { BLACK } else { RGBColor(150, 150, 150) };
+                    let c = if theory_count == 0 {
+                        BLACK
+                    } else {
+                        RGBColor(150, 150, 150)
+                    };
                     theory_count += 1;
                     chart
                         .draw_series(LineSeries::new(pts, c.stroke_width(3)))
                         .map_err(|e| e.to_string())?
                         .label(s.label.clone())
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3)));
+                        .legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3))
+                        });
                 } else {
                     let c = PALETTE[colour % PALETTE.len()];
                     colour += 1;
-                    chart.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2))).map_err(|e| e.to_string())?;
+                    chart
+                        .draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))
+                        .map_err(|e| e.to_string())?;
                     chart
                         .draw_series(pts.iter().map(|p| Circle::new(*p, 3, c.filled())))
                         .map_err(|e| e.to_string())?
@@ -111,12 +138,21 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
         }};
     }
     match (plot.x_scale, plot.y_scale) {
-        (Scale::Linear, Scale::Linear) => body!(builder.build_cartesian_2d(x0..x1, y0..y1).map_err(|e| e.to_string())?),
-        (Scale::Log, Scale::Log) => body!(builder.build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale()).map_err(|e| e.to_string())?),
-        (Scale::Log, Scale::Linear) => body!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1).map_err(|e| e.to_string())?),
-        (Scale::Linear, Scale::Log) => body!(builder.build_cartesian_2d(x0..x1, (y0..y1).log_scale()).map_err(|e| e.to_string())?),
+        (Scale::Linear, Scale::Linear) => body!(builder
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?),
+        (Scale::Log, Scale::Log) => body!(builder
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(|e| e.to_string())?),
+        (Scale::Log, Scale::Linear) => body!(builder
+            .build_cartesian_2d((x0..x1).log_scale(), y0..y1)
+            .map_err(|e| e.to_string())?),
+        (Scale::Linear, Scale::Log) => body!(builder
+            .build_cartesian_2d(x0..x1, (y0..y1).log_scale())
+            .map_err(|e| e.to_string())?),
     }
-    root.present().map_err(|e| format!("{}: {e}", path.display()))?;
+    root.present()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(())
 }
 
@@ -129,9 +165,31 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("mufe_plot_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("p.png");
-        let theory = Series { label: "theory".into(), points: (1..50).map(|i| (i as f64, (i as f64).powf(1.5))).collect(), theory: true };
-        let fe = Series { label: "FE".into(), points: (1..50).step_by(5).map(|i| (i as f64, 1.02 * (i as f64).powf(1.5))).collect(), theory: false };
-        draw(&path, &Plot { title: "test", x_label: "x", y_label: "y", x_scale: Scale::Log, y_scale: Scale::Log, series: vec![theory, fe] }).unwrap();
+        let theory = Series {
+            label: "theory".into(),
+            points: (1..50).map(|i| (i as f64, (i as f64).powf(1.5))).collect(),
+            theory: true,
+        };
+        let fe = Series {
+            label: "FE".into(),
+            points: (1..50)
+                .step_by(5)
+                .map(|i| (i as f64, 1.02 * (i as f64).powf(1.5)))
+                .collect(),
+            theory: false,
+        };
+        draw(
+            &path,
+            &Plot {
+                title: "test",
+                x_label: "x",
+                y_label: "y",
+                x_scale: Scale::Log,
+                y_scale: Scale::Log,
+                series: vec![theory, fe],
+            },
+        )
+        .unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
         assert!(bytes.len() > 5000);

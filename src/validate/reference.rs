@@ -16,11 +16,17 @@ pub struct Hertz {
 impl Hertz {
     /// Sphere on a rigid flat: E* = E/(1−ν²), R* = R.
     pub fn sphere_on_flat(m: &ElasticParameters, radius: f64) -> Self {
-        Self { e_star: m.plane_strain_modulus(), r_star: radius }
+        Self {
+            e_star: m.plane_strain_modulus(),
+            r_star: radius,
+        }
     }
     /// Two identical spheres, δ = total approach: E* = E/(2(1−ν²)), R* = R/2.
     pub fn identical_spheres(m: &ElasticParameters, radius: f64) -> Self {
-        Self { e_star: 0.5 * m.plane_strain_modulus(), r_star: 0.5 * radius }
+        Self {
+            e_star: 0.5 * m.plane_strain_modulus(),
+            r_star: 0.5 * radius,
+        }
     }
     /// F(δ) (N).
     pub fn force(&self, delta: f64) -> f64 {
@@ -52,17 +58,25 @@ pub struct FiniteSphereReference {
 }
 
 /// The table as shipped (converged axisymmetric FE; see the CSV header).
-pub const FINITE_SPHERE_CSV: &str = include_str!("../../jobs/validation/hertz_finite_sphere_reference.csv");
+pub const FINITE_SPHERE_CSV: &str =
+    include_str!("../../jobs/validation/hertz_finite_sphere_reference.csv");
 
 impl FiniteSphereReference {
     /// Parses the CSV (R = 1.1 mm, E = 63 GPa, ν = 0.22 in the table).
     pub fn load() -> Self {
-        let table = ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 };
+        let table = ElasticParameters {
+            youngs_modulus: 63e9,
+            poisson_ratio: 0.22,
+            density: 2500.0,
+        };
         let (r, e_star) = (1.1e-3, table.plane_strain_modulus());
         let mut points = Vec::new();
         for line in FINITE_SPHERE_CSV.lines() {
             let cols: Vec<&str> = line.split(',').collect();
-            if let (Some(d), Some(f)) = (cols.first().and_then(|s| s.trim().parse::<f64>().ok()), cols.get(1).and_then(|s| s.trim().parse::<f64>().ok())) {
+            if let (Some(d), Some(f)) = (
+                cols.first().and_then(|s| s.trim().parse::<f64>().ok()),
+                cols.get(1).and_then(|s| s.trim().parse::<f64>().ok()),
+            ) {
                 points.push((d * 1e-6 / r, f / (e_star * r * r)));
             }
         }
@@ -96,11 +110,20 @@ pub struct Mindlin {
 }
 
 impl Mindlin {
-    pub fn identical_spheres(m: &ElasticParameters, radius: f64, mu: f64, normal_force: f64) -> Self {
+    pub fn identical_spheres(
+        m: &ElasticParameters,
+        radius: f64,
+        mu: f64,
+        normal_force: f64,
+    ) -> Self {
         let a = Hertz::identical_spheres(m, radius).contact_radius(normal_force);
         let g = m.shear_modulus();
         let nu = m.poisson_ratio;
-        Self { mu, normal_force, slip_displacement: 3.0 * mu * normal_force * (2.0 - nu) / (8.0 * g * a) }
+        Self {
+            mu,
+            normal_force,
+            slip_displacement: 3.0 * mu * normal_force * (2.0 - nu) / (8.0 * g * a),
+        }
     }
     /// Q(δt) on monotonic loading from zero: μN[1 − (1 − δt/δt,max)^{3/2}].
     pub fn loading(&self, dt: f64) -> f64 {
@@ -148,9 +171,19 @@ pub struct Lubkin {
 }
 
 impl Lubkin {
-    pub fn identical_spheres(m: &ElasticParameters, radius: f64, mu: f64, normal_force: f64) -> Self {
+    pub fn identical_spheres(
+        m: &ElasticParameters,
+        radius: f64,
+        mu: f64,
+        normal_force: f64,
+    ) -> Self {
         let a = Hertz::identical_spheres(m, radius).contact_radius(normal_force);
-        Self { mu, normal_force, a, shear_modulus: m.shear_modulus() }
+        Self {
+            mu,
+            normal_force,
+            a,
+            shear_modulus: m.shear_modulus(),
+        }
     }
     /// Full-slip moment M_max = 3πμNa/16 (N·m).
     pub fn full_slip_moment(&self) -> f64 {
@@ -161,7 +194,9 @@ impl Lubkin {
         let a = self.a;
         let k = (1.0 - (c / a).powi(2)).max(0.0).sqrt();
         let (kk, ee) = elliptic_k_e(k);
-        let beta = 3.0 * self.mu * self.normal_force / (4.0 * std::f64::consts::PI * self.shear_modulus * a * a) * (kk - ee);
+        let beta = 3.0 * self.mu * self.normal_force
+            / (4.0 * std::f64::consts::PI * self.shear_modulus * a * a)
+            * (kk - ee);
         let p0 = 3.0 * self.normal_force / (2.0 * std::f64::consts::PI * a * a);
         // M = (8μp0/3) ∫_c^a E(√(1 − t²/a²)) t² dt, Simpson's rule
         let n = 400;
@@ -218,7 +253,11 @@ mod tests {
     use super::*;
 
     fn glass() -> ElasticParameters {
-        ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 }
+        ElasticParameters {
+            youngs_modulus: 63e9,
+            poisson_ratio: 0.22,
+            density: 2500.0,
+        }
     }
 
     #[test]
@@ -246,7 +285,10 @@ mod tests {
     #[test]
     fn elliptic_integrals_known_values() {
         let (k, e) = elliptic_k_e(0.0);
-        assert!((k - std::f64::consts::FRAC_PI_2).abs() < 1e-14 && (e - std::f64::consts::FRAC_PI_2).abs() < 1e-14);
+        assert!(
+            (k - std::f64::consts::FRAC_PI_2).abs() < 1e-14
+                && (e - std::f64::consts::FRAC_PI_2).abs() < 1e-14
+        );
         // K(1/√2) = Γ(1/4)²/(4√π) = 1.854074677301372
         let (k, e) = elliptic_k_e(0.5f64.sqrt());
         assert!((k - 1.854_074_677_301_372).abs() < 1e-12);
@@ -260,7 +302,11 @@ mod tests {
         let l = Lubkin::identical_spheres(&m, 1.1e-3, 0.22, 70.0);
         let (beta, moment) = l.point(0.6 * l.a);
         let mun = l.mu * l.normal_force;
-        assert!((moment / (mun * l.a) - 0.481).abs() < 0.002, "{}", moment / (mun * l.a));
+        assert!(
+            (moment / (mun * l.a) - 0.481).abs() < 0.002,
+            "{}",
+            moment / (mun * l.a)
+        );
         assert!((l.shear_modulus * l.a * l.a * beta / mun - 0.1716).abs() < 0.001);
         // M → M_max as c → 0, and M_max(70 N) = 8.668e-4 N·m
         assert!((l.full_slip_moment() - 8.668e-4).abs() < 0.002e-4);
@@ -268,7 +314,10 @@ mod tests {
         // initial stiffness per body 16 G a³/3
         let (b, mo) = l.point(0.999 * l.a);
         let k = mo / b;
-        assert!((k / (16.0 * l.shear_modulus * l.a.powi(3) / 3.0) - 1.0).abs() < 0.02, "{k}");
+        assert!(
+            (k / (16.0 * l.shear_modulus * l.a.powi(3) / 3.0) - 1.0).abs() < 0.02,
+            "{k}"
+        );
     }
 
     #[test]

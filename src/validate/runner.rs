@@ -57,10 +57,15 @@ pub trait Case {
 pub fn load_case_scene(name: &str, text: &str, overrides: &[String]) -> Result<LoadedScene> {
     if let Some(dir) = std::env::var_os("MUFE_VALIDATION_SCENES") {
         let path = Path::new(&dir).join(format!("{name}.toml"));
-        let text = std::fs::read_to_string(&path).map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
         return Ok(parse_scene(&path.display().to_string(), &text, overrides)?);
     }
-    Ok(parse_scene(&format!("jobs/validation/{name}.toml"), text, overrides)?)
+    Ok(parse_scene(
+        &format!("jobs/validation/{name}.toml"),
+        text,
+        overrides,
+    )?)
 }
 
 /// Reads named history columns from a solver while it runs.
@@ -71,7 +76,13 @@ pub struct Probe {
 
 impl Probe {
     pub fn new(solver: &Solver) -> Self {
-        Self { names: history_columns(solver).into_iter().map(|c| c.name).collect(), row: Vec::new() }
+        Self {
+            names: history_columns(solver)
+                .into_iter()
+                .map(|c| c.name)
+                .collect(),
+            row: Vec::new(),
+        }
     }
     /// Refreshes the values from the solver's current state.
     pub fn sample(&mut self, solver: &Solver) {
@@ -94,15 +105,24 @@ pub fn case_solver(loaded: &LoadedScene) -> Result<Solver> {
 
 /// Runs the given cases over their meshing ratios, prints the table, writes
 /// `out/validation.json` and the plots. Returns all outcomes.
-pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out: &Path, overrides: &[String]) -> Result<Vec<CaseOutcome>> {
-    std::fs::create_dir_all(out).map_err(|e| MufeError::Io(format!("{}: cannot create directory: {e}", out.display())))?;
+pub fn run_cases(
+    cases: &[Box<dyn Case>],
+    mrs: Option<&[f64]>,
+    quick: bool,
+    out: &Path,
+    overrides: &[String],
+) -> Result<Vec<CaseOutcome>> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| MufeError::Io(format!("{}: cannot create directory: {e}", out.display())))?;
     println!(
         "{:<9} {:>8} {:>9} {:>8} {:>9} {:>9} {:>8} {:>5}",
         "case", "MR", "elements", "steps", "wall s", "error", "target", "pass"
     );
     let mut all = Vec::new();
     for case in cases {
-        let list = mrs.map(|m| m.to_vec()).unwrap_or_else(|| case.default_mrs(quick));
+        let list = mrs
+            .map(|m| m.to_vec())
+            .unwrap_or_else(|| case.default_mrs(quick));
         let mut outcomes = Vec::new();
         for mr in list {
             let t0 = Instant::now();
@@ -124,7 +144,11 @@ pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out:
         let (mut p, theory) = case.plot(&outcomes);
         let mut series = theory;
         for o in &outcomes {
-            series.push(Series { label: format!("FE, MR = {:.4} ({} elements)", o.mr, o.elements), points: o.curve.clone(), theory: false });
+            series.push(Series {
+                label: format!("FE, MR = {:.4} ({} elements)", o.mr, o.elements),
+                points: o.curve.clone(),
+                theory: false,
+            });
         }
         p.series = series;
         let png = out.join(format!("{}.png", case.name()));
@@ -133,12 +157,23 @@ pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out:
             let png = out.join(format!("{}_error.png", case.name()));
             let series = outcomes
                 .iter()
-                .map(|o| Series { label: format!("MR = {:.4}", o.mr), points: o.error_curve.clone(), theory: false })
+                .map(|o| Series {
+                    label: format!("MR = {:.4}", o.mr),
+                    points: o.error_curve.clone(),
+                    theory: false,
+                })
                 .collect();
             let (x_label, x_scale) = case.error_axis();
             plot::draw(
                 &png,
-                &Plot { title: "signed error vs reference along the loading", x_label, y_label: "(FE − reference)/reference (%)", x_scale, y_scale: Scale::Linear, series },
+                &Plot {
+                    title: "signed error vs reference along the loading",
+                    x_label,
+                    y_label: "(FE − reference)/reference (%)",
+                    x_scale,
+                    y_scale: Scale::Linear,
+                    series,
+                },
             )
             .map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
         }
@@ -147,7 +182,11 @@ pub fn run_cases(cases: &[Box<dyn Case>], mrs: Option<&[f64]>, quick: bool, out:
     }
     write_json(&out.join("validation.json"), &all)?;
     speed_vs_error_plot(&out.join("speed_vs_error.png"), &all)?;
-    println!("wrote {}, {} and one PNG per case", out.join("validation.json").display(), out.join("speed_vs_error.png").display());
+    println!(
+        "wrote {}, {} and one PNG per case",
+        out.join("validation.json").display(),
+        out.join("speed_vs_error.png").display()
+    );
     Ok(all)
 }
 
@@ -197,7 +236,10 @@ pub fn deformation_kinetic_energy(solver: &Solver) -> f64 {
             l += m * r.cross(&(Vector3::from(state.v[n]) - vc));
             inertia += m * (Matrix3::identity() * r.dot(&r) - r * r.transpose());
         }
-        let w = inertia.try_inverse().map(|i| i * l).unwrap_or_else(Vector3::zeros);
+        let w = inertia
+            .try_inverse()
+            .map(|i| i * l)
+            .unwrap_or_else(Vector3::zeros);
         for n in nodes {
             let r = Vector3::from(state.x[n]) - c;
             let dv = Vector3::from(state.v[n]) - vc - w.cross(&r);
@@ -214,13 +256,24 @@ fn speed_vs_error_plot(path: &Path, outcomes: &[CaseOutcome]) -> Result<()> {
         .iter()
         .map(|n| Series {
             label: n.to_string(),
-            points: outcomes.iter().filter(|o| o.case == *n).map(|o| (o.wall_s, 100.0 * o.error.max(1e-6))).collect(),
+            points: outcomes
+                .iter()
+                .filter(|o| o.case == *n)
+                .map(|o| (o.wall_s, 100.0 * o.error.max(1e-6)))
+                .collect(),
             theory: false,
         })
         .collect();
     plot::draw(
         path,
-        &Plot { title: "speed vs error (all cases, all MR)", x_label: "wall time (s)", y_label: "error vs reference (%)", x_scale: Scale::Log, y_scale: Scale::Log, series },
+        &Plot {
+            title: "speed vs error (all cases, all MR)",
+            x_label: "wall time (s)",
+            y_label: "error vs reference (%)",
+            x_scale: Scale::Log,
+            y_scale: Scale::Log,
+            series,
+        },
     )
     .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
 }
@@ -229,11 +282,17 @@ fn speed_vs_error_plot(path: &Path, outcomes: &[CaseOutcome]) -> Result<()> {
 pub fn parse_mr_list(s: &str) -> std::result::Result<Vec<f64>, InputError> {
     s.split(',')
         .map(|p| {
-            let v: f64 = p.trim().parse().map_err(|_| InputError::new("<command line>", "--mr", format!("'{p}' is not a number")))?;
+            let v: f64 = p.trim().parse().map_err(|_| {
+                InputError::new("<command line>", "--mr", format!("'{p}' is not a number"))
+            })?;
             if v.is_finite() && v > 0.0 && v < 1.0 {
                 Ok(v)
             } else {
-                Err(InputError::new("<command line>", "--mr", format!("meshing ratio must be in (0, 1), got {v}")))
+                Err(InputError::new(
+                    "<command line>",
+                    "--mr",
+                    format!("meshing ratio must be in (0, 1), got {v}"),
+                ))
             }
         })
         .collect()

@@ -1,18 +1,29 @@
-//! Two identical spheres touching at the origin: the lower one's far hemisphere is fixed,
-//! the upper one's far hemisphere (boundary `drive`) is moved rigidly — first down to the
-//! normal force N, then tangentially (Mindlin), twisted about the normal (torsion) or
-//! rotated about its own centre (rolling). N is measured at the drive during the second
-//! phase and the reference is evaluated with it, so a mesh whose normal stiffness differs
-//! a little from Hertz is still judged on the tangential law alone.
+//! Two identical spheres touching at the origin: the lower one is held fixed beyond a
+//! plane below the contact (boundary `base`), the upper one is moved rigidly beyond a plane
+//! above it (boundary `drive`) — first down to the normal force N, then tangentially
+//! (Mindlin), twisted about the normal (torsion) or rotated about its own centre (rolling).
+//! The planes are at ∓R/2 from the contact in the shipped scenes (`clamp` in
+//! `scripts/gen_validation_scenes.py`; docs/BENCHMARKS.md shows the far hemispheres too).
+//!
+//! What is measured: the force and moment the contact transmits to the lower sphere, i.e.
+//! the base reaction plus the rate of change of the lower sphere's linear and angular
+//! momentum (so the vibration of its free part does not show), and N from the same
+//! balance. The reference is evaluated with the N measured during the case motion, so a
+//! mesh whose normal stiffness differs a little from Hertz is still judged on the
+//! tangential law alone.
 //!
 //! Error metrics (fractions of the limit value):
-//! - mindlin: max |Q − Q_MD(δt)| / μN over the first loading branch;
+//! - mindlin: max |Q − Q_MD(δt)| / μN over the first loading branch (the first unloading
+//!   branch against the Masing rule is reported beside it);
 //! - torsion: max |M − M_Lubkin(2β)| / M_max over the loading branch (exact parametric curve);
-//! - rolling: max |M − M_ref(θ)| / μNR over the loading branch.
+//! - rolling: max |M − M_ref(θ)| / (μN R') over the loading branch, R' = R − δn/2 the
+//!   lever of the contact force about the upper centre.
 
 use super::plot::{Plot, Scale, Series};
 use super::reference::{Lubkin, Mindlin, Rolling};
-use super::runner::{case_solver, deformation_kinetic_energy, load_case_scene, Case, CaseOutcome, Probe};
+use super::runner::{
+    case_solver, deformation_kinetic_energy, load_case_scene, Case, CaseOutcome, Probe,
+};
 use crate::error::{MufeError, Result};
 use crate::material::ElasticParameters;
 use crate::scene::ShapeSpec;
@@ -46,7 +57,11 @@ struct Sample {
 
 /// Linear momentum and angular momentum about `centre` of one grain (with the masses the
 /// dynamics use).
-fn momentum(solver: &crate::solver::Solver, grain: usize, centre: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+fn momentum(
+    solver: &crate::solver::Solver,
+    grain: usize,
+    centre: [f64; 3],
+) -> ([f64; 3], [f64; 3]) {
     let (model, state) = (&solver.model, &solver.state);
     let (mut p, mut l) = ([0.0; 3], [0.0; 3]);
     for n in model.grains[grain].nodes.clone() {
@@ -61,7 +76,6 @@ fn momentum(solver: &crate::solver::Solver, grain: usize, centre: [f64; 3]) -> (
     }
     (p, l)
 }
-
 
 pub const MINDLIN_SCENE: &str = include_str!("../../jobs/validation/mindlin.toml");
 pub const TORSION_SCENE: &str = include_str!("../../jobs/validation/torsion.toml");
@@ -89,10 +103,17 @@ impl TwoSphereCase {
         let g = &scene.grains[0];
         let m = &scene.materials[&g.material];
         let ShapeSpec::Sphere(s) = &g.shape else {
-            return Err(MufeError::Run(format!("{}: grains must be spheres", self.name())));
+            return Err(MufeError::Run(format!(
+                "{}: grains must be spheres",
+                self.name()
+            )));
         };
         Ok(Setup {
-            material: ElasticParameters { youngs_modulus: m.youngs_modulus, poisson_ratio: m.poisson_ratio, density: m.density },
+            material: ElasticParameters {
+                youngs_modulus: m.youngs_modulus,
+                poisson_ratio: m.poisson_ratio,
+                density: m.density,
+            },
             radius: s.radius,
             mu: scene.contact.friction,
             lever: s.radius,
@@ -109,12 +130,23 @@ impl TwoSphereCase {
         let n = probe.get("base_force_z")?;
         let dz = probe.get("drive_displacement_z")?;
         Ok(match self.kind {
-            Kind::Mindlin => (probe.get("drive_displacement_x")?, -probe.get("base_force_x")?, n, dz),
-            Kind::Torsion => (probe.get("drive_rotation_z")?, -probe.get("base_moment_z")?, n, dz),
+            Kind::Mindlin => (
+                probe.get("drive_displacement_x")?,
+                -probe.get("base_force_x")?,
+                n,
+                dz,
+            ),
+            Kind::Torsion => (
+                probe.get("drive_rotation_z")?,
+                -probe.get("base_moment_z")?,
+                n,
+                dz,
+            ),
             Kind::Rolling => {
                 // moment about the upper sphere's current centre (0,0,R+dz) of the contact
                 // force and couple, from the base reaction about the lower centre (0,0,−R)
-                let m = probe.get("base_moment_x")? + (2.0 * radius + dz) * probe.get("base_force_y")?;
+                let m = probe.get("base_moment_x")?
+                    + (2.0 * radius + dz) * probe.get("base_force_y")?;
                 (probe.get("drive_rotation_x")?, -m, n, dz)
             }
         })
@@ -123,15 +155,22 @@ impl TwoSphereCase {
     fn reference(&self, s: &Setup, n: f64, x: f64) -> f64 {
         match self.kind {
             Kind::Mindlin => Mindlin::identical_spheres(&s.material, s.radius, s.mu, n).loading(x),
-            Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).moment_at_relative_twist(x),
-            Kind::Rolling => Rolling { radius: s.lever, mindlin: Mindlin::identical_spheres(&s.material, s.radius, s.mu, n) }.moment(x),
+            Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n)
+                .moment_at_relative_twist(x),
+            Kind::Rolling => Rolling {
+                radius: s.lever,
+                mindlin: Mindlin::identical_spheres(&s.material, s.radius, s.mu, n),
+            }
+            .moment(x),
         }
     }
 
     fn limit(&self, s: &Setup, n: f64) -> f64 {
         match self.kind {
             Kind::Mindlin => s.mu * n,
-            Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).full_slip_moment(),
+            Kind::Torsion => {
+                Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).full_slip_moment()
+            }
             Kind::Rolling => s.mu * n * s.lever,
         }
     }
@@ -140,9 +179,18 @@ impl TwoSphereCase {
     /// meshing ratio (each with its own measured N) is drawn against one theory curve.
     fn labels(&self) -> (&'static str, &'static str) {
         match self.kind {
-            Kind::Mindlin => ("relative tangential displacement δt / δt,max", "tangential force Q / μN"),
-            Kind::Torsion => ("twist per sphere G a² β / (μN)", "twisting moment M / M_max (M_max = 3πμNa/16)"),
-            Kind::Rolling => ("rotation θ / θ_slip (θ_slip = δt,max / R')", "rolling moment M / (μN R'), R' = R − δn/2"),
+            Kind::Mindlin => (
+                "relative tangential displacement δt / δt,max",
+                "tangential force Q / μN",
+            ),
+            Kind::Torsion => (
+                "twist per sphere G a² β / (μN)",
+                "twisting moment M / M_max (M_max = 3πμNa/16)",
+            ),
+            Kind::Rolling => (
+                "rotation θ / θ_slip (θ_slip = δt,max / R')",
+                "rolling moment M / (μN R'), R' = R − δn/2",
+            ),
         }
     }
 
@@ -200,20 +248,37 @@ impl Case for TwoSphereCase {
         let base = load_case_scene(name, self.scene_text(), &[])?;
         let setup = self.setup(&base.scene)?;
         let s = mr * 2.0 * setup.radius;
-        let mut sets = vec![format!("grains[0].shape.sphere.refine[0].seeding={s:e}"), format!("grains[1].shape.sphere.refine[0].seeding={s:e}")];
+        let mut sets = vec![
+            format!("grains[0].shape.sphere.refine[0].seeding={s:e}"),
+            format!("grains[1].shape.sphere.refine[0].seeding={s:e}"),
+        ];
         sets.extend_from_slice(overrides);
         let loaded = load_case_scene(name, self.scene_text(), &sets)?;
         let mut solver = case_solver(&loaded)?;
         let mut probe = Probe::new(&solver);
-        let sample_every = ((loaded.scene.output.history_interval.unwrap_or(2e-8) / solver.model.dt).round() as u64).max(1);
+        let sample_every =
+            ((loaded.scene.output.history_interval.unwrap_or(2e-8) / solver.model.dt).round()
+                as u64)
+                .max(1);
         let max_steps = (loaded.scene.simulation.duration / solver.model.dt).ceil() as u64;
 
         // the lower sphere's momentum: its rate is added to the base reaction so that the
         // measured force and moment are those of the contact, without the inertia of the
         // lower sphere's free half (whose bending vibration would show up otherwise)
-        let lower = solver.model.grains.iter().position(|g| g.name == "lower").unwrap_or(0);
+        let lower = solver
+            .model
+            .grains
+            .iter()
+            .position(|g| g.name == "lower")
+            .unwrap_or(0);
         // about the point the base moment refers to
-        let centre_lower = loaded.scene.boundaries.iter().find(|b| b.name == "base").and_then(|b| b.centre).unwrap_or(solver.model.grains[lower].centre0);
+        let centre_lower = loaded
+            .scene
+            .boundaries
+            .iter()
+            .find(|b| b.name == "base")
+            .and_then(|b| b.centre)
+            .unwrap_or(solver.model.grains[lower].centre0);
         let mut samples: Vec<Sample> = Vec::new();
         let (mut ke_ie, mut ke_def_ie): (f64, f64) = (0.0, 0.0);
         let mut tangential_started = false;
@@ -229,7 +294,16 @@ impl Case for TwoSphereCase {
             if !tangential_started && x.abs() > 0.0 {
                 tangential_started = true;
             }
-            samples.push(Sample { t: solver.state.time, x, y, n, dz, p, l, tangential: tangential_started });
+            samples.push(Sample {
+                t: solver.state.time,
+                x,
+                y,
+                n,
+                dz,
+                p,
+                l,
+                tangential: tangential_started,
+            });
             if tangential_started {
                 let ie = probe.get("internal_energy")?.max(1e-300);
                 ke_ie = ke_ie.max(probe.get("kinetic_energy")? / ie);
@@ -242,7 +316,10 @@ impl Case for TwoSphereCase {
             if !samples[k].tangential {
                 continue;
             }
-            let (a, b) = (&samples[k.saturating_sub(1)], &samples[(k + 1).min(samples.len() - 1)]);
+            let (a, b) = (
+                &samples[k.saturating_sub(1)],
+                &samples[(k + 1).min(samples.len() - 1)],
+            );
             let dt = (b.t - a.t).max(1e-300);
             let dp: Vec<f64> = (0..3).map(|i| (b.p[i] - a.p[i]) / dt).collect();
             let dl: Vec<f64> = (0..3).map(|i| (b.l[i] - a.l[i]) / dt).collect();
@@ -287,20 +364,22 @@ impl Case for TwoSphereCase {
         curve.extend(raw.iter().map(|r| (r.0 / x_scale, r.1 / limit)));
         // Mindlin: the first unloading branch against the Masing rule from the FE's own
         // reversal point (a check of the hysteresis, beside the loading-branch metric)
-        let masing_error = (self.kind == Kind::Mindlin && x_peak_index + 1 < raw.len()).then(|| {
-            let md = Mindlin::identical_spheres(&setup.material, setup.radius, setup.mu, n_mean);
-            let (x_star, q_star) = (raw[x_peak_index].0, raw[x_peak_index].1);
-            let mut x_min = x_star;
-            let mut e: f64 = 0.0;
-            for r in &raw[x_peak_index..] {
-                if r.0 > x_min + 0.01 * x_star.abs() {
-                    break; // second reversal
+        let masing_error =
+            (self.kind == Kind::Mindlin && x_peak_index + 1 < raw.len()).then(|| {
+                let md =
+                    Mindlin::identical_spheres(&setup.material, setup.radius, setup.mu, n_mean);
+                let (x_star, q_star) = (raw[x_peak_index].0, raw[x_peak_index].1);
+                let mut x_min = x_star;
+                let mut e: f64 = 0.0;
+                for r in &raw[x_peak_index..] {
+                    if r.0 > x_min + 0.01 * x_star.abs() {
+                        break; // second reversal
+                    }
+                    x_min = x_min.min(r.0);
+                    e = e.max((r.1 - md.unloading(x_star, q_star, r.0)).abs() / limit);
                 }
-                x_min = x_min.min(r.0);
-                e = e.max((r.1 - md.unloading(x_star, q_star, r.0)).abs() / limit);
-            }
-            e
-        });
+                e
+            });
         let target = self.target(quick);
         let mut details = serde_json::Map::new();
         details.insert("normal_force_mean_n".into(), json!(n_mean));
@@ -312,14 +391,26 @@ impl Case for TwoSphereCase {
         details.insert("approach_of_centres_m".into(), json!(-dz_mean));
         details.insert("lever_arm_m".into(), json!(setup.lever));
         // largest correction of the base reaction by the lower sphere's momentum rate
-        details.insert("max_inertia_correction_over_limit".into(), json!(inertia_max / limit));
+        details.insert(
+            "max_inertia_correction_over_limit".into(),
+            json!(inertia_max / limit),
+        );
         // ALLKE includes the driven sphere's rigid rotation; the vibration part is the
         // quasi-static measure
         details.insert("max_kinetic_over_internal".into(), json!(ke_ie));
-        details.insert("max_deformation_kinetic_over_internal".into(), json!(ke_def_ie));
+        details.insert(
+            "max_deformation_kinetic_over_internal".into(),
+            json!(ke_def_ie),
+        );
         details.insert("seeding_at_contact_m".into(), json!(s));
-        details.insert("friction_dissipation_j".into(), json!(solver.state.energy.friction_dissipation));
-        details.insert("energy_balance_error".into(), json!(solver.state.energy.relative_balance_error()));
+        details.insert(
+            "friction_dissipation_j".into(),
+            json!(solver.state.energy.friction_dissipation),
+        );
+        details.insert(
+            "energy_balance_error".into(),
+            json!(solver.state.energy.relative_balance_error()),
+        );
         Ok(CaseOutcome {
             case: name.into(),
             mr,
@@ -342,18 +433,38 @@ impl Case for TwoSphereCase {
     fn plot(&self, outcomes: &[CaseOutcome]) -> (Plot<'static>, Vec<Series>) {
         // dimensionless: one theory curve for all meshing ratios (each FE curve is scaled
         // with its own measured N)
-        let x_max = outcomes.iter().flat_map(|o| o.curve.iter().map(|p| p.0.abs())).fold(0.0, f64::max).max(1e-9);
+        let x_max = outcomes
+            .iter()
+            .flat_map(|o| o.curve.iter().map(|p| p.0.abs()))
+            .fold(0.0, f64::max)
+            .max(1e-9);
         let xs = |from: f64, to: f64| (0..=200).map(move |i| from + (to - from) * i as f64 / 200.0);
-        let unit = Mindlin { mu: 1.0, normal_force: 1.0, slip_displacement: 1.0 };
+        let unit = Mindlin {
+            mu: 1.0,
+            normal_force: 1.0,
+            slip_displacement: 1.0,
+        };
         let mut theory = Vec::new();
         match self.kind {
             Kind::Mindlin | Kind::Rolling => {
-                theory.push(Series { label: "theory, loading (Mindlin)".into(), points: xs(0.0, x_max).map(|x| (x, unit.loading(x))).collect(), theory: true });
+                theory.push(Series {
+                    label: "theory, loading (Mindlin)".into(),
+                    points: xs(0.0, x_max).map(|x| (x, unit.loading(x))).collect(),
+                    theory: true,
+                });
                 if self.kind == Kind::Mindlin {
                     // Masing unloading from the reversal point and reloading from the other end
                     let (d, q) = (x_max, unit.loading(x_max));
-                    theory.push(Series { label: "Masing unloading / reloading".into(), points: xs(d, -d).map(|x| (x, unit.unloading(d, q, x))).collect(), theory: true });
-                    theory.push(Series { label: String::new(), points: xs(-d, d).map(|x| (x, unit.unloading(-d, -q, x))).collect(), theory: true });
+                    theory.push(Series {
+                        label: "Masing unloading / reloading".into(),
+                        points: xs(d, -d).map(|x| (x, unit.unloading(d, q, x))).collect(),
+                        theory: true,
+                    });
+                    theory.push(Series {
+                        label: String::new(),
+                        points: xs(-d, d).map(|x| (x, unit.unloading(-d, -q, x))).collect(),
+                        theory: true,
+                    });
                 }
             }
             Kind::Torsion => {
@@ -362,8 +473,19 @@ impl Case for TwoSphereCase {
                 if let Some(s) = base.and_then(|b| self.setup(&b.scene).ok()) {
                     let l = Lubkin::identical_spheres(&s.material, s.radius, s.mu, 1.0);
                     let scale = self.x_scale(&s, 1.0);
-                    let pts = xs(0.0, x_max).map(|x| (x, l.moment_at_relative_twist(x * scale) / l.full_slip_moment())).collect();
-                    theory.push(Series { label: "theory (Lubkin, exact)".into(), points: pts, theory: true });
+                    let pts = xs(0.0, x_max)
+                        .map(|x| {
+                            (
+                                x,
+                                l.moment_at_relative_twist(x * scale) / l.full_slip_moment(),
+                            )
+                        })
+                        .collect();
+                    theory.push(Series {
+                        label: "theory (Lubkin, exact)".into(),
+                        points: pts,
+                        theory: true,
+                    });
                 }
             }
         }
@@ -373,6 +495,16 @@ impl Case for TwoSphereCase {
             Kind::Torsion => "Torsion about the contact normal (Lubkin)",
             Kind::Rolling => "Rolling about a fixed centre",
         };
-        (Plot { title, x_label: xl, y_label: yl, x_scale: Scale::Linear, y_scale: Scale::Linear, series: vec![] }, theory)
+        (
+            Plot {
+                title,
+                x_label: xl,
+                y_label: yl,
+                x_scale: Scale::Linear,
+                y_scale: Scale::Linear,
+                series: vec![],
+            },
+            theory,
+        )
     }
 }
