@@ -378,3 +378,15 @@ fn deformation_damping_removes_vibration_but_not_rigid_motion() {
     assert!(e.damping_dissipation() > 0.0);
     assert!(e.relative_balance_error() < 1e-3, "balance {:e}", e.relative_balance_error());
 }
+
+#[test]
+fn a_scene_at_rest_does_not_trip_the_blow_up_check() {
+    // Nothing moves and no work is supplied: KE + U is pure round-off (~1e-28 J), which the
+    // check must not mistake for an explosion.
+    let wall = "[[walls]]\nname = \"floor\"\npoint = [0.0, 0.0, -1.1001e-3]\nnormal = [0.0, 0.0, 1.0]\n";
+    let mut solver = solver_from(&sphere_scene("", wall, 3e-4));
+    for _ in 0..500 {
+        solver.step().expect("no false blow-up at rest");
+    }
+    assert!(solver.state.energy.kinetic.abs() < 1e-20);
+}

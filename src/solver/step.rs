@@ -188,12 +188,19 @@ pub struct Solver {
     pub timers: StageTimers,
     /// Energy supplied so far, for the blow-up check (J).
     energy_scale: f64,
+    /// This rank's share of the smallest energy the blow-up check reacts to (J):
+    /// 1e-12 × M c_p², far below any physical energy of the run yet far above round-off
+    /// (a run starting at rest with a gap has KE + U ~ 1e-28 J of pure noise).
+    energy_floor: f64,
 }
 
 impl Solver {
     /// Builds a solver at t = 0 with the given initial velocities.
     pub fn new(model: Model, motions: Vec<PrescribedMotion>, v0: Vec<[f64; 3]>) -> Self {
         let n = model.num_nodes();
+        let c_max = model.materials.iter().map(|m| m.dilatational_wave_speed()).fold(0.0, f64::max);
+        let owned_mass: f64 = model.physical_mass[..model.owned_nodes].iter().sum();
+        let energy_floor = 1e-12 * owned_mass * c_max * c_max;
         let state = State {
             time: 0.0,
             step: 0,
@@ -220,6 +227,7 @@ impl Solver {
             scratch,
             timers: StageTimers::default(),
             energy_scale: 0.0,
+            energy_floor,
         }
     }
 
@@ -345,11 +353,12 @@ impl Solver {
             e.initial_total.unwrap_or(0.0),
             e.damping_dissipation(),
             e.kinetic + e.strain,
+            self.energy_floor,
         ];
         hooks.sum(&mut global);
         self.energy_scale = self.energy_scale.max(global[0].abs() + global[1].abs() + global[2].abs());
         let stored = global[3];
-        if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > 1e-30) {
+        if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > global[4]) {
             let (e, density) = super::diagnose::most_strained_element(&self.model, &state.x);
             let g = &self.model.grains[self.model.grain_of_element(e)];
             return Err(MufeError::Run(format!(
