@@ -13,9 +13,20 @@ fn main() {
         let s = mr * 2.0 * R;
         let specs = [
             ("uniform", SphereMeshSpec::uniform(R, s)),
-            ("graded", SphereMeshSpec::uniform(R, s).with_graded(3.0 * s, R / 4.0)),
-            ("graded + patch s/4", SphereMeshSpec::uniform(R, s).with_graded(3.0 * s, R / 4.0).with_refinement([0.0, 0.0, 1.0], s / 4.0, 2.0 * s)),
-            ("patch s/4", SphereMeshSpec::uniform(R, s).with_refinement([0.0, 0.0, 1.0], s / 4.0, 2.0 * s)),
+            (
+                "graded",
+                SphereMeshSpec::uniform(R, s).with_graded(3.0 * s, R / 4.0),
+            ),
+            (
+                "graded + patch s/4",
+                SphereMeshSpec::uniform(R, s)
+                    .with_graded(3.0 * s, R / 4.0)
+                    .with_refinement([0.0, 0.0, 1.0], s / 4.0, 2.0 * s),
+            ),
+            (
+                "patch s/4",
+                SphereMeshSpec::uniform(R, s).with_refinement([0.0, 0.0, 1.0], s / 4.0, 2.0 * s),
+            ),
         ];
         for (kind, spec) in specs {
             let t0 = std::time::Instant::now();

@@ -9,7 +9,11 @@ use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
-#[command(name = "mufe", version, about = "Micro finite-element (μFE) simulator for granular soil")]
+#[command(
+    name = "mufe",
+    version,
+    about = "Micro finite-element (μFE) simulator for granular soil"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -130,7 +134,14 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             println!("ok: {} is valid", scene.display());
             Ok(())
         }
-        Command::Run { scene, out, threads, set, max_steps, quiet } => {
+        Command::Run {
+            scene,
+            out,
+            threads,
+            set,
+            max_steps,
+            quiet,
+        } => {
             if threads == Some(0) {
                 return Err(InputError::new("<command line>", "--threads", "must be ≥ 1").into());
             }
@@ -139,7 +150,9 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             let domain = Domain::init();
             let threads = threads.unwrap_or_else(|| {
                 if domain.size() == 1 {
-                    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
+                    std::thread::available_parallelism()
+                        .map(|n| n.get())
+                        .unwrap_or(1)
                 } else {
                     1
                 }
@@ -148,26 +161,56 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                 .num_threads(threads)
                 .build_global()
                 .map_err(|e| MufeError::Run(format!("cannot start {threads} threads: {e}")))?;
-            run(&domain, &loaded, &RunOptions { out, threads, max_steps, quiet }).map(|_| ())
+            run(
+                &domain,
+                &loaded,
+                &RunOptions {
+                    out,
+                    threads,
+                    max_steps,
+                    quiet,
+                },
+            )
+            .map(|_| ())
         }
-        Command::Validate { cases, out, mr, quick, threads, set } => {
-            let mrs = mr.as_deref().map(crate::validate::runner::parse_mr_list).transpose()?;
+        Command::Validate {
+            cases,
+            out,
+            mr,
+            quick,
+            threads,
+            set,
+        } => {
+            let mrs = mr
+                .as_deref()
+                .map(crate::validate::runner::parse_mr_list)
+                .transpose()?;
             let selected = crate::validate::select_cases(&cases)?;
             if let Some(t) = threads {
                 if t == 0 {
-                    return Err(InputError::new("<command line>", "--threads", "must be ≥ 1").into());
+                    return Err(
+                        InputError::new("<command line>", "--threads", "must be ≥ 1").into(),
+                    );
                 }
                 rayon::ThreadPoolBuilder::new()
                     .num_threads(t)
                     .build_global()
                     .map_err(|e| MufeError::Run(format!("cannot start {t} threads: {e}")))?;
             }
-            let outcomes = crate::validate::runner::run_cases(&selected, mrs.as_deref(), quick, &out, &set)?;
-            let failed: Vec<String> = outcomes.iter().filter(|o| !o.pass).map(|o| format!("{} at MR {}", o.case, o.mr)).collect();
+            let outcomes =
+                crate::validate::runner::run_cases(&selected, mrs.as_deref(), quick, &out, &set)?;
+            let failed: Vec<String> = outcomes
+                .iter()
+                .filter(|o| !o.pass)
+                .map(|o| format!("{} at MR {}", o.case, o.mr))
+                .collect();
             // The finest MR of each case must meet its target; coarser ones document convergence.
             let finest_failed = crate::validate::finest_failures(&outcomes);
             if !finest_failed.is_empty() {
-                return Err(MufeError::Run(format!("validation target missed at the finest MR: {}", finest_failed.join(", "))));
+                return Err(MufeError::Run(format!(
+                    "validation target missed at the finest MR: {}",
+                    finest_failed.join(", ")
+                )));
             }
             if !failed.is_empty() {
                 println!("note: coarser meshes above target: {}", failed.join(", "));

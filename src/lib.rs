@@ -20,6 +20,7 @@ pub type Vec3 = nalgebra::Vector3<Real>;
 /// 3×3 matrix (deformation gradients, stresses in Pa).
 pub type Mat3 = nalgebra::Matrix3<Real>;
 pub mod boundary;
+pub mod cli;
 pub mod contact;
 pub mod domain;
 pub mod element;
@@ -28,5 +29,4 @@ pub mod io;
 pub mod material;
 pub mod scene;
 pub mod solver;
-pub mod cli;
 pub mod validate;

@@ -12,7 +12,11 @@ use mufe::solver::Solver;
 use std::path::Path;
 
 fn assembly() -> mufe::scene::LoadedScene {
-    load_scene(&Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/assembly.toml"), &[]).unwrap()
+    load_scene(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/assembly.toml"),
+        &[],
+    )
+    .unwrap()
 }
 
 fn rank_solver(loaded: &mufe::scene::LoadedScene, plan: &Decomposition) -> Solver {
@@ -27,10 +31,17 @@ fn halo_plans_of_two_ranks_pair_up_node_for_node() {
     let global = GlobalMesh::build(&loaded).unwrap();
     let owner: Vec<u32> = (0..27).map(|g| if g < 14 { 0 } else { 1 }).collect();
     let margin = mufe::solver::parallel::ghost_margin(&global);
-    let plans: Vec<Decomposition> = (0..2).map(|r| Decomposition::plan(&owner, &global.bounds, margin, r)).collect();
-    assert!(!plans[0].ghosts.is_empty() && !plans[1].ghosts.is_empty(), "contacts straddle the cut");
+    let plans: Vec<Decomposition> = (0..2)
+        .map(|r| Decomposition::plan(&owner, &global.bounds, margin, r))
+        .collect();
+    assert!(
+        !plans[0].ghosts.is_empty() && !plans[1].ghosts.is_empty(),
+        "contacts straddle the cut"
+    );
     let solvers: Vec<Solver> = plans.iter().map(|p| rank_solver(&loaded, p)).collect();
-    let halos: Vec<HaloPlan> = (0..2).map(|r| HaloPlan::new(&solvers[r].model, &plans[r])).collect();
+    let halos: Vec<HaloPlan> = (0..2)
+        .map(|r| HaloPlan::new(&solvers[r].model, &plans[r]))
+        .collect();
     for r in 0..2 {
         let q = 1 - r;
         let (_, send) = &halos[r].sends[0];
@@ -56,7 +67,10 @@ fn a_packed_grain_arrives_with_its_exact_state() {
     for _ in 0..300 {
         serial.step().unwrap();
     }
-    assert!(!serial.state.contact.history.is_empty(), "friction history exists to migrate");
+    assert!(
+        !serial.state.contact.history.is_empty(),
+        "friction history exists to migrate"
+    );
     // pack the centre grain (13) and one with friction history, unpack into a fresh solver
     let with_history = serial.state.contact.history[0].key.grain as usize;
     let mut data = Vec::new();
@@ -68,10 +82,25 @@ fn a_packed_grain_arrives_with_its_exact_state() {
     assert_eq!(installed.len(), 2);
     for g in [13usize, with_history] {
         let nodes = serial.model.grains[g].nodes.clone();
-        assert_eq!(&serial.state.x[nodes.clone()], &fresh.state.x[nodes.clone()]);
+        assert_eq!(
+            &serial.state.x[nodes.clone()],
+            &fresh.state.x[nodes.clone()]
+        );
         assert_eq!(&serial.state.v[nodes.clone()], &fresh.state.v[nodes]);
-        let a: Vec<_> = serial.state.contact.history.iter().filter(|p| p.key.grain as usize == g).collect();
-        let b: Vec<_> = fresh.state.contact.history.iter().filter(|p| p.key.grain as usize == g).collect();
+        let a: Vec<_> = serial
+            .state
+            .contact
+            .history
+            .iter()
+            .filter(|p| p.key.grain as usize == g)
+            .collect();
+        let b: Vec<_> = fresh
+            .state
+            .contact
+            .history
+            .iter()
+            .filter(|p| p.key.grain as usize == g)
+            .collect();
         assert_eq!(a, b, "friction history of grain {g}");
     }
     // a malformed package is an error, not a panic

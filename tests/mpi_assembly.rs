@@ -16,19 +16,41 @@ fn scene() -> PathBuf {
 }
 
 fn out_dir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("mpi_assembly").join(name);
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("mpi_assembly")
+        .join(name);
     let _ = std::fs::remove_dir_all(&d);
     d
 }
 
-fn run(ranks: usize, threads: usize, name: &str, extra: &[&str]) -> (PathBuf, std::process::Output) {
+fn run(
+    ranks: usize,
+    threads: usize,
+    name: &str,
+    extra: &[&str],
+) -> (PathBuf, std::process::Output) {
     let out = out_dir(name);
     let out_s = out.to_string_lossy().into_owned();
     let threads_s = threads.to_string();
     let scene = scene();
-    let mut args = vec!["run", scene.to_str().unwrap(), "--out", &out_s, "--max-steps", STEPS, "--threads", &threads_s];
+    let mut args = vec![
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        &out_s,
+        "--max-steps",
+        STEPS,
+        "--threads",
+        &threads_s,
+    ];
     args.extend_from_slice(extra);
-    let output = mpi_launch::run_under_mpirun(ranks, Path::new(env!("CARGO_BIN_EXE_mufe")), &args, &[], Duration::from_secs(240));
+    let output = mpi_launch::run_under_mpirun(
+        ranks,
+        Path::new(env!("CARGO_BIN_EXE_mufe")),
+        &args,
+        &[],
+        Duration::from_secs(240),
+    );
     (out.join("results.h5"), output)
 }
 
@@ -38,7 +60,10 @@ fn history(path: &Path) -> Vec<(String, Vec<f64>)> {
     let g = f.group("history").unwrap();
     let mut names = g.member_names().unwrap();
     names.sort();
-    names.into_iter().map(|n| (n.clone(), g.dataset(&n).unwrap().read_raw::<f64>().unwrap())).collect()
+    names
+        .into_iter()
+        .map(|n| (n.clone(), g.dataset(&n).unwrap().read_raw::<f64>().unwrap()))
+        .collect()
 }
 
 #[test]
@@ -46,23 +71,57 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
     let (golden_path, out) = run(1, 1, "r1t1", &[]);
     mpi_launch::assert_success(&out);
     let golden = history(&golden_path);
-    let get = |name: &str| golden.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone()).unwrap();
+    let get = |name: &str| {
+        golden
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.clone())
+            .unwrap()
+    };
     // the scene really exercises what the decomposition must get right
-    assert!(get("contacts").iter().cloned().fold(0.0, f64::max) > 20.0, "grain contacts form");
-    assert!(get("friction_dissipation").last().unwrap() > &0.0, "friction acts");
-    assert!(get("top_force_z").last().unwrap().abs() > 1.0, "the moving wall pushes");
+    assert!(
+        get("contacts").iter().cloned().fold(0.0, f64::max) > 20.0,
+        "grain contacts form"
+    );
+    assert!(
+        get("friction_dissipation").last().unwrap() > &0.0,
+        "friction acts"
+    );
+    assert!(
+        get("top_force_z").last().unwrap().abs() > 1.0,
+        "the moving wall pushes"
+    );
     // rows are labelled with t_n, the start of the step they describe: the last is step 299
     assert_eq!(get("step").last(), Some(&299.0));
 
     // the last configuration also re-partitions at steps 100 and 200 (threshold 0), so
     // grains migrate with their full state in the middle of the run
-    let migrate = ["--set", "parallel.imbalance_threshold=0.0", "--set", "parallel.check_interval=100"];
-    for (ranks, threads, extra) in [(1, 2, &[][..]), (2, 1, &[][..]), (2, 2, &[][..]), (3, 1, &[][..]), (3, 1, &migrate[..])] {
-        let (path, out) = run(ranks, threads, &format!("r{ranks}t{threads}_{}", extra.len()), extra);
+    let migrate = [
+        "--set",
+        "parallel.imbalance_threshold=0.0",
+        "--set",
+        "parallel.check_interval=100",
+    ];
+    for (ranks, threads, extra) in [
+        (1, 2, &[][..]),
+        (2, 1, &[][..]),
+        (2, 2, &[][..]),
+        (3, 1, &[][..]),
+        (3, 1, &migrate[..]),
+    ] {
+        let (path, out) = run(
+            ranks,
+            threads,
+            &format!("r{ranks}t{threads}_{}", extra.len()),
+            extra,
+        );
         mpi_launch::assert_success(&out);
         if !extra.is_empty() {
             let stdout = String::from_utf8_lossy(&out.stdout);
-            assert!(stdout.contains("re-partitioned at step 100"), "migration happened: {stdout}");
+            assert!(
+                stdout.contains("re-partitioned at step 100"),
+                "migration happened: {stdout}"
+            );
         }
         let h = history(&path);
         assert_eq!(h.len(), golden.len(), "{ranks} ranks: same columns");
@@ -79,7 +138,11 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
         }
         // the file records the decomposition
         let f = hdf5::File::open(&path).unwrap();
-        let owners = f.dataset("mesh/owner_rank_of_grain").unwrap().read_raw::<u32>().unwrap();
+        let owners = f
+            .dataset("mesh/owner_rank_of_grain")
+            .unwrap()
+            .read_raw::<u32>()
+            .unwrap();
         let used: std::collections::BTreeSet<u32> = owners.iter().copied().collect();
         assert_eq!(used.len(), ranks, "every rank owns grains");
     }
@@ -89,7 +152,12 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
 fn an_error_on_one_rank_stops_the_whole_job() {
     // Grain 13 (the centre) flung into its neighbour at 2 km/s: the contact tunnels on
     // the rank(s) holding that pair, which must abort the job, not leave the others waiting.
-    let (_, out) = run(2, 1, "fail", &["--set", "grains[13].velocity=[2000.0, 0.0, 0.0]"]);
+    let (_, out) = run(
+        2,
+        1,
+        "fail",
+        &["--set", "grains[13].velocity=[2000.0, 0.0, 0.0]"],
+    );
     assert!(!out.status.success(), "the job must fail");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("error:"), "a clear message on stderr: {err}");

@@ -16,7 +16,11 @@ density = 2500.0
 "#;
 
 fn glass() -> ElasticParameters {
-    ElasticParameters { youngs_modulus: 63e9, poisson_ratio: 0.22, density: 2500.0 }
+    ElasticParameters {
+        youngs_modulus: 63e9,
+        poisson_ratio: 0.22,
+        density: 2500.0,
+    }
 }
 
 fn solver_from(text: &str) -> Solver {
@@ -42,14 +46,20 @@ shape = {{ sphere = {{ radius = 1.1e-3, seeding = {seeding} }} }}
 
 /// Deterministic pseudo-random numbers in [-1, 1] (no dependency, reproducible).
 fn lcg(seed: &mut u64) -> f64 {
-    *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    *seed = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     ((*seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
 }
 
 /// Patch test: a linear displacement field x = (I + A)X on any mesh gives every element
 /// the same F, hence the exact uniform stress, and zero resultant at interior nodes.
 fn assert_patch_test(mut solver: Solver, label: &str) {
-    let a = [[1.0e-4, 3.0e-5, -2.0e-5], [-1.0e-5, -5.0e-5, 4.0e-5], [2.0e-5, 1.0e-5, 7.0e-5]];
+    let a = [
+        [1.0e-4, 3.0e-5, -2.0e-5],
+        [-1.0e-5, -5.0e-5, 4.0e-5],
+        [2.0e-5, 1.0e-5, 7.0e-5],
+    ];
     let model = &solver.model;
     let x: Vec<[f64; 3]> = model
         .x0
@@ -69,7 +79,17 @@ fn assert_patch_test(mut solver: Solver, label: &str) {
     compute_internal_forces_into(model, &x, &mut scratch, &mut force);
 
     // exact stress for the uniform F
-    let f_exact = [1.0 + a[0][0], a[0][1], a[0][2], a[1][0], 1.0 + a[1][1], a[1][2], a[2][0], a[2][1], 1.0 + a[2][2]];
+    let f_exact = [
+        1.0 + a[0][0],
+        a[0][1],
+        a[0][2],
+        a[1][0],
+        1.0 + a[1][1],
+        a[1][2],
+        a[2][0],
+        a[2][1],
+        1.0 + a[2][2],
+    ];
     let law = StVenantKirchhoff::new(&glass());
     let (p_exact, _) = law.first_piola_and_energy(&f_exact);
     let p_scale = p_exact.iter().map(|v| v.abs()).fold(0.0, f64::max);
@@ -78,18 +98,33 @@ fn assert_patch_test(mut solver: Solver, label: &str) {
         let f = mufe::element::deformation_gradient(&xe, &model.tet_reference[e].dm_inv);
         let (p, _) = law.first_piola_and_energy(&f);
         for k in 0..9 {
-            assert!((p[k] - p_exact[k]).abs() < 1e-9 * p_scale, "{label}: element {e} stress {k}: {} vs {}", p[k], p_exact[k]);
+            assert!(
+                (p[k] - p_exact[k]).abs() < 1e-9 * p_scale,
+                "{label}: element {e} stress {k}: {} vs {}",
+                p[k],
+                p_exact[k]
+            );
         }
     }
     // interior nodes: Σ of element forces vanishes (relative to one element's force)
-    let surface: std::collections::BTreeSet<u32> = model.grains.iter().flat_map(|g| g.surface.nodes.iter().copied()).collect();
-    let typical = force.iter().map(|f| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt()).fold(0.0, f64::max);
+    let surface: std::collections::BTreeSet<u32> = model
+        .grains
+        .iter()
+        .flat_map(|g| g.surface.nodes.iter().copied())
+        .collect();
+    let typical = force
+        .iter()
+        .map(|f| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt())
+        .fold(0.0, f64::max);
     let mut interior = 0;
     for (n, f) in force.iter().enumerate() {
         if !surface.contains(&(n as u32)) {
             interior += 1;
             let norm = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt();
-            assert!(norm < 1e-9 * typical, "{label}: interior node {n} force {norm} vs boundary {typical}");
+            assert!(
+                norm < 1e-9 * typical,
+                "{label}: interior node {n} force {norm} vs boundary {typical}"
+            );
         }
     }
     assert!(interior > 0, "{label}: mesh has interior nodes");
@@ -108,7 +143,12 @@ fn patch_test_on_sphere_and_distorted_block() {
     // distort interior nodes, then rebuild the reference data from the distorted mesh
     let h = 1e-3 / 5.0;
     let mut seed = 7;
-    let surface: std::collections::BTreeSet<u32> = solver.model.grains[0].surface.nodes.iter().copied().collect();
+    let surface: std::collections::BTreeSet<u32> = solver.model.grains[0]
+        .surface
+        .nodes
+        .iter()
+        .copied()
+        .collect();
     for (n, p) in solver.model.x0.iter_mut().enumerate() {
         if !surface.contains(&(n as u32)) {
             for c in p.iter_mut() {
@@ -118,13 +158,17 @@ fn patch_test_on_sphere_and_distorted_block() {
     }
     for (e, t) in solver.model.tets.clone().iter().enumerate() {
         solver.model.tet_reference[e] =
-            mufe::element::TetReference::new(t.map(|n| solver.model.x0[n as usize])).expect("distorted tet stays valid");
+            mufe::element::TetReference::new(t.map(|n| solver.model.x0[n as usize]))
+                .expect("distorted tet stays valid");
     }
     assert_patch_test(solver, "distorted block");
 }
 
 fn max_von_mises(solver: &Solver) -> f64 {
-    mufe::solver::run::element_stresses(solver).1.into_iter().fold(0.0, f64::max)
+    mufe::solver::run::element_stresses(solver)
+        .1
+        .into_iter()
+        .fold(0.0, f64::max)
 }
 
 #[test]
@@ -142,17 +186,35 @@ fn rigid_rotation_by_90_degrees_leaves_zero_stress() {
             w * axis[1],
             w * axis[2]
         );
-        let text = sphere_scene("", &extra, 3e-4).replace("duration = 1.0", &format!("duration = {t_end:e}\ndt = {dt:e}"));
+        let text = sphere_scene("", &extra, 3e-4).replace(
+            "duration = 1.0",
+            &format!("duration = {t_end:e}\ndt = {dt:e}"),
+        );
         let mut solver = solver_from(&text);
         for _ in 0..increments {
             solver.step().unwrap();
         }
         // the grain really turned by 90°: a node at (R,0,0)-ish moved far
-        let moved = solver.state.x.iter().zip(&solver.model.x0).map(|(x, x0)| ((x[0] - x0[0]).powi(2) + (x[1] - x0[1]).powi(2) + (x[2] - x0[2]).powi(2)).sqrt()).fold(0.0, f64::max);
+        let moved = solver
+            .state
+            .x
+            .iter()
+            .zip(&solver.model.x0)
+            .map(|(x, x0)| {
+                ((x[0] - x0[0]).powi(2) + (x[1] - x0[1]).powi(2) + (x[2] - x0[2]).powi(2)).sqrt()
+            })
+            .fold(0.0, f64::max);
         assert!(moved > 1.0e-3, "rotation happened ({moved} m)");
         let vm = max_von_mises(&solver);
-        assert!(vm < 1e-12 * p.youngs_modulus, "{increments} increments: von Mises {vm} Pa");
-        assert!(solver.state.energy.strain < 1e-20, "strain energy {}", solver.state.energy.strain);
+        assert!(
+            vm < 1e-12 * p.youngs_modulus,
+            "{increments} increments: von Mises {vm} Pa"
+        );
+        assert!(
+            solver.state.energy.strain < 1e-20,
+            "strain energy {}",
+            solver.state.energy.strain
+        );
     }
 }
 
@@ -173,7 +235,10 @@ fn free_spin_at_1000_rad_per_s_is_objective_and_conserves_angular_momentum() {
         solver.step().unwrap();
         let e = &solver.state.energy;
         let ratio = e.strain / e.kinetic;
-        assert!(ratio < bound_ratio, "step {k}: U/KE = {ratio:e} ≥ 10ρω²R²/E = {bound_ratio:e}");
+        assert!(
+            ratio < bound_ratio,
+            "step {k}: U/KE = {ratio:e} ≥ 10ρω²R²/E = {bound_ratio:e}"
+        );
         if k < steps / 2 {
             max_ratio_first_half = max_ratio_first_half.max(ratio);
         } else {
@@ -181,7 +246,10 @@ fn free_spin_at_1000_rad_per_s_is_objective_and_conserves_angular_momentum() {
         }
     }
     // no growth: the second half never exceeds the first half's peak by more than 10 %
-    assert!(max_ratio_second_half <= 1.1 * max_ratio_first_half, "{max_ratio_second_half:e} vs {max_ratio_first_half:e}");
+    assert!(
+        max_ratio_second_half <= 1.1 * max_ratio_first_half,
+        "{max_ratio_second_half:e} vs {max_ratio_first_half:e}"
+    );
     let l = solver.angular_momentum();
     let dl = ((l[0] - l0[0]).powi(2) + (l[1] - l0[1]).powi(2) + (l[2] - l0[2]).powi(2)).sqrt();
     assert!(dl / l0n < 1e-8, "angular momentum drift {:e}", dl / l0n);
@@ -196,7 +264,11 @@ fn free_vibration_conserves_energy_over_1e5_steps() {
     let r = 1.1e-3;
     let v0 = 0.05;
     for (v, x) in solver.state.v.iter_mut().zip(&solver.model.x0) {
-        *v = [v0 * x[0] / r, -0.5 * v0 * x[1] / r, v0 * (x[0] * x[1]) / (r * r)];
+        *v = [
+            v0 * x[0] / r,
+            -0.5 * v0 * x[1] / r,
+            v0 * (x[0] * x[1]) / (r * r),
+        ];
     }
     let mut e0 = None;
     let mut max_dev: f64 = 0.0;
@@ -211,7 +283,11 @@ fn free_vibration_conserves_energy_over_1e5_steps() {
     }
     assert!(max_dev < 1e-3, "energy deviation {max_dev:e}");
     // it really vibrated: energy moved into strain
-    assert!(max_strain > 0.1 * e0.unwrap(), "strain energy peak {max_strain:e} vs total {:e}", e0.unwrap());
+    assert!(
+        max_strain > 0.1 * e0.unwrap(),
+        "strain energy peak {max_strain:e} vs total {:e}",
+        e0.unwrap()
+    );
 }
 
 #[test]
@@ -228,7 +304,10 @@ fn confined_pulse_travels_at_the_dilatational_speed() {
     for k in 0..=n {
         let t = pulse * k as f64 / n as f64;
         times.push(format!("{t:e}"));
-        values.push(format!("[{:e}, 0.0, 0.0]", peak_v * (std::f64::consts::PI * t / pulse).sin()));
+        values.push(format!(
+            "[{:e}, 0.0, 0.0]",
+            peak_v * (std::f64::consts::PI * t / pulse).sin()
+        ));
     }
     times.push(format!("{:e}", 1.01 * pulse));
     values.push("[0.0, 0.0, 0.0]".into());
@@ -264,7 +343,11 @@ velocity = {{ times = [{t}], values = [{v}] }}
     let stations = [0.2 * length, 0.6 * length];
     let nodes: Vec<Vec<usize>> = stations
         .iter()
-        .map(|xs| (0..solver.model.num_nodes()).filter(|&i| (solver.model.x0[i][0] - xs).abs() < 0.5 * h).collect())
+        .map(|xs| {
+            (0..solver.model.num_nodes())
+                .filter(|&i| (solver.model.x0[i][0] - xs).abs() < 0.5 * h)
+                .collect()
+        })
         .collect();
     // centroid in time of the velocity signal at each station
     let mut moments = [[0.0f64; 2]; 2];
@@ -281,7 +364,11 @@ velocity = {{ times = [{t}], values = [{v}] }}
     let arrival: Vec<f64> = moments.iter().map(|m| m[1] / m[0]).collect();
     let speed = (stations[1] - stations[0]) / (arrival[1] - arrival[0]);
     let err = (speed - cp).abs() / cp;
-    assert!(err < 0.02, "pulse speed {speed:.1} m/s vs c_p {cp:.1} m/s ({:.2} %)", 100.0 * err);
+    assert!(
+        err < 0.02,
+        "pulse speed {speed:.1} m/s vs c_p {cp:.1} m/s ({:.2} %)",
+        100.0 * err
+    );
 }
 
 #[test]
@@ -290,20 +377,39 @@ fn run_at_stable_step_is_stable_and_blow_up_is_reported() {
     let mut solver = solver_from(&sphere_scene("", "", 3e-4));
     let mut seed = 11;
     for v in solver.state.v.iter_mut() {
-        *v = [0.01 * lcg(&mut seed), 0.01 * lcg(&mut seed), 0.01 * lcg(&mut seed)];
+        *v = [
+            0.01 * lcg(&mut seed),
+            0.01 * lcg(&mut seed),
+            0.01 * lcg(&mut seed),
+        ];
     }
-    let ke0: f64 = solver.state.v.iter().zip(&solver.model.mass).map(|(v, m)| 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])).sum();
+    let ke0: f64 = solver
+        .state
+        .v
+        .iter()
+        .zip(&solver.model.mass)
+        .map(|(v, m)| 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]))
+        .sum();
     for _ in 0..5000 {
         solver.step().expect("stable at the reported step");
     }
     let e = &solver.state.energy;
-    assert!(e.kinetic + e.strain < 1.05 * ke0, "energy grew: {} vs {}", e.kinetic + e.strain, ke0);
+    assert!(
+        e.kinetic + e.strain < 1.05 * ke0,
+        "energy grew: {} vs {}",
+        e.kinetic + e.strain,
+        ke0
+    );
 
     // beyond it: detected and named
     let mut solver = solver_from(&sphere_scene("", "", 3e-4));
     let mut seed = 5;
     for v in solver.state.v.iter_mut() {
-        *v = [1e-3 * lcg(&mut seed), 1e-3 * lcg(&mut seed), 1e-3 * lcg(&mut seed)];
+        *v = [
+            1e-3 * lcg(&mut seed),
+            1e-3 * lcg(&mut seed),
+            1e-3 * lcg(&mut seed),
+        ];
     }
     solver.model.dt *= 8.0;
     let mut err = None;
@@ -322,9 +428,16 @@ fn run_at_stable_step_is_stable_and_blow_up_is_reported() {
 #[test]
 fn one_and_two_threads_are_bitwise_identical() {
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| {
-            let mut solver = solver_from(&sphere_scene("velocity = [0.5, 0.0, 0.0]\nangular_velocity = [100.0, 2000.0, 0.0]", "", 8e-5));
+            let mut solver = solver_from(&sphere_scene(
+                "velocity = [0.5, 0.0, 0.0]\nangular_velocity = [100.0, 2000.0, 0.0]",
+                "",
+                8e-5,
+            ));
             let mut seed = 3;
             for v in solver.state.v.iter_mut() {
                 v[0] += 0.01 * lcg(&mut seed);
@@ -332,12 +445,20 @@ fn one_and_two_threads_are_bitwise_identical() {
             for _ in 0..300 {
                 solver.step().unwrap();
             }
-            (solver.state.x.clone(), solver.state.v.clone(), solver.state.energy.clone())
+            (
+                solver.state.x.clone(),
+                solver.state.v.clone(),
+                solver.state.energy.clone(),
+            )
         })
     };
     let (x1, v1, e1) = run(1);
     let (x2, v2, e2) = run(2);
-    assert!(x1.len() > mufe::solver::forces::NODE_CHUNK, "mesh large enough for several node chunks: {} nodes", x1.len());
+    assert!(
+        x1.len() > mufe::solver::forces::NODE_CHUNK,
+        "mesh large enough for several node chunks: {} nodes",
+        x1.len()
+    );
     assert!(x1 == x2, "positions differ");
     assert!(v1 == v2, "velocities differ");
     assert_eq!(e1, e2);
@@ -349,7 +470,10 @@ fn deformation_damping_removes_vibration_but_not_rigid_motion() {
     // must leave linear and angular momentum untouched, remove the vibration, and account
     // the removed energy as damping dissipation.
     let grain = "velocity = [0.3, 0.0, 0.0]\nangular_velocity = [0.0, 0.0, 500.0]";
-    let text = sphere_scene(grain, "", 4e-4).replace("duration = 1.0", "duration = 1.0\ndeformation_damping = 3e6");
+    let text = sphere_scene(grain, "", 4e-4).replace(
+        "duration = 1.0",
+        "duration = 1.0\ndeformation_damping = 3e6",
+    );
     let mut solver = solver_from(&text);
     let r = 1.1e-3;
     for (v, x) in solver.state.v.iter_mut().zip(&solver.model.x0) {
@@ -374,9 +498,18 @@ fn deformation_damping_removes_vibration_but_not_rigid_motion() {
     assert!(rel(p, p0) < 1e-10, "linear momentum drift {:e}", rel(p, p0));
     assert!(rel(l, l0) < 1e-8, "angular momentum drift {:e}", rel(l, l0));
     let e = &solver.state.energy;
-    assert!(e.strain < 1e-3 * strain_peak, "vibration not damped: {} vs peak {}", e.strain, strain_peak);
+    assert!(
+        e.strain < 1e-3 * strain_peak,
+        "vibration not damped: {} vs peak {}",
+        e.strain,
+        strain_peak
+    );
     assert!(e.damping_dissipation() > 0.0);
-    assert!(e.relative_balance_error() < 1e-3, "balance {:e}", e.relative_balance_error());
+    assert!(
+        e.relative_balance_error() < 1e-3,
+        "balance {:e}",
+        e.relative_balance_error()
+    );
 }
 
 #[test]
@@ -389,5 +522,8 @@ fn a_scene_at_rest_does_not_trip_the_blow_up_check() {
     for _ in 0..500 {
         solver.step().expect("no false blow-up at rest");
     }
-    assert!(solver.state.energy.strain > 0.0, "the plate reached the sphere");
+    assert!(
+        solver.state.energy.strain > 0.0,
+        "the plate reached the sphere"
+    );
 }

@@ -179,7 +179,10 @@ impl BroadPhase {
         // Global ids, not model indices: a rank holds owned grains first and ghosts after,
         // and the force accumulation order must not depend on that layout.
         lists.passes.sort_unstable_by_key(|p| {
-            (cm.surfaces[p.slave as usize].global_id, cm.surfaces[p.master as usize].global_id)
+            (
+                cm.surfaces[p.slave as usize].global_id,
+                cm.surfaces[p.master as usize].global_id,
+            )
         });
         lists.entries.clear();
         lists.candidates.clear();

@@ -626,7 +626,13 @@ pub fn evaluate(
 /// Whether the cached candidate lists must be rebuilt before evaluating at x_n (t_n =
 /// `time`). Under MPI the ranks OR their answers so that all rebuild at the same step, as
 /// the serial run would.
-pub fn needs_rebuild(model: &Model, x: &[[f64; 3]], time: f64, dt: f64, scratch: &mut ContactScratch) -> bool {
+pub fn needs_rebuild(
+    model: &Model,
+    x: &[[f64; 3]],
+    time: f64,
+    dt: f64,
+    scratch: &mut ContactScratch,
+) -> bool {
     let cm = &model.contact;
     if !cm.active() {
         return false;

@@ -13,7 +13,9 @@ pub struct GrainBound {
 impl GrainBound {
     /// True when the two grains can touch within `margin`.
     pub fn near(&self, other: &GrainBound, margin: f64) -> bool {
-        let d2 = (0..3).map(|i| (self.centre[i] - other.centre[i]).powi(2)).sum::<f64>();
+        let d2 = (0..3)
+            .map(|i| (self.centre[i] - other.centre[i]).powi(2))
+            .sum::<f64>();
         let reach = self.radius + other.radius + margin;
         d2 <= reach * reach
     }
@@ -48,9 +50,15 @@ impl Decomposition {
         for (g, &r) in owner.iter().enumerate() {
             by_rank[r as usize].push(g);
         }
-        let near_rank = |g: usize, r: usize| by_rank[r].iter().any(|&h| bounds[h].near(&bounds[g], margin));
+        let near_rank = |g: usize, r: usize| {
+            by_rank[r]
+                .iter()
+                .any(|&h| bounds[h].near(&bounds[g], margin))
+        };
         let owned = by_rank.get(rank).cloned().unwrap_or_default();
-        let ghosts: Vec<usize> = (0..n).filter(|&g| owner[g] as usize != rank && near_rank(g, rank)).collect();
+        let ghosts: Vec<usize> = (0..n)
+            .filter(|&g| owner[g] as usize != rank && near_rank(g, rank))
+            .collect();
         let mut sends = Vec::new();
         let mut receives = Vec::new();
         for q in 0..ranks {
@@ -61,12 +69,23 @@ impl Decomposition {
             if !s.is_empty() {
                 sends.push((q, s));
             }
-            let r: Vec<usize> = ghosts.iter().copied().filter(|&g| owner[g] as usize == q).collect();
+            let r: Vec<usize> = ghosts
+                .iter()
+                .copied()
+                .filter(|&g| owner[g] as usize == q)
+                .collect();
             if !r.is_empty() {
                 receives.push((q, r));
             }
         }
-        Self { owner: owner.to_vec(), rank, owned, ghosts, sends, receives }
+        Self {
+            owner: owner.to_vec(),
+            rank,
+            owned,
+            ghosts,
+            sends,
+            receives,
+        }
     }
 }
 
@@ -85,7 +104,12 @@ mod tests {
     use super::*;
 
     fn row(n: usize) -> Vec<GrainBound> {
-        (0..n).map(|i| GrainBound { centre: [2.0 * i as f64, 0.0, 0.0], radius: 1.0 }).collect()
+        (0..n)
+            .map(|i| GrainBound {
+                centre: [2.0 * i as f64, 0.0, 0.0],
+                radius: 1.0,
+            })
+            .collect()
     }
 
     #[test]
@@ -105,12 +129,27 @@ mod tests {
 
     #[test]
     fn every_send_has_a_matching_receive_for_three_ranks() {
-        let bounds: Vec<GrainBound> = (0..27).map(|i| GrainBound { centre: [2.0 * (i % 3) as f64, 2.0 * ((i / 3) % 3) as f64, 2.0 * (i / 9) as f64], radius: 1.0 }).collect();
+        let bounds: Vec<GrainBound> = (0..27)
+            .map(|i| GrainBound {
+                centre: [
+                    2.0 * (i % 3) as f64,
+                    2.0 * ((i / 3) % 3) as f64,
+                    2.0 * (i / 9) as f64,
+                ],
+                radius: 1.0,
+            })
+            .collect();
         let owner: Vec<u32> = (0..27).map(|i| ((i * 7) % 3) as u32).collect();
-        let plans: Vec<Decomposition> = (0..3).map(|r| Decomposition::plan(&owner, &bounds, 0.05, r)).collect();
+        let plans: Vec<Decomposition> = (0..3)
+            .map(|r| Decomposition::plan(&owner, &bounds, 0.05, r))
+            .collect();
         for p in &plans {
             for (q, grains) in &p.sends {
-                let back = plans[*q].receives.iter().find(|(r, _)| *r == p.rank).expect("matching receive");
+                let back = plans[*q]
+                    .receives
+                    .iter()
+                    .find(|(r, _)| *r == p.rank)
+                    .expect("matching receive");
                 assert_eq!(&back.1, grains);
             }
         }

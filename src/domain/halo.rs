@@ -38,14 +38,22 @@ impl HaloPlan {
                 .unwrap_or_default()
         };
         let pack = |list: &[(usize, Vec<usize>)]| -> Vec<(usize, Vec<u32>)> {
-            list.iter().map(|(r, grains)| (*r, grains.iter().flat_map(|&g| surface_of(g)).collect())).collect()
+            list.iter()
+                .map(|(r, grains)| (*r, grains.iter().flat_map(|&g| surface_of(g)).collect()))
+                .collect()
         };
-        Self { sends: pack(&plan.sends), receives: pack(&plan.receives) }
+        Self {
+            sends: pack(&plan.sends),
+            receives: pack(&plan.receives),
+        }
     }
 
     /// Bytes sent per step by this rank.
     pub fn bytes_per_step(&self) -> usize {
-        self.sends.iter().map(|(_, n)| n.len() * VALUES_PER_NODE * 8).sum()
+        self.sends
+            .iter()
+            .map(|(_, n)| n.len() * VALUES_PER_NODE * 8)
+            .sum()
     }
 }
 
@@ -59,7 +67,12 @@ pub struct Halo<'d> {
 
 impl<'d> Halo<'d> {
     pub fn new(domain: &'d Domain, plan: HaloPlan) -> Self {
-        Self { domain, plan, exchange: Exchange::new(FORWARD_TAG), pending: None }
+        Self {
+            domain,
+            plan,
+            exchange: Exchange::new(FORWARD_TAG),
+            pending: None,
+        }
     }
 
     /// Posts the sends of the owned surface nodes' x and v and the receives of the ghosts'.
@@ -81,7 +94,12 @@ impl<'d> Halo<'d> {
                 (*r, buf)
             })
             .collect();
-        let counts: Vec<(usize, usize)> = self.plan.receives.iter().map(|(r, n)| (*r, n.len() * VALUES_PER_NODE)).collect();
+        let counts: Vec<(usize, usize)> = self
+            .plan
+            .receives
+            .iter()
+            .map(|(r, n)| (*r, n.len() * VALUES_PER_NODE))
+            .collect();
         self.pending = Some(self.exchange.begin(self.domain, &sends, &counts)?);
         Ok(())
     }
@@ -94,10 +112,16 @@ impl<'d> Halo<'d> {
         let received = self.exchange.end(pending)?;
         for (rank, data) in received {
             let Some((_, nodes)) = self.plan.receives.iter().find(|(r, _)| *r == rank) else {
-                return Err(MufeError::Run(format!("halo: unexpected message from rank {rank}")));
+                return Err(MufeError::Run(format!(
+                    "halo: unexpected message from rank {rank}"
+                )));
             };
             if data.len() != nodes.len() * VALUES_PER_NODE {
-                return Err(MufeError::Run(format!("halo: rank {rank} sent {} values, expected {}", data.len(), nodes.len() * VALUES_PER_NODE)));
+                return Err(MufeError::Run(format!(
+                    "halo: rank {rank} sent {} values, expected {}",
+                    data.len(),
+                    nodes.len() * VALUES_PER_NODE
+                )));
             }
             for (k, &n) in nodes.iter().enumerate() {
                 let d = &data[k * VALUES_PER_NODE..(k + 1) * VALUES_PER_NODE];

@@ -53,7 +53,10 @@ pub struct ParallelSpec {
 
 impl Default for ParallelSpec {
     fn default() -> Self {
-        Self { imbalance_threshold: default_imbalance_threshold(), check_interval: default_check_interval() }
+        Self {
+            imbalance_threshold: default_imbalance_threshold(),
+            check_interval: default_check_interval(),
+        }
     }
 }
 

@@ -70,7 +70,8 @@ fn step_into<'v>(
             if walked.is_empty() && OPTIONAL_SECTIONS.contains(&seg) && !t.contains_key(seg) {
                 t.insert(seg.to_string(), toml::Value::Table(toml::Table::new()));
             }
-            t.get_mut(seg).ok_or_else(|| format!("no field '{here}' in the scene"))
+            t.get_mut(seg)
+                .ok_or_else(|| format!("no field '{here}' in the scene"))
         }
         toml::Value::Array(a) => {
             let i: usize = seg

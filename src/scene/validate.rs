@@ -182,7 +182,10 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         validate_wall(&c, scene, i, w)?;
     }
 
-    c.non_negative("parallel.imbalance_threshold", scene.parallel.imbalance_threshold)?;
+    c.non_negative(
+        "parallel.imbalance_threshold",
+        scene.parallel.imbalance_threshold,
+    )?;
     if scene.parallel.check_interval == 0 {
         return Err(c.err("parallel.check_interval", "must be ≥ 1 step"));
     }

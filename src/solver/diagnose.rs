@@ -12,7 +12,11 @@ pub fn most_strained_element(model: &Model, x: &[[f64; 3]]) -> (usize, f64) {
         let r = &model.tet_reference[e];
         let ef = tet_forces(&xe, r, &model.laws[model.tet_law[e] as usize]);
         let density = ef.strain_energy / r.volume;
-        let key = if density.is_finite() { density } else { f64::INFINITY };
+        let key = if density.is_finite() {
+            density
+        } else {
+            f64::INFINITY
+        };
         if key > worst.1 {
             worst = (e, key);
         }

@@ -42,7 +42,10 @@ impl ElementScratch {
     pub fn new(model: &Model) -> Self {
         Self {
             corner_forces: vec![[[0.0; 3]; 4]; model.owned_elements],
-            chunk_results: vec![ChunkResult::default(); model.owned_elements.div_ceil(ELEMENT_CHUNK)],
+            chunk_results: vec![
+                ChunkResult::default();
+                model.owned_elements.div_ceil(ELEMENT_CHUNK)
+            ],
         }
     }
 }

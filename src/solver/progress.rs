@@ -35,7 +35,11 @@ impl Progress {
         let now = Instant::now();
         let since = now.duration_since(self.last);
         let elapsed = now.duration_since(self.start).as_secs_f64();
-        let eta = if fraction > 0.0 { elapsed * (1.0 - fraction) / fraction } else { f64::NAN };
+        let eta = if fraction > 0.0 {
+            elapsed * (1.0 - fraction) / fraction
+        } else {
+            f64::NAN
+        };
         if self.terminal {
             if since < Duration::from_millis(200) {
                 return;
@@ -87,6 +91,10 @@ pub fn format_secs(s: f64) -> String {
     } else if s < 3600.0 {
         format!("{}m{:02}s", (s / 60.0) as u64, (s % 60.0) as u64)
     } else {
-        format!("{}h{:02}m", (s / 3600.0) as u64, ((s % 3600.0) / 60.0) as u64)
+        format!(
+            "{}h{:02}m",
+            (s / 3600.0) as u64,
+            ((s % 3600.0) / 60.0) as u64
+        )
     }
 }

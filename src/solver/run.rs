@@ -3,11 +3,14 @@
 //! never touches an existing output directory.
 
 use super::model::build_model;
-use super::parallel::{build_rank_solver, gather_rows, global_ledger, partition_grains, reduce_row, GlobalMesh, RankHooks};
-use crate::domain::halo::Halo;
+use super::parallel::{
+    build_rank_solver, gather_rows, global_ledger, partition_grains, reduce_row, GlobalMesh,
+    RankHooks,
+};
 use super::progress::Progress;
 use super::step::Solver;
 use super::timing::Stage;
+use crate::domain::halo::Halo;
 use crate::domain::Domain;
 use crate::error::{MufeError, Result};
 use crate::io::results::{FieldPart, HistoryColumn, MeshPart, Provenance, ResultsWriter};
@@ -58,7 +61,11 @@ pub fn initial_velocities(solver_model: &super::Model, loaded: &LoadedScene) -> 
         for n in g.nodes.clone() {
             let x = solver_model.x0[n];
             let r = [x[0] - c[0], x[1] - c[1], x[2] - c[2]];
-            v[n] = [u[0] + w[1] * r[2] - w[2] * r[1], u[1] + w[2] * r[0] - w[0] * r[2], u[2] + w[0] * r[1] - w[1] * r[0]];
+            v[n] = [
+                u[0] + w[1] * r[2] - w[2] * r[1],
+                u[1] + w[2] * r[0] - w[0] * r[2],
+                u[2] + w[0] * r[1] - w[1] * r[0],
+            ];
         }
     }
     v
@@ -77,33 +84,110 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
     let mut c = vec![
         HistoryColumn::new("time", "s", None, "simulated time t_n"),
         HistoryColumn::new("step", "", None, "step number n"),
-        HistoryColumn::new("kinetic_energy", "J", Some("ALLKE"), "½ v(n−½)·M v(n+½), consistent with central differences"),
-        HistoryColumn::new("strain_energy", "J", Some("ALLSE"), "elastic strain energy Σ V0 W(F)"),
-        HistoryColumn::new("recoverable_strain_energy", "J", None, "recoverable part of the strain energy"),
-        HistoryColumn::new("internal_energy", "J", Some("ALLIE"), "strain + plastic dissipation + contact spring energy"),
-        HistoryColumn::new("plastic_dissipation", "J", Some("ALLPD"), "energy dissipated by plastic flow"),
-        HistoryColumn::new("friction_dissipation", "J", Some("ALLFD"), "energy dissipated by Coulomb friction, Σ f_t·Δslip"),
-        HistoryColumn::new("external_work", "J", Some("ALLWK"), "work of prescribed motions, walls and body forces"),
-        HistoryColumn::new("damping_dissipation", "J", Some("ALLVD"), "energy removed by mass-proportional damping and normal contact damping"),
-        HistoryColumn::new("energy_balance", "J", Some("ETOTAL"), "ALLKE + ALLIE + ALLVD + ALLFD − ALLWK"),
+        HistoryColumn::new(
+            "kinetic_energy",
+            "J",
+            Some("ALLKE"),
+            "½ v(n−½)·M v(n+½), consistent with central differences",
+        ),
+        HistoryColumn::new(
+            "strain_energy",
+            "J",
+            Some("ALLSE"),
+            "elastic strain energy Σ V0 W(F)",
+        ),
+        HistoryColumn::new(
+            "recoverable_strain_energy",
+            "J",
+            None,
+            "recoverable part of the strain energy",
+        ),
+        HistoryColumn::new(
+            "internal_energy",
+            "J",
+            Some("ALLIE"),
+            "strain + plastic dissipation + contact spring energy",
+        ),
+        HistoryColumn::new(
+            "plastic_dissipation",
+            "J",
+            Some("ALLPD"),
+            "energy dissipated by plastic flow",
+        ),
+        HistoryColumn::new(
+            "friction_dissipation",
+            "J",
+            Some("ALLFD"),
+            "energy dissipated by Coulomb friction, Σ f_t·Δslip",
+        ),
+        HistoryColumn::new(
+            "external_work",
+            "J",
+            Some("ALLWK"),
+            "work of prescribed motions, walls and body forces",
+        ),
+        HistoryColumn::new(
+            "damping_dissipation",
+            "J",
+            Some("ALLVD"),
+            "energy removed by mass-proportional damping and normal contact damping",
+        ),
+        HistoryColumn::new(
+            "energy_balance",
+            "J",
+            Some("ETOTAL"),
+            "ALLKE + ALLIE + ALLVD + ALLFD − ALLWK",
+        ),
     ];
     for name in &solver.model.boundary_names {
         for (what, units, desc) in [
-            ("force", "N", "reaction force the prescribed motion exerts on the grain"),
-            ("moment", "N*m", "reaction moment about the motion's current centre"),
+            (
+                "force",
+                "N",
+                "reaction force the prescribed motion exerts on the grain",
+            ),
+            (
+                "moment",
+                "N*m",
+                "reaction moment about the motion's current centre",
+            ),
             ("displacement", "m", "displacement of the motion's centre"),
-            ("rotation", "rad", "rotation vector of the prescribed rotation"),
+            (
+                "rotation",
+                "rad",
+                "rotation vector of the prescribed rotation",
+            ),
         ] {
             for axis in ["x", "y", "z"] {
-                c.push(HistoryColumn::new(&format!("{name}_{what}_{axis}"), units, None, desc));
+                c.push(HistoryColumn::new(
+                    &format!("{name}_{what}_{axis}"),
+                    units,
+                    None,
+                    desc,
+                ));
             }
         }
     }
     let cm = &solver.model.contact;
     if cm.active() {
-        c.push(HistoryColumn::new("contacts", "", None, "active contact points: grain–grain (per pass) plus wall nodes"));
-        c.push(HistoryColumn::new("max_penetration", "m", None, "largest grain–grain penetration depth at this step"));
-        c.push(HistoryColumn::new("contact_energy", "J", None, "elastic energy stored in the contact penalty springs (part of ALLIE)"));
+        c.push(HistoryColumn::new(
+            "contacts",
+            "",
+            None,
+            "active contact points: grain–grain (per pass) plus wall nodes",
+        ));
+        c.push(HistoryColumn::new(
+            "max_penetration",
+            "m",
+            None,
+            "largest grain–grain penetration depth at this step",
+        ));
+        c.push(HistoryColumn::new(
+            "contact_energy",
+            "J",
+            None,
+            "elastic energy stored in the contact penalty springs (part of ALLIE)",
+        ));
     }
     for w in &cm.walls {
         for (what, units, desc) in [
@@ -111,7 +195,12 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
             ("displacement", "m", "displacement of the wall since t = 0"),
         ] {
             for axis in ["x", "y", "z"] {
-                c.push(HistoryColumn::new(&format!("{}_{what}_{axis}", w.name), units, None, desc));
+                c.push(HistoryColumn::new(
+                    &format!("{}_{what}_{axis}", w.name),
+                    units,
+                    None,
+                    desc,
+                ));
             }
         }
     }
@@ -123,7 +212,10 @@ pub fn history_reductions(solver: &Solver) -> Vec<super::parallel::Reduce> {
     use super::parallel::Reduce;
     let mut k = vec![Reduce::Same, Reduce::Same];
     k.extend([Reduce::Sum; 9]);
-    k.extend(std::iter::repeat_n(Reduce::Sum, 12 * solver.model.boundary_names.len()));
+    k.extend(std::iter::repeat_n(
+        Reduce::Sum,
+        12 * solver.model.boundary_names.len(),
+    ));
     if solver.model.contact.active() {
         k.extend([Reduce::Sum, Reduce::Max, Reduce::Sum]);
     }
@@ -142,7 +234,11 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
     row.extend_from_slice(&[
         // energies, reactions and wall forces of a step describe t_n, the start of the step
         // that has just been taken
-        if s.step > 0 { s.time - solver.model.dt } else { s.time },
+        if s.step > 0 {
+            s.time - solver.model.dt
+        } else {
+            s.time
+        },
         s.step.saturating_sub(1) as f64,
         e.kinetic,
         e.strain,
@@ -195,23 +291,64 @@ pub fn element_stresses(solver: &Solver) -> (Vec<f64>, Vec<f64>) {
 
 /// Writes one frame: every rank contributes its owned grains' rows, rank 0 gathers them in
 /// global order and writes them (all ranks must call).
-fn write_frame(writer: &mut ResultsWriter, domain: &Domain, solver: &Solver, global: &GlobalMesh, owner: &[u32], index: usize) -> Result<()> {
+fn write_frame(
+    writer: &mut ResultsWriter,
+    domain: &Domain,
+    solver: &Solver,
+    global: &GlobalMesh,
+    owner: &[u32],
+    index: usize,
+) -> Result<()> {
     let m = &solver.model;
     let (nn, ne) = (m.owned_nodes, m.owned_elements);
-    let disp: Vec<f64> = solver.state.x[..nn].iter().zip(&m.x0[..nn]).flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]]).collect();
+    let disp: Vec<f64> = solver.state.x[..nn]
+        .iter()
+        .zip(&m.x0[..nn])
+        .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
+        .collect();
     let vel: Vec<f64> = solver.state.v[..nn].iter().flatten().copied().collect();
     let (stress, vm) = element_stresses(solver);
-    let gather = |local: &[f64], offsets: &[usize], k: usize| gather_rows(domain, owner, offsets, local, k).unwrap_or_default();
+    let gather = |local: &[f64], offsets: &[usize], k: usize| {
+        gather_rows(domain, owner, offsets, local, k).unwrap_or_default()
+    };
     let disp = gather(&disp, &global.node_offset, 3);
     let vel = gather(&vel, &global.node_offset, 3);
     let stress = gather(&stress[..6 * ne], &global.element_offset, 6);
     let vm = gather(&vm[..ne], &global.element_offset, 1);
     let (n, e) = (global.total_nodes() as u64, global.total_elements() as u64);
     let fields = [
-        FieldPart { name: "displacement", units: "m", components: 3, data: &disp, offset: 0, total: n },
-        FieldPart { name: "velocity", units: "m/s", components: 3, data: &vel, offset: 0, total: n },
-        FieldPart { name: "stress", units: "Pa", components: 6, data: &stress, offset: 0, total: e },
-        FieldPart { name: "von_mises_stress", units: "Pa", components: 1, data: &vm, offset: 0, total: e },
+        FieldPart {
+            name: "displacement",
+            units: "m",
+            components: 3,
+            data: &disp,
+            offset: 0,
+            total: n,
+        },
+        FieldPart {
+            name: "velocity",
+            units: "m/s",
+            components: 3,
+            data: &vel,
+            offset: 0,
+            total: n,
+        },
+        FieldPart {
+            name: "stress",
+            units: "Pa",
+            components: 6,
+            data: &stress,
+            offset: 0,
+            total: e,
+        },
+        FieldPart {
+            name: "von_mises_stress",
+            units: "Pa",
+            components: 1,
+            data: &vm,
+            offset: 0,
+            total: e,
+        },
     ];
     writer.write_frame(index, solver.state.time, &fields)
 }
@@ -226,19 +363,41 @@ struct EnergyPlot {
 impl EnergyPlot {
     /// Takes the columns it needs from a history row (layout of [`history_columns`]).
     fn push(&mut self, row: &[f64]) {
-        self.rows.push([row[0], row[2], row[5], row[8], row[7], row[9], row[10]]);
+        self.rows
+            .push([row[0], row[2], row[5], row[8], row[7], row[9], row[10]]);
     }
 
     fn draw(&self, path: &std::path::Path) -> Result<()> {
         use crate::validate::plot::{draw, Plot, Scale, Series};
-        let names = ["kinetic ALLKE", "internal ALLIE", "external work ALLWK", "friction ALLFD", "damping ALLVD", "balance ETOTAL"];
+        let names = [
+            "kinetic ALLKE",
+            "internal ALLIE",
+            "external work ALLWK",
+            "friction ALLFD",
+            "damping ALLVD",
+            "balance ETOTAL",
+        ];
         let series = names
             .iter()
             .enumerate()
-            .map(|(k, name)| Series { label: (*name).into(), points: self.rows.iter().map(|r| (r[0] * 1e6, r[k + 1])).collect(), theory: k == 5 })
+            .map(|(k, name)| Series {
+                label: (*name).into(),
+                points: self.rows.iter().map(|r| (r[0] * 1e6, r[k + 1])).collect(),
+                theory: k == 5,
+            })
             .collect();
-        draw(path, &Plot { title: "energy ledger", x_label: "time (µs)", y_label: "energy (J)", x_scale: Scale::Linear, y_scale: Scale::Linear, series })
-            .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
+        draw(
+            path,
+            &Plot {
+                title: "energy ledger",
+                x_label: "time (µs)",
+                y_label: "energy (J)",
+                x_scale: Scale::Linear,
+                y_scale: Scale::Linear,
+                series,
+            },
+        )
+        .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
     }
 }
 
@@ -256,12 +415,20 @@ struct LoadBalance {
 
 impl LoadBalance {
     fn new(solver: &Solver) -> Self {
-        Self { last_compute: 0.0, x_at_plan: solver.state.x[..solver.model.owned_nodes].to_vec(), halo: None, kept: None }
+        Self {
+            last_compute: 0.0,
+            x_at_plan: solver.state.x[..solver.model.owned_nodes].to_vec(),
+            halo: None,
+            kept: None,
+        }
     }
 
     fn compute_seconds(solver: &Solver) -> f64 {
         let t = &solver.timers;
-        t.seconds(Stage::InternalForces) + t.seconds(Stage::Contact) + t.seconds(Stage::Boundary) + t.seconds(Stage::Integrate)
+        t.seconds(Stage::InternalForces)
+            + t.seconds(Stage::Contact)
+            + t.seconds(Stage::Boundary)
+            + t.seconds(Stage::Integrate)
     }
 
     fn take_back(&mut self) -> Solver {
@@ -273,19 +440,39 @@ impl LoadBalance {
     /// re-plans the ghosts when some grain moved by more than a quarter of the ghost margin.
     /// Returns the new solver and owner table when grains or ghosts changed. All ranks
     /// must call.
-    fn check(&mut self, domain: &Domain, loaded: &LoadedScene, global: &GlobalMesh, solver: Solver, owner: &[u32]) -> Result<Option<(Solver, Vec<u32>, usize)>> {
+    fn check(
+        &mut self,
+        domain: &Domain,
+        loaded: &LoadedScene,
+        global: &GlobalMesh,
+        solver: Solver,
+        owner: &[u32],
+    ) -> Result<Option<(Solver, Vec<u32>, usize)>> {
         let spec = &loaded.scene.parallel;
         let now = Self::compute_seconds(&solver);
         let mine = now - self.last_compute;
         self.last_compute = now;
-        let times: Vec<f64> = domain.all_gather_u64(mine.to_bits()).into_iter().map(f64::from_bits).collect();
+        let times: Vec<f64> = domain
+            .all_gather_u64(mine.to_bits())
+            .into_iter()
+            .map(f64::from_bits)
+            .collect();
         let imbalance = crate::domain::decomposition::imbalance(&times);
         let moved = solver.state.x[..solver.model.owned_nodes]
             .iter()
             .zip(&self.x_at_plan)
-            .map(|(a, b)| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt())
+            .map(|(a, b)| {
+                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+            })
             .fold(0.0, f64::max);
-        let mut flags = [if imbalance > spec.imbalance_threshold { 1.0 } else { 0.0 }, moved];
+        let mut flags = [
+            if imbalance > spec.imbalance_threshold {
+                1.0
+            } else {
+                0.0
+            },
+            moved,
+        ];
         domain.max_in_place(&mut flags);
         let replan_ghosts = flags[1] > 0.25 * super::parallel::ghost_margin(global);
         if flags[0] == 0.0 && !replan_ghosts {
@@ -300,7 +487,9 @@ impl LoadBalance {
             owner.to_vec()
         };
         let migrated = owner.iter().zip(&new_owner).filter(|(a, b)| a != b).count();
-        let (s, _plan, halo) = super::parallel::redistribute(domain, loaded, global, solver, owner, &new_owner, &bounds)?;
+        let (s, _plan, halo) = super::parallel::redistribute(
+            domain, loaded, global, solver, owner, &new_owner, &bounds,
+        )?;
         self.x_at_plan = s.state.x[..s.model.owned_nodes].to_vec();
         self.last_compute = Self::compute_seconds(&s);
         self.halo = Some(halo);
@@ -315,7 +504,10 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let global = GlobalMesh::build(loaded)?;
     let owner = partition_grains(domain, loaded, &global)?;
     let (mut solver, plan, halo_plan) = build_rank_solver(domain, loaded, &global, &owner)?;
-    let mut hooks = RankHooks { domain, halo: Halo::new(domain, halo_plan) };
+    let mut hooks = RankHooks {
+        domain,
+        halo: Halo::new(domain, halo_plan),
+    };
     let root = domain.is_root();
     let talk = root && !opts.quiet;
     let scene = &loaded.scene;
@@ -335,8 +527,12 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         }
     }
 
-    std::fs::create_dir_all(&opts.out)
-        .map_err(|e| MufeError::Io(format!("{}: cannot create output directory: {e}", opts.out.display())))?;
+    std::fs::create_dir_all(&opts.out).map_err(|e| {
+        MufeError::Io(format!(
+            "{}: cannot create output directory: {e}",
+            opts.out.display()
+        ))
+    })?;
     let results = opts.out.join(crate::io::results::RESULTS_FILE_NAME);
     let provenance = Provenance::collect(domain, opts.threads);
     let mut writer = ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
@@ -346,7 +542,13 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         for (g, spec) in scene.grains.iter().enumerate() {
             let mesh = &global.meshes[g];
             let base = global.node_offset[g] as u64;
-            nodes.extend(mesh.nodes.iter().map(|p| [p[0] + spec.centre[0], p[1] + spec.centre[1], p[2] + spec.centre[2]]));
+            nodes.extend(mesh.nodes.iter().map(|p| {
+                [
+                    p[0] + spec.centre[0],
+                    p[1] + spec.centre[1],
+                    p[2] + spec.centre[2],
+                ]
+            }));
             tets64.extend(mesh.tets.iter().map(|t| t.map(|n| n as u64 + base)));
             grain_of_tet.extend(std::iter::repeat_n(g as u32, mesh.tets.len()));
         }
@@ -364,9 +566,15 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     drop((nodes, tets64, grain_of_tet));
     writer.define_history(&history_columns(&solver))?;
 
-    let history_interval = scene.output.history_interval.unwrap_or(scene.simulation.duration / 1000.0);
+    let history_interval = scene
+        .output
+        .history_interval
+        .unwrap_or(scene.simulation.duration / 1000.0);
     let history_every = ((history_interval / dt).round() as u64).max(1);
-    let frame_every = scene.output.frame_interval.map(|f| ((f / dt).round() as u64).max(1));
+    let frame_every = scene
+        .output
+        .frame_interval
+        .map(|f| ((f / dt).round() as u64).max(1));
     let mut frame_index = 0;
     if scene.output.frames {
         write_frame(&mut writer, domain, &solver, &global, &owner, frame_index)?;
@@ -409,13 +617,21 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         if domain.size() > 1 && n % scene.parallel.check_interval == 0 && n != last_step {
             // complete the halo in flight before grains may change hands
             hooks.halo.end(&mut solver.state.x, &mut solver.state.v)?;
-            if let Some((s, new_owner, moved)) = balance.check(domain, loaded, &global, solver, &owner)? {
+            if let Some((s, new_owner, moved)) =
+                balance.check(domain, loaded, &global, solver, &owner)?
+            {
                 solver = s;
                 if talk {
-                    println!("re-partitioned at step {n}: {moved} grains migrated (imbalance above {})", scene.parallel.imbalance_threshold);
+                    println!(
+                        "re-partitioned at step {n}: {moved} grains migrated (imbalance above {})",
+                        scene.parallel.imbalance_threshold
+                    );
                 }
                 owner = new_owner;
-                hooks = RankHooks { domain, halo: Halo::new(domain, balance.halo.take().unwrap_or_default()) };
+                hooks = RankHooks {
+                    domain,
+                    halo: Halo::new(domain, balance.halo.take().unwrap_or_default()),
+                };
             } else {
                 solver = balance.take_back();
                 hooks.halo.begin(&solver.state.x, &solver.state.v)?;
@@ -439,9 +655,15 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     }
     // the summary reports global quantities
     let energy = global_ledger(domain, &solver.state.energy);
-    let mut maxima = [solver.state.contact.stats.max_penetration_run, solver.state.contact.stats.max_contacts_run as f64];
+    let mut maxima = [
+        solver.state.contact.stats.max_penetration_run,
+        solver.state.contact.stats.max_contacts_run as f64,
+    ];
     domain.max_in_place(&mut maxima);
-    let mut contacts_now = [solver.state.contact.contacts() as f64, solver.state.contact.stats.rebuilds as f64];
+    let mut contacts_now = [
+        solver.state.contact.contacts() as f64,
+        solver.state.contact.stats.rebuilds as f64,
+    ];
     domain.sum_in_place(&mut contacts_now[..1]);
     if let Some(e) = failure {
         return Err(e);
@@ -468,7 +690,8 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
             summary.steps,
             summary.time,
             summary.wall_s,
-            summary.elements as f64 * summary.steps as f64 / solver.timers.total_seconds().max(1e-9)
+            summary.elements as f64 * summary.steps as f64
+                / solver.timers.total_seconds().max(1e-9)
         );
         println!(
             "energy: kinetic {:.4e} J, strain {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
@@ -498,12 +721,21 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
 pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u64) {
     let m = &solver.model;
     println!("scene: {}", loaded.path);
-    println!("{:<12} {:>10} {:>10} {:>9} {:>9} {:>10} {:>10}", "grain", "elements", "nodes", "facets", "min dih°", "max aspect", "min edge m");
+    println!(
+        "{:<12} {:>10} {:>10} {:>9} {:>9} {:>10} {:>10}",
+        "grain", "elements", "nodes", "facets", "min dih°", "max aspect", "min edge m"
+    );
     for g in m.grains.iter().take(20) {
         let q = &g.quality;
         println!(
             "{:<12} {:>10} {:>10} {:>9} {:>9.2} {:>10.2} {:>10.3e}",
-            g.name, q.elements, q.nodes, q.surface_facets, q.min_dihedral_deg, q.max_aspect_ratio, q.min_edge
+            g.name,
+            q.elements,
+            q.nodes,
+            q.surface_facets,
+            q.min_dihedral_deg,
+            q.max_aspect_ratio,
+            q.min_edge
         );
     }
     if m.grains.len() > 20 {
@@ -519,7 +751,12 @@ pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u
     );
     println!(
         "time step: stable {:.4e} s (element {}, safety {}), used {:.4e} s; {} steps for {:.4e} s",
-        m.dt_stable, m.dt_critical_element, loaded.scene.simulation.dt_safety, m.dt, total_steps, loaded.scene.simulation.duration
+        m.dt_stable,
+        m.dt_critical_element,
+        loaded.scene.simulation.dt_safety,
+        m.dt,
+        total_steps,
+        loaded.scene.simulation.duration
     );
     if m.scaled_elements > 0 {
         println!(
@@ -546,7 +783,11 @@ pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u
                 cm.walls.len()
             );
         } else {
-            println!("contact: {} walls (kinematic), margin {:.3e} m", cm.walls.len(), cm.margin);
+            println!(
+                "contact: {} walls (kinematic), margin {:.3e} m",
+                cm.walls.len(),
+                cm.margin
+            );
         }
         if st.contact_dt.is_finite() {
             println!(
@@ -564,7 +805,11 @@ pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u
         }
     }
     let bytes = estimate_memory_bytes(m);
-    println!("memory estimate: {:.1} MiB ({:.0} bytes/element)", bytes as f64 / 1048576.0, bytes as f64 / m.num_elements().max(1) as f64);
+    println!(
+        "memory estimate: {:.1} MiB ({:.0} bytes/element)",
+        bytes as f64 / 1048576.0,
+        bytes as f64 / m.num_elements().max(1) as f64
+    );
 }
 
 /// Bytes held by the model, state and scratch arrays.

@@ -101,7 +101,11 @@ pub struct RigidVelocity {
 impl RigidVelocity {
     #[inline(always)]
     pub fn at(&self, x: &[f64; 3]) -> [f64; 3] {
-        let r = [x[0] - self.centre[0], x[1] - self.centre[1], x[2] - self.centre[2]];
+        let r = [
+            x[0] - self.centre[0],
+            x[1] - self.centre[1],
+            x[2] - self.centre[2],
+        ];
         let w = &self.omega;
         [
             self.velocity[0] + w[1] * r[2] - w[2] * r[1],
@@ -115,51 +119,76 @@ impl RigidVelocity {
 /// velocity, ω = I⁻¹L about the centre.
 fn compute_grain_rigid_velocities(model: &Model, state: &State, out: &mut [RigidVelocity]) {
     let owned = model.owned_grains;
-    out[..owned].par_iter_mut().zip(model.grains[..owned].par_iter()).for_each(|(rv, g)| {
-        let (mut m_tot, mut mx, mut mv) = (0.0, [0.0; 3], [0.0; 3]);
-        for n in g.nodes.clone() {
-            let m = model.mass[n];
-            m_tot += m;
-            for i in 0..3 {
-                mx[i] += m * state.x[n][i];
-                mv[i] += m * state.v[n][i];
-            }
-        }
-        if m_tot <= 0.0 {
-            *rv = RigidVelocity::default();
-            return;
-        }
-        let c = mx.map(|v| v / m_tot);
-        let vc = mv.map(|v| v / m_tot);
-        let mut l = [0.0; 3];
-        let mut inertia = nalgebra::Matrix3::<f64>::zeros();
-        for n in g.nodes.clone() {
-            let m = model.mass[n];
-            let r = [state.x[n][0] - c[0], state.x[n][1] - c[1], state.x[n][2] - c[2]];
-            let u = [state.v[n][0] - vc[0], state.v[n][1] - vc[1], state.v[n][2] - vc[2]];
-            l[0] += m * (r[1] * u[2] - r[2] * u[1]);
-            l[1] += m * (r[2] * u[0] - r[0] * u[2]);
-            l[2] += m * (r[0] * u[1] - r[1] * u[0]);
-            let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-            for i in 0..3 {
-                for j in 0..3 {
-                    inertia[(i, j)] += m * (if i == j { rr } else { 0.0 } - r[i] * r[j]);
+    out[..owned]
+        .par_iter_mut()
+        .zip(model.grains[..owned].par_iter())
+        .for_each(|(rv, g)| {
+            let (mut m_tot, mut mx, mut mv) = (0.0, [0.0; 3], [0.0; 3]);
+            for n in g.nodes.clone() {
+                let m = model.mass[n];
+                m_tot += m;
+                for i in 0..3 {
+                    mx[i] += m * state.x[n][i];
+                    mv[i] += m * state.v[n][i];
                 }
             }
-        }
-        let omega = inertia
-            .try_inverse()
-            .map(|inv| inv * nalgebra::Vector3::new(l[0], l[1], l[2]))
-            .map_or([0.0; 3], |w| [w[0], w[1], w[2]]);
-        *rv = RigidVelocity { centre: c, velocity: vc, omega };
-    });
+            if m_tot <= 0.0 {
+                *rv = RigidVelocity::default();
+                return;
+            }
+            let c = mx.map(|v| v / m_tot);
+            let vc = mv.map(|v| v / m_tot);
+            let mut l = [0.0; 3];
+            let mut inertia = nalgebra::Matrix3::<f64>::zeros();
+            for n in g.nodes.clone() {
+                let m = model.mass[n];
+                let r = [
+                    state.x[n][0] - c[0],
+                    state.x[n][1] - c[1],
+                    state.x[n][2] - c[2],
+                ];
+                let u = [
+                    state.v[n][0] - vc[0],
+                    state.v[n][1] - vc[1],
+                    state.v[n][2] - vc[2],
+                ];
+                l[0] += m * (r[1] * u[2] - r[2] * u[1]);
+                l[1] += m * (r[2] * u[0] - r[0] * u[2]);
+                l[2] += m * (r[0] * u[1] - r[1] * u[0]);
+                let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        inertia[(i, j)] += m * (if i == j { rr } else { 0.0 } - r[i] * r[j]);
+                    }
+                }
+            }
+            let omega = inertia
+                .try_inverse()
+                .map(|inv| inv * nalgebra::Vector3::new(l[0], l[1], l[2]))
+                .map_or([0.0; 3], |w| [w[0], w[1], w[2]]);
+            *rv = RigidVelocity {
+                centre: c,
+                velocity: vc,
+                omega,
+            };
+        });
 }
 
 /// Damping force on node n: −α m v − α_def m (v − v_rigid(x)) (N).
 #[inline(always)]
-fn damping_force(model: &Model, rigid: &[RigidVelocity], n: usize, x: &[f64; 3], v: &[f64; 3]) -> [f64; 3] {
+fn damping_force(
+    model: &Model,
+    rigid: &[RigidVelocity],
+    n: usize,
+    x: &[f64; 3],
+    v: &[f64; 3],
+) -> [f64; 3] {
     let m = model.mass[n];
-    let mut f = [-model.damping * m * v[0], -model.damping * m * v[1], -model.damping * m * v[2]];
+    let mut f = [
+        -model.damping * m * v[0],
+        -model.damping * m * v[1],
+        -model.damping * m * v[2],
+    ];
     if model.deformation_damping > 0.0 {
         let vr = rigid[model.node_grain[n] as usize].at(x);
         for i in 0..3 {
@@ -198,7 +227,11 @@ impl Solver {
     /// Builds a solver at t = 0 with the given initial velocities.
     pub fn new(model: Model, motions: Vec<PrescribedMotion>, v0: Vec<[f64; 3]>) -> Self {
         let n = model.num_nodes();
-        let c_max = model.materials.iter().map(|m| m.dilatational_wave_speed()).fold(0.0, f64::max);
+        let c_max = model
+            .materials
+            .iter()
+            .map(|m| m.dilatational_wave_speed())
+            .fold(0.0, f64::max);
         let owned_mass: f64 = model.physical_mass[..model.owned_nodes].iter().sum();
         let energy_floor = 1e-12 * owned_mass * c_max * c_max;
         let state = State {
@@ -253,7 +286,13 @@ impl Solver {
         });
         timers.time(Stage::Halo, || hooks.ghosts_in(&mut state.x, &mut state.v))?;
         timers.time(Stage::Contact, || {
-            let local = crate::contact::needs_rebuild(model, &state.x, state.time, dt, &mut scratch.contact);
+            let local = crate::contact::needs_rebuild(
+                model,
+                &state.x,
+                state.time,
+                dt,
+                &mut scratch.contact,
+            );
             let rebuild = hooks.any(local);
             crate::contact::evaluate_with(
                 model,
@@ -268,7 +307,12 @@ impl Solver {
             )
         })?;
         timers.time(Stage::Contact, || {
-            crate::contact::add_forces(model, &scratch.contact, &mut state.contact, &mut scratch.force)
+            crate::contact::add_forces(
+                model,
+                &scratch.contact,
+                &mut state.contact,
+                &mut scratch.force,
+            )
         });
         if let Some((e, jac)) = summary.bad_element {
             let g = &model.grains[model.grain_of_element(e)];
@@ -356,7 +400,9 @@ impl Solver {
             self.energy_floor,
         ];
         hooks.sum(&mut global);
-        self.energy_scale = self.energy_scale.max(global[0].abs() + global[1].abs() + global[2].abs());
+        self.energy_scale = self
+            .energy_scale
+            .max(global[0].abs() + global[1].abs() + global[2].abs());
         let stored = global[3];
         if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > global[4]) {
             let (e, density) = super::diagnose::most_strained_element(&self.model, &state.x);
