@@ -6,7 +6,7 @@
 //! extract, no polar decomposition, no rate integration that could drift. Dm⁻¹ and the
 //! reference volume are the only per-element data the force kernel needs (80 bytes).
 
-use crate::material::{det3, StVenantKirchhoff};
+use crate::material::{det3, ElasticLaw};
 
 /// Reference data of one tetrahedron needed by the force kernel.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -99,7 +99,7 @@ pub struct ElementForces {
 pub fn tet_forces(
     x: &[[f64; 3]; 4],
     reference: &TetReference,
-    material: &StVenantKirchhoff,
+    material: &ElasticLaw,
 ) -> ElementForces {
     let f = deformation_gradient(x, &reference.dm_inv);
     let (p, w) = material.first_piola_and_energy(&f);
@@ -185,7 +185,7 @@ mod tests {
             poisson_ratio: 0.22,
             density: 2500.0,
         };
-        let m = StVenantKirchhoff::new(&p);
+        let m = crate::material::ElasticLaw::new(&p, crate::material::ElasticLawKind::StVenantKirchhoff);
         let x0 = regular_tet(1e-5);
         let r = TetReference::new(x0).unwrap();
         let mut x = x0;

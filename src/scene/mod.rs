@@ -112,6 +112,10 @@ pub struct MaterialSpec {
     pub poisson_ratio: f64,
     /// Density ρ (kg/m³).
     pub density: f64,
+    /// Elastic law: `st_venant_kirchhoff` (default) or `corotational` (Biot stress linear in
+    /// the stretch; matches small-strain references to second order).
+    #[serde(default)]
+    pub law: crate::material::ElasticLawKind,
 }
 
 /// One grain: a material, a shape to mesh, and its initial placement and motion.

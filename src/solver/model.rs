@@ -6,7 +6,7 @@ use crate::boundary::{PrescribedMotion, Translation};
 use crate::contact::ContactModel;
 use crate::element::{max_stiffness_eigenvalue, TetReference};
 use crate::error::InputError;
-use crate::material::{ElasticParameters, StVenantKirchhoff};
+use crate::material::{ElasticLaw, ElasticParameters};
 use crate::mesh::{self, SurfaceMesh, TetMesh};
 use crate::scene::{LoadedScene, NodeSelector, ShapeSpec};
 use std::collections::BTreeMap;
@@ -47,7 +47,7 @@ pub struct NodeIncidence {
 pub struct Model {
     pub grains: Vec<GrainBlock>,
     pub materials: Vec<ElasticParameters>,
-    pub laws: Vec<StVenantKirchhoff>,
+    pub laws: Vec<ElasticLaw>,
     /// Reference node positions (m).
     pub x0: Vec<[f64; 3]>,
     pub tets: Vec<[u32; 4]>,
@@ -145,7 +145,11 @@ pub fn build_model_with_ghosts(
             density: m.density,
         })
         .collect();
-    let laws: Vec<StVenantKirchhoff> = materials.iter().map(StVenantKirchhoff::new).collect();
+    let laws: Vec<ElasticLaw> = materials
+        .iter()
+        .zip(scene.materials.values())
+        .map(|(p, spec)| ElasticLaw::new(p, spec.law))
+        .collect();
 
     let mut cache: BTreeMap<String, Arc<TetMesh>> = BTreeMap::new();
     let mut grains = Vec::new();
