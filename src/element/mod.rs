@@ -185,7 +185,10 @@ mod tests {
             poisson_ratio: 0.22,
             density: 2500.0,
         };
-        let m = crate::material::ElasticLaw::new(&p, crate::material::ElasticLawKind::StVenantKirchhoff);
+        let m = crate::material::ElasticLaw::new(
+            &p,
+            crate::material::ElasticLawKind::StVenantKirchhoff,
+        );
         let x0 = regular_tet(1e-5);
         let r = TetReference::new(x0).unwrap();
         let mut x = x0;
