@@ -53,6 +53,29 @@ impl Checker<'_> {
         Ok(())
     }
 
+    /// A translation given by at most one of a velocity and a displacement history.
+    /// `prefix` ends with '.' (e.g. `walls[0].`).
+    fn translation(
+        &self,
+        prefix: &str,
+        velocity: &Option<History3>,
+        displacement: &Option<History3>,
+    ) -> Result<(), InputError> {
+        if velocity.is_some() && displacement.is_some() {
+            return Err(self.err(
+                format!("{prefix}velocity"),
+                "give either velocity or displacement, not both",
+            ));
+        }
+        if let Some(h) = velocity {
+            self.history(&format!("{prefix}velocity"), h)?;
+        }
+        if let Some(h) = displacement {
+            self.history(&format!("{prefix}displacement"), h)?;
+        }
+        Ok(())
+    }
+
     fn history(&self, field: &str, h: &History3) -> Result<(), InputError> {
         if h.times.is_empty() {
             return Err(self.err(format!("{field}.times"), "needs at least one time"));
@@ -240,18 +263,7 @@ fn validate_boundary(
             c.positive(&f("select.within.distance"), *distance)?;
         }
     }
-    if b.velocity.is_some() && b.displacement.is_some() {
-        return Err(c.err(
-            f("velocity"),
-            "give either velocity or displacement, not both",
-        ));
-    }
-    if let Some(h) = &b.velocity {
-        c.history(&f("velocity"), h)?;
-    }
-    if let Some(h) = &b.displacement {
-        c.history(&f("displacement"), h)?;
-    }
+    c.translation(&f(""), &b.velocity, &b.displacement)?;
     if let Some(h) = &b.angular_velocity {
         c.history(&f("angular_velocity"), h)?;
         if b.components.is_some() {
@@ -294,17 +306,6 @@ fn validate_wall(c: &Checker, scene: &Scene, i: usize, w: &WallSpec) -> Result<(
     c.vec3(&f("point"), &w.point)?;
     c.nonzero_vec3(&f("normal"), &w.normal)?;
     c.non_negative(&f("friction"), w.friction)?;
-    if w.velocity.is_some() && w.displacement.is_some() {
-        return Err(c.err(
-            f("velocity"),
-            "give either velocity or displacement, not both",
-        ));
-    }
-    if let Some(h) = &w.velocity {
-        c.history(&f("velocity"), h)?;
-    }
-    if let Some(h) = &w.displacement {
-        c.history(&f("displacement"), h)?;
-    }
+    c.translation(&f(""), &w.velocity, &w.displacement)?;
     Ok(())
 }
