@@ -53,6 +53,18 @@ impl Checker<'_> {
         Ok(())
     }
 
+    /// Names used in history column names: letters, digits and `_` only.
+    fn identifier(&self, field: &str, name: &str) -> Result<(), InputError> {
+        if name.is_empty()
+            || !name
+                .chars()
+                .all(|ch| ch.is_ascii_alphanumeric() || ch == '_')
+        {
+            return Err(self.err(field, "must be a non-empty identifier (letters, digits, _)"));
+        }
+        Ok(())
+    }
+
     /// A translation given by at most one of a velocity and a displacement history.
     /// `prefix` ends with '.' (e.g. `walls[0].`).
     fn translation(
@@ -229,17 +241,7 @@ fn validate_boundary(
     b: &BoundarySpec,
 ) -> Result<(), InputError> {
     let f = |x: &str| format!("boundaries[{i}].{x}");
-    if b.name.is_empty()
-        || !b
-            .name
-            .chars()
-            .all(|ch| ch.is_ascii_alphanumeric() || ch == '_')
-    {
-        return Err(c.err(
-            f("name"),
-            "must be a non-empty identifier (letters, digits, _)",
-        ));
-    }
+    c.identifier(&f("name"), &b.name)?;
     if !scene
         .grains
         .iter()
@@ -283,17 +285,7 @@ fn validate_boundary(
 
 fn validate_wall(c: &Checker, scene: &Scene, i: usize, w: &WallSpec) -> Result<(), InputError> {
     let f = |x: &str| format!("walls[{i}].{x}");
-    if w.name.is_empty()
-        || !w
-            .name
-            .chars()
-            .all(|ch| ch.is_ascii_alphanumeric() || ch == '_')
-    {
-        return Err(c.err(
-            f("name"),
-            "must be a non-empty identifier (letters, digits, _)",
-        ));
-    }
+    c.identifier(&f("name"), &w.name)?;
     if scene.walls[..i].iter().any(|o| o.name == w.name) {
         return Err(c.err(f("name"), format!("duplicate wall name '{}'", w.name)));
     }
