@@ -15,14 +15,6 @@ poisson_ratio = 0.22
 density = 2500.0
 "#;
 
-fn glass() -> ElasticParameters {
-    ElasticParameters {
-        youngs_modulus: 63e9,
-        poisson_ratio: 0.22,
-        density: 2500.0,
-    }
-}
-
 fn solver_from(text: &str) -> Solver {
     let loaded = parse_scene("test.toml", text, &[]).expect("scene parses");
     build_solver(&loaded).expect("model builds")
@@ -90,7 +82,7 @@ fn assert_patch_test(mut solver: Solver, label: &str) {
         a[2][1],
         1.0 + a[2][2],
     ];
-    let law = StVenantKirchhoff::new(&glass());
+    let law = StVenantKirchhoff::new(&ElasticParameters::paper_glass());
     let (p_exact, _) = law.first_piola_and_energy(&f_exact);
     let p_scale = p_exact.iter().map(|v| v.abs()).fold(0.0, f64::max);
     for (e, t) in model.tets.iter().enumerate() {
@@ -173,7 +165,7 @@ fn max_von_mises(solver: &Solver) -> f64 {
 
 #[test]
 fn rigid_rotation_by_90_degrees_leaves_zero_stress() {
-    let p = glass();
+    let p = ElasticParameters::paper_glass();
     for increments in [1u64, 7, 400] {
         // rotate about an oblique axis through the centre by exactly 90° in `increments` steps
         let dt = 1e-9;
@@ -220,7 +212,7 @@ fn rigid_rotation_by_90_degrees_leaves_zero_stress() {
 
 #[test]
 fn free_spin_at_1000_rad_per_s_is_objective_and_conserves_angular_momentum() {
-    let p = glass();
+    let p = ElasticParameters::paper_glass();
     let omega = 1000.0;
     let r = 1.1e-3;
     let grain = format!("angular_velocity = [0.0, 0.0, {omega}]");
@@ -292,7 +284,7 @@ fn free_vibration_conserves_energy_over_1e5_steps() {
 
 #[test]
 fn confined_pulse_travels_at_the_dilatational_speed() {
-    let p = glass();
+    let p = ElasticParameters::paper_glass();
     let cp = p.dilatational_wave_speed();
     let (length, cells, h) = (0.1, 200usize, 0.1 / 200.0);
     let pulse = 20.0 * h / cp; // half-sine of 20 elements' transit time
@@ -556,7 +548,7 @@ fn corotational_law_is_objective_in_the_solver() {
     }
     let vm = max_von_mises(&solver);
     assert!(
-        vm < 1e-6 * glass().youngs_modulus * 1e-6,
+        vm < 1e-6 * ElasticParameters::paper_glass().youngs_modulus * 1e-6,
         "von Mises after 90°: {vm} Pa"
     );
 }

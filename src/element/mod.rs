@@ -180,11 +180,7 @@ mod tests {
 
     #[test]
     fn forces_sum_to_zero_and_are_energy_gradient() {
-        let p = ElasticParameters {
-            youngs_modulus: 63e9,
-            poisson_ratio: 0.22,
-            density: 2500.0,
-        };
+        let p = ElasticParameters::paper_glass();
         let m = crate::material::ElasticLaw::new(
             &p,
             crate::material::ElasticLawKind::StVenantKirchhoff,
@@ -224,11 +220,7 @@ mod tests {
     #[test]
     fn regular_tet_stable_step_matches_theory() {
         // THEORY.md §7: regular tet, lumped mass: Δt_crit = 0.565 h / c_p (for ν = 0.22).
-        let p = ElasticParameters {
-            youngs_modulus: 63e9,
-            poisson_ratio: 0.22,
-            density: 2500.0,
-        };
+        let p = ElasticParameters::paper_glass();
         let (lambda, mu) = p.lame();
         let h = 1e-5;
         let r = TetReference::new(regular_tet(h)).unwrap();

@@ -189,14 +189,7 @@ impl Case for HertzCase {
         let base = load_case_scene("hertz", SCENE, &[]).ok();
         let (material, radius) = base
             .and_then(|b| Self::material_and_radius(&b.scene).ok())
-            .unwrap_or((
-                ElasticParameters {
-                    youngs_modulus: 63e9,
-                    poisson_ratio: 0.22,
-                    density: 2500.0,
-                },
-                1.1e-3,
-            ));
+            .unwrap_or((ElasticParameters::paper_glass(), 1.1e-3));
         let reference = FiniteSphereReference::load();
         let hertz = Hertz::sphere_on_flat(&material, radius);
         let d_max = outcomes

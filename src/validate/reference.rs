@@ -64,11 +64,7 @@ pub const FINITE_SPHERE_CSV: &str =
 impl FiniteSphereReference {
     /// Parses the CSV (R = 1.1 mm, E = 63 GPa, ν = 0.22 in the table).
     pub fn load() -> Self {
-        let table = ElasticParameters {
-            youngs_modulus: 63e9,
-            poisson_ratio: 0.22,
-            density: 2500.0,
-        };
+        let table = ElasticParameters::paper_glass();
         let (r, e_star) = (1.1e-3, table.plane_strain_modulus());
         let mut points = Vec::new();
         for line in FINITE_SPHERE_CSV.lines() {
@@ -252,18 +248,10 @@ impl Rolling {
 mod tests {
     use super::*;
 
-    fn glass() -> ElasticParameters {
-        ElasticParameters {
-            youngs_modulus: 63e9,
-            poisson_ratio: 0.22,
-            density: 2500.0,
-        }
-    }
-
     #[test]
     fn hertz_matches_theory_table_for_paper_material() {
         // THEORY.md §1 table: the formulas, evaluated, agree with the printed values.
-        let m = glass();
+        let m = ElasticParameters::paper_glass();
         let pair = Hertz::identical_spheres(&m, 1.1e-3);
         let flat = Hertz::sphere_on_flat(&m, 1.1e-3);
         assert!((pair.force(1e-6) - 1.035).abs() < 0.002);
@@ -273,7 +261,7 @@ mod tests {
 
     #[test]
     fn finite_sphere_reference_reproduces_its_table_and_exceeds_hertz() {
-        let m = glass();
+        let m = ElasticParameters::paper_glass();
         let r = FiniteSphereReference::load();
         assert!((r.force(&m, 1.1e-3, 5e-6).unwrap() - 33.7846).abs() < 1e-6 * 33.8);
         let flat = Hertz::sphere_on_flat(&m, 1.1e-3);
@@ -298,7 +286,7 @@ mod tests {
     #[test]
     fn lubkin_reproduces_theory_table() {
         // THEORY.md §3: c/a = 0.6 → M/(μNa) = 0.481, G a² β/(μN) = 0.1716
-        let m = glass();
+        let m = ElasticParameters::paper_glass();
         let l = Lubkin::identical_spheres(&m, 1.1e-3, 0.22, 70.0);
         let (beta, moment) = l.point(0.6 * l.a);
         let mun = l.mu * l.normal_force;
@@ -322,7 +310,7 @@ mod tests {
 
     #[test]
     fn mindlin_matches_theory_table() {
-        let m = glass();
+        let m = ElasticParameters::paper_glass();
         let md = Mindlin::identical_spheres(&m, 1.1e-3, 0.22, 5.0);
         assert!((md.slip_displacement - 0.7173e-6).abs() < 0.001e-6);
         assert!((md.loading(0.5 * md.slip_displacement) - 0.711).abs() < 0.001);
