@@ -27,6 +27,7 @@ pub mod element;
 pub mod energy;
 pub mod io;
 pub mod material;
+pub mod math;
 pub mod scene;
 pub mod solver;
 pub mod validate;

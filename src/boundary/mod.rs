@@ -140,7 +140,7 @@ impl PrescribedMotion {
             Some(h) => {
                 let w = h.value_at(t_n + 0.5 * dt);
                 let inc = rotation_from_vector([w[0] * dt, w[1] * dt, w[2] * dt]);
-                crate::material::mat_mul(&inc, current)
+                crate::math::mat_mul(&inc, current)
             }
         }
     }
@@ -180,7 +180,7 @@ mod tests {
     fn rodrigues_is_orthonormal() {
         let q = rotation_from_vector([0.3, -1.2, 0.7]);
         let qtq =
-            crate::material::mat_mul(&[q[0], q[3], q[6], q[1], q[4], q[7], q[2], q[5], q[8]], &q);
+            crate::math::mat_mul(&[q[0], q[3], q[6], q[1], q[4], q[7], q[2], q[5], q[8]], &q);
         for i in 0..3 {
             for j in 0..3 {
                 let e = if i == j { 1.0 } else { 0.0 };

@@ -19,7 +19,7 @@
 
 use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
 use super::ContactModel;
-use crate::mesh::{dot, sub};
+use crate::math::{dot, sub};
 use rayon::prelude::*;
 
 /// Surface nodes per parallel chunk of the displacement check.

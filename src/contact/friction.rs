@@ -13,7 +13,7 @@
 //! The dissipated energy per unit area is exactly −t·Δs = μ p (|t*| − μ p)/ε_t ≥ 0 (force
 //! × slip increment); the elastic energy left in the tangential spring is ½|t|²/ε_t.
 
-use crate::mesh::{dot, norm, scale, sub};
+use crate::math::{dot, norm, scale, sub};
 
 /// Outcome of [`return_map`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -96,7 +96,7 @@ pub mod walls;
 use crate::boundary::Translation;
 use crate::energy::WorkAccumulator;
 use crate::error::{InputError, MufeError};
-use crate::mesh::{cross, dot, norm, scale, sub};
+use crate::math::{cross, dot, norm, scale, sub};
 use crate::scene::Scene;
 use crate::solver::model::{GrainBlock, Model};
 use broad::{BroadPhase, CandidateLists};

@@ -17,7 +17,7 @@
 
 use super::friction::{return_map, rotate_onto_plane, tangential};
 use super::{ContactKey, ContactModel, FrictionPoint, NONE};
-use crate::mesh::{add, cross, dot, norm, scale, sub};
+use crate::math::{add, cross, dot, norm, scale, sub};
 
 /// Which part of a triangle a closest point lies on. Edge k joins corners k and (k+1)%3.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -21,7 +21,7 @@
 
 use super::{ContactModel, ContactState};
 use crate::boundary::Translation;
-use crate::mesh::{add, dot, norm, scale, sub};
+use crate::math::{add, dot, norm, scale, sub};
 
 /// A rigid plane wall bound to the model (set up from a `WallSpec`).
 #[derive(Debug, Clone)]

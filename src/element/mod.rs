@@ -6,7 +6,8 @@
 //! extract, no polar decomposition, no rate integration that could drift. Dm⁻¹ and the
 //! reference volume are the only per-element data the force kernel needs (80 bytes).
 
-use crate::material::{det3, ElasticLaw};
+use crate::math::{det3};
+use crate::material::{ElasticLaw};
 
 /// Reference data of one tetrahedron needed by the force kernel.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -80,7 +81,7 @@ pub fn inverse3(m: &[f64; 9], det: f64) -> [f64; 9] {
 #[inline(always)]
 pub fn deformation_gradient(x: &[[f64; 3]; 4], dm_inv: &[f64; 9]) -> [f64; 9] {
     let ds = edge_matrix(x);
-    crate::material::mat_mul(&ds, dm_inv)
+    crate::math::mat_mul(&ds, dm_inv)
 }
 
 /// Outcome of one element force evaluation.

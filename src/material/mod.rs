@@ -2,6 +2,7 @@
 //! doc comment. Per-element state (plastic strain, hardening) lives beside the element
 //! data and exists only for materials that need it.
 
+use crate::math::{det3, mat_mul};
 use serde::{Deserialize, Serialize};
 
 /// Isotropic linear elasticity parameters (SI units).
@@ -267,17 +268,6 @@ pub fn green_lagrange_strain(f: &[f64; 9]) -> [f64; 9] {
     e
 }
 
-/// Row-major 3×3 product a·b.
-#[inline(always)]
-pub fn mat_mul(a: &[f64; 9], b: &[f64; 9]) -> [f64; 9] {
-    let mut c = [0.0; 9];
-    for i in 0..3 {
-        for j in 0..3 {
-            c[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
-        }
-    }
-    c
-}
 
 /// Cauchy stress σ = J⁻¹ P Fᵀ (Pa), row-major, for output.
 pub fn cauchy_from_first_piola(p: &[f64; 9], f: &[f64; 9]) -> [f64; 9] {
@@ -293,12 +283,6 @@ pub fn cauchy_from_first_piola(p: &[f64; 9], f: &[f64; 9]) -> [f64; 9] {
     sigma
 }
 
-/// Determinant of a row-major 3×3 matrix.
-#[inline(always)]
-pub fn det3(m: &[f64; 9]) -> f64 {
-    m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6])
-        + m[2] * (m[3] * m[7] - m[4] * m[6])
-}
 
 /// von Mises equivalent of a symmetric stress (Pa).
 pub fn von_mises(s: &[f64; 9]) -> f64 {

@@ -3,7 +3,8 @@
 use std::fmt;
 
 use super::surface::extract_surface;
-use super::{cross, dot, norm, sub, MeshError, TetMesh};
+use crate::math::{cross, dot, norm, sub};
+use super::{MeshError, TetMesh};
 
 /// Shape statistics of a tet mesh. The explicit time step is set by the worst element, so
 /// the extremes (minimum dihedral angle, maximum aspect ratio, shortest edge) matter more

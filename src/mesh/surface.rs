@@ -1,6 +1,7 @@
 //! Boundary extraction and surface geometry for contact.
 
-use super::{add, cross, norm, scale, sub, SurfaceMesh, TetMesh};
+use crate::math::{add, cross, norm, scale, sub};
+use super::{SurfaceMesh, TetMesh};
 
 /// Faces of a positively oriented tet `[x0,x1,x2,x3]`, each ordered so that its normal
 /// `(b−a)×(c−a)` points away from the opposite node (out of the tet).
@@ -123,7 +124,7 @@ mod tests {
         for p in paths {
             let mut t = [0u32, p[0], p[1], 7];
             let [a, b, c, d] = t.map(|i| nodes[i as usize]);
-            if super::super::dot(sub(b, a), cross(sub(c, a), sub(d, a))) < 0.0 {
+            if crate::math::dot(sub(b, a), cross(sub(c, a), sub(d, a))) < 0.0 {
                 t.swap(2, 3);
             }
             tets.push(t);
@@ -142,7 +143,7 @@ mod tests {
             // Outward: the normal points from the cube centre to the facet.
             let c = f.map(|i| mesh.nodes[i as usize]);
             let centroid = scale(add(add(c[0], c[1]), c[2]), 1.0 / 3.0);
-            assert!(super::super::dot(*n, sub(centroid, [0.5; 3])) > 0.0);
+            assert!(crate::math::dot(*n, sub(centroid, [0.5; 3])) > 0.0);
             // Axis aligned unit normal.
             let sorted = {
                 let mut a = n.map(f64::abs);
