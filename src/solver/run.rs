@@ -368,7 +368,7 @@ impl EnergyPlot {
     }
 
     fn draw(&self, path: &std::path::Path) -> Result<()> {
-        use crate::validate::plot::{draw, Plot, Scale, Series};
+        use crate::io::plot::{draw, Plot, Scale, Series};
         let names = [
             "kinetic ALLKE",
             "internal ALLIE",

@@ -9,7 +9,7 @@
 //! is converged), so the finest meshes do not converge to zero error: see
 //! docs/BENCHMARKS.md (Validation).
 
-use super::plot::{Plot, Scale, Series};
+use crate::io::plot::{Plot, Scale, Series};
 use super::reference::{FiniteSphereReference, Hertz};
 use super::runner::{case_solver, load_case_scene, Case, CaseOutcome, Probe};
 use crate::error::{MufeError, Result};

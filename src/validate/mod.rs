@@ -4,7 +4,6 @@
 //! whole loading range.
 
 pub mod hertz;
-pub mod plot;
 pub mod reference;
 pub mod runner;
 pub mod two_sphere;

@@ -1,6 +1,6 @@
 //! Running validation cases over meshing ratios: table, `validation.json`, PNG plots.
 
-use super::plot::{self, Plot, Scale, Series};
+use crate::io::plot::{self, Plot, Scale, Series};
 use crate::error::{InputError, MufeError, Result};
 use crate::scene::{parse_scene, LoadedScene};
 use crate::solver::run::{build_solver, history_columns, history_row};
