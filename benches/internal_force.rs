@@ -13,9 +13,10 @@
 //! and 2 threads give bitwise identical forces. Results: docs/BENCHMARKS.md.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use mufe::driver::summary::estimate_memory_bytes;
 use mufe::scene::parse_scene;
+use mufe::solver::build_solver;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch};
-use mufe::solver::run::{build_solver, estimate_memory_bytes};
 use std::time::Duration;
 
 /// Sphere radius (m) and seeding (m): 70 µm gives > 10⁵ tets.

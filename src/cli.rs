@@ -2,9 +2,10 @@
 //! error becomes one line on stderr and an exit code (2 for bad input).
 
 use crate::domain::Domain;
+use crate::driver::{print_model_summary, run, RunOptions};
 use crate::error::{InputError, MufeError};
 use crate::scene::{load_scene, LoadedScene};
-use crate::solver::run::{build_solver, print_model_summary, run, RunOptions};
+use crate::solver::build_solver;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -317,7 +318,7 @@ pub fn scene_partition_grains(
                 match meshed.get(&key) {
                     Some(c) => *c,
                     None => {
-                        let m = crate::solver::model::mesh_shape(&g.shape).map_err(|e| {
+                        let m = crate::model::mesh_shape(&g.shape).map_err(|e| {
                             InputError::new(
                                 &loaded.path,
                                 format!("grains[{i}].shape"),

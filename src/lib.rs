@@ -2,9 +2,12 @@
 //!
 //! Every grain is a deformable linear-tetrahedral mesh; grains interact only through
 //! their meshed surfaces; time integration is explicit central difference. The crate is
-//! laid out by stage of the step pipeline (see `docs/ARCHITECTURE.md`):
-//! scene → mesh → element/material → contact → boundary → solver → energy → io,
-//! with `domain` the only module that talks to MPI.
+//! laid out in layers that depend one way, downwards (see `docs/ARCHITECTURE.md`):
+//!
+//! - `cli` → `driver` (a run as phases: partition, build, loop, output) and `validate`;
+//! - `solver` (one explicit step) → `contact` → `model` (the static layout of a rank);
+//! - `io` (results file, plots), `domain` (the only module that talks to MPI);
+//! - `model` → `boundary`, `element`, `material`, `mesh`, `scene`, `energy`, `math`.
 
 // Component loops `for i in 0..3` over small fixed-size vectors and tensors read as the
 // index notation of the formulas they implement; iterator rewrites obscure that.
@@ -12,6 +15,7 @@
 
 pub mod error;
 pub mod mesh;
+pub mod model;
 
 /// Scalar type used throughout (SI units).
 pub type Real = f64;
@@ -23,6 +27,7 @@ pub mod boundary;
 pub mod cli;
 pub mod contact;
 pub mod domain;
+pub mod driver;
 pub mod element;
 pub mod energy;
 pub mod io;

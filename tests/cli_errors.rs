@@ -388,7 +388,7 @@ fn check_valid_scene_reports_the_model() {
 
     // Expected figures from the library, not hard-coded.
     let loaded = mufe::scene::load_scene(&scene, &[]).unwrap();
-    let solver = mufe::solver::run::build_solver(&loaded).unwrap();
+    let solver = mufe::solver::build_solver(&loaded).unwrap();
     let m = &solver.model;
     assert!(m.num_elements() > 0 && m.num_nodes() > 0);
     for needle in [

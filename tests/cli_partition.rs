@@ -100,7 +100,7 @@ fn exact_counts_match_the_meshes() {
     let mut elements = 0;
     let mut surface = 0;
     for g in &loaded.scene.grains {
-        let m = mufe::solver::model::mesh_shape(&g.shape).unwrap();
+        let m = mufe::model::mesh_shape(&g.shape).unwrap();
         elements += m.tets.len();
         surface += mufe::mesh::extract_surface(&m).nodes.len();
     }

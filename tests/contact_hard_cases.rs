@@ -8,7 +8,7 @@
 
 use mufe::error::MufeError;
 use mufe::scene::parse_scene;
-use mufe::solver::run::build_solver;
+use mufe::solver::build_solver;
 use mufe::solver::Solver;
 
 const E: f64 = 63e9;

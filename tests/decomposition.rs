@@ -2,13 +2,13 @@
 //! onto the receiver's ghost nodes in the same order, and a grain packed from one solver
 //! and unpacked into another arrives with its exact state.
 
-use mufe::domain::decomposition::Decomposition;
 use mufe::domain::halo::HaloPlan;
+use mufe::driver::migration::{pack_grain, unpack_grains};
+use mufe::model::decomposition::Decomposition;
+use mufe::model::global::ghost_margin;
+use mufe::model::GlobalMesh;
 use mufe::scene::load_scene;
-use mufe::solver::model::build_model_with_ghosts;
-use mufe::solver::parallel::{pack_grain, unpack_grains, GlobalMesh};
-use mufe::solver::run::{build_solver, initial_velocities};
-use mufe::solver::Solver;
+use mufe::solver::{build_solver, build_solver_for, Solver};
 use std::path::Path;
 
 fn assembly() -> mufe::scene::LoadedScene {
@@ -20,9 +20,7 @@ fn assembly() -> mufe::scene::LoadedScene {
 }
 
 fn rank_solver(loaded: &mufe::scene::LoadedScene, plan: &Decomposition) -> Solver {
-    let (model, motions) = build_model_with_ghosts(loaded, &plan.owned, &plan.ghosts).unwrap();
-    let v0 = initial_velocities(&model, loaded);
-    Solver::new(model, motions, v0)
+    build_solver_for(loaded, &plan.owned, &plan.ghosts).unwrap()
 }
 
 #[test]
@@ -30,7 +28,7 @@ fn halo_plans_of_two_ranks_pair_up_node_for_node() {
     let loaded = assembly();
     let global = GlobalMesh::build(&loaded).unwrap();
     let owner: Vec<u32> = (0..27).map(|g| if g < 14 { 0 } else { 1 }).collect();
-    let margin = mufe::solver::parallel::ghost_margin(&global);
+    let margin = ghost_margin(&global);
     let plans: Vec<Decomposition> = (0..2)
         .map(|r| Decomposition::plan(&owner, &global.bounds, margin, r))
         .collect();

@@ -4,8 +4,8 @@
 
 use mufe::material::{ElasticParameters, StVenantKirchhoff};
 use mufe::scene::parse_scene;
+use mufe::solver::build_solver;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch};
-use mufe::solver::run::build_solver;
 use mufe::solver::Solver;
 
 const GLASS: &str = r#"
@@ -157,7 +157,7 @@ fn patch_test_on_sphere_and_distorted_block() {
 }
 
 fn max_von_mises(solver: &Solver) -> f64 {
-    mufe::solver::run::element_stresses(solver)
+    mufe::driver::frames::element_stresses(solver)
         .1
         .into_iter()
         .fold(0.0, f64::max)

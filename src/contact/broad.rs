@@ -21,25 +21,37 @@ use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
 use super::ContactModel;
 use crate::math::{dot, sub};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 
 /// Surface nodes per parallel chunk of the displacement check.
 const NODE_CHUNK: usize = 4096;
 
-/// Cached broad-phase data (scratch, rebuilt on demand, never serialised).
+/// Where the surfaces were when the candidate lists were last rebuilt: part of the run's
+/// state, because the rebuild schedule and the narrow phase's "moved since the rebuild"
+/// bound depend on it. A restored run rebuilds its lists at these positions and so
+/// continues exactly as the uninterrupted run.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DetectionReference {
+    /// False until the first rebuild.
+    pub built: bool,
+    /// Surface node positions at the last rebuild (flat surface order, m).
+    pub x_ref: Vec<[f64; 3]>,
+    /// Wall displacements at the last rebuild (m).
+    pub wall_ref: Vec<[f64; 3]>,
+    /// Number of rebuilds so far.
+    pub rebuilds: u64,
+}
+
+/// Cached broad-phase data (scratch: derived from the [`DetectionReference`], never
+/// serialised).
 #[derive(Debug, Default, Clone)]
 pub struct BroadPhase {
-    /// True once lists exist for the current positions.
+    /// True once the lists match the current reference.
     pub built: bool,
-    /// Surface node positions at the last rebuild (flat surface order).
-    pub x_ref: Vec<[f64; 3]>,
-    /// Wall displacements at the last rebuild.
-    pub wall_ref: Vec<[f64; 3]>,
     /// Current surface box of every grain (at the last rebuild).
     pub boxes: Vec<Aabb>,
     /// Candidate grain pairs (model grain indices, a < b).
     pub pairs: Vec<(u32, u32)>,
-    /// Number of rebuilds so far.
-    pub rebuilds: u64,
     /// Largest surface-node displacement since the last rebuild, as of the last check (m).
     pub moved: f64,
     order: Vec<u32>,
@@ -62,10 +74,15 @@ pub struct CandidateLists {
 impl BroadPhase {
     /// Largest displacement of a surface node since the last rebuild (m). Deterministic
     /// (max is exact) and parallel over fixed chunks.
-    pub fn max_displacement(&mut self, cm: &ContactModel, x: &[[f64; 3]]) -> f64 {
+    pub fn max_displacement(
+        &mut self,
+        cm: &ContactModel,
+        x: &[[f64; 3]],
+        reference: &DetectionReference,
+    ) -> f64 {
         let n = cm.node.len();
         self.chunk_max.resize(n.div_ceil(NODE_CHUNK), 0.0);
-        let x_ref = &self.x_ref;
+        let x_ref = &reference.x_ref;
         self.chunk_max
             .par_iter_mut()
             .enumerate()
@@ -80,44 +97,77 @@ impl BroadPhase {
         self.chunk_max.iter().cloned().fold(0.0, f64::max).sqrt()
     }
 
-    /// True when the cached lists may miss a contact at positions `x` and wall
+    /// True when lists built at `reference` may miss a contact at positions `x` and wall
     /// displacements `wall_next` (those at t_{n+1}).
     pub fn needs_rebuild(
         &mut self,
         cm: &ContactModel,
         x: &[[f64; 3]],
         wall_next: &[[f64; 3]],
+        reference: &DetectionReference,
     ) -> bool {
-        if !self.built {
+        if !reference.built {
             return true;
         }
-        let d = self.max_displacement(cm, x);
+        let d = self.max_displacement(cm, x, reference);
         self.moved = d;
         if 2.0 * d >= cm.margin {
             return true;
         }
         cm.walls.iter().enumerate().any(|(w, wall)| {
-            let moved = dot(sub(wall_next[w], self.wall_ref[w]), wall.normal).abs();
+            let moved = dot(sub(wall_next[w], reference.wall_ref[w]), wall.normal).abs();
             d + moved >= 0.5 * cm.margin
         })
     }
 
-    /// Rebuilds pairs, slave entries, candidate facets and wall node lists at positions `x`
-    /// (walls at displacements `wall_now`).
+    /// Rebuilds the lists at positions `x` (walls at displacements `wall_now`) and makes
+    /// them the new `reference`.
     pub fn rebuild(
         &mut self,
         cm: &ContactModel,
         x: &[[f64; 3]],
         wall_now: &[[f64; 3]],
         lists: &mut CandidateLists,
+        reference: &mut DetectionReference,
     ) {
-        self.rebuilds += 1;
-        self.built = true;
+        reference.rebuilds += 1;
+        reference.built = true;
+        reference.x_ref.clear();
+        reference
+            .x_ref
+            .extend(cm.node.iter().map(|&n| x[n as usize]));
+        reference.wall_ref.clear();
+        reference.wall_ref.extend_from_slice(wall_now);
         self.moved = 0.0;
-        self.x_ref.clear();
-        self.x_ref.extend(cm.node.iter().map(|&n| x[n as usize]));
-        self.wall_ref.clear();
-        self.wall_ref.extend_from_slice(wall_now);
+        self.build_lists(cm, x, wall_now, lists);
+    }
+
+    /// Rebuilds the lists of an existing `reference` (after a restore or a migration of
+    /// state): the surface nodes are put back where they were at that rebuild, so the
+    /// lists equal the ones the uninterrupted run built there.
+    pub fn restore(
+        &mut self,
+        cm: &ContactModel,
+        x: &[[f64; 3]],
+        reference: &DetectionReference,
+        lists: &mut CandidateLists,
+    ) {
+        let mut x_then = x.to_vec();
+        for (k, &n) in cm.node.iter().enumerate() {
+            x_then[n as usize] = reference.x_ref[k];
+        }
+        self.build_lists(cm, &x_then, &reference.wall_ref, lists);
+    }
+
+    /// Pairs, slave entries, candidate facets and wall node lists at positions `x`.
+    fn build_lists(
+        &mut self,
+        cm: &ContactModel,
+        x: &[[f64; 3]],
+        wall_now: &[[f64; 3]],
+        lists: &mut CandidateLists,
+    ) {
+        self.built = true;
         let ng = cm.surfaces.len();
         self.boxes.clear();
         for g in &cm.surfaces {

@@ -91,36 +91,28 @@
 pub mod broad;
 pub mod friction;
 pub mod narrow;
+mod overlap;
 pub mod walls;
 
-use crate::boundary::Translation;
+pub use crate::model::contact_layout::{
+    ContactModel, GrainSurface, StableStepReport, Wall, DEFAULT_CONTACT_DAMPING,
+    DEFAULT_MARGIN_FRACTION, DEFAULT_PENALTY_FACTOR, NONE,
+};
+pub use overlap::check_initial_overlap;
+
 use crate::energy::WorkAccumulator;
-use crate::error::{InputError, MufeError};
-use crate::math::{cross, dot, norm, scale, sub};
-use crate::scene::Scene;
-use crate::solver::model::{GrainBlock, Model};
+use crate::error::MufeError;
+use crate::math::dot;
+use crate::model::Model;
+pub use broad::DetectionReference;
 use broad::{BroadPhase, CandidateLists};
 use narrow::{evaluate_entry, EvalContext, PointResult};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::ops::Range;
 
-/// Default penalty factor: the nodal contact spring is this many times stiffer than the
-/// local surface stiffness of the mesh (see module docs), so the penetration is ~1/20 of the
-/// local elastic approach at the scale of one element, ≈ 1 % of the Hertz approach when the
-/// contact radius spans 2–3 elements and less beyond (measured in the hard-case tests and
-/// reported by `mufe run` as max penetration).
-pub const DEFAULT_PENALTY_FACTOR: f64 = 20.0;
-/// Default normal contact damping (fraction of the critical damping of each contact point's
-/// penalty spring on its slave node's mass). See the module docs.
-pub const DEFAULT_CONTACT_DAMPING: f64 = 0.05;
-/// Default broad-phase margin as a fraction of the smallest surface edge of the scene.
-pub const DEFAULT_MARGIN_FRACTION: f64 = 0.5;
 /// Initial overlap beyond this fraction of the smallest surface edge of the two grains is an
 /// input error.
 pub const OVERLAP_TOLERANCE: f64 = 1e-3;
-/// "No such index" marker in index arrays.
-pub const NONE: u32 = u32::MAX;
 /// Entries per parallel work item (fixed, so results do not depend on the thread count).
 const ENTRY_CHUNK: usize = 256;
 
@@ -187,6 +179,8 @@ pub struct ContactState {
     pub friction_dissipation: f64,
     pub walls: Vec<WallState>,
     pub stats: ContactStats,
+    /// Surfaces at the last candidate-list rebuild.
+    pub detection: DetectionReference,
 }
 
 impl ContactState {
@@ -222,375 +216,6 @@ impl ContactState {
     }
 }
 
-/// One grain's part of the flat surface arrays.
-#[derive(Debug, Clone, Default)]
-pub struct GrainSurface {
-    /// Range into the flat surface-node arrays.
-    pub nodes: Range<usize>,
-    /// Range into the flat facet arrays.
-    pub facets: Range<usize>,
-    /// Global id of the grain.
-    pub global_id: u32,
-    /// The grain is advanced by this rank (false: a ghost mirrored from another rank).
-    /// Energies, statistics and wall contacts count owned slave nodes only, so that the
-    /// sums over ranks equal the serial ones.
-    pub owned: bool,
-    /// First model node of the grain (for node indices within the grain).
-    pub node_base: u32,
-    /// Plane-strain modulus E/(1−ν²) of the grain's material (Pa).
-    pub e_prime: f64,
-    /// Smallest / largest mean surface edge length at a node (m).
-    pub h_min: f64,
-    pub h_max: f64,
-    /// Smallest surface edge of the grain (m).
-    pub min_edge: f64,
-}
-
-/// How contact changes the stable step (set up once).
-#[derive(Debug, Clone, Default)]
-pub struct StableStepReport {
-    /// Stable step from the elements alone (s, with the safety factor, physical masses).
-    pub element_dt: f64,
-    /// Stable step of the contact nodes (s, with the safety factor, physical masses);
-    /// infinite when no grain can touch another.
-    pub contact_dt: f64,
-    /// Model node that sets `contact_dt`.
-    pub critical_node: Option<usize>,
-    /// Contact nodes whose mass was raised to reach `target_dt`, and the mass added (kg).
-    pub scaled_nodes: usize,
-    pub added_mass: f64,
-    /// Largest ε_n of a node (Pa/m).
-    pub max_penalty: f64,
-}
-
-/// Static contact data of the model (built once, immutable during a run).
-#[derive(Debug, Clone, Default)]
-pub struct ContactModel {
-    /// Coulomb μ between grains.
-    pub friction: f64,
-    pub penalty_factor: f64,
-    /// Normal contact damping ζ (fraction of critical).
-    pub damping: f64,
-    /// Broad-phase margin (m).
-    pub margin: f64,
-    /// The scene has at least two grains.
-    pub grain_contact: bool,
-    /// Per model grain.
-    pub surfaces: Vec<GrainSurface>,
-    /// Flat surface nodes: model node id, tributary area (m², reference), mean edge (m).
-    pub node: Vec<u32>,
-    pub node_area: Vec<f64>,
-    pub node_h: Vec<f64>,
-    /// Flat facets (model node ids, outward orientation) and the facet across each edge
-    /// (edge k joins corners k and k+1).
-    pub facet: Vec<[u32; 3]>,
-    pub facet_adjacent: Vec<[u32; 3]>,
-    /// Facets around each flat surface node (CSR).
-    pub vertex_facet_offsets: Vec<u32>,
-    pub vertex_facets: Vec<u32>,
-    /// Model node → flat surface index, or [`NONE`].
-    pub surface_index: Vec<u32>,
-    pub walls: Vec<walls::Wall>,
-    /// Smallest surface edge of the scene (m).
-    pub min_edge: f64,
-    /// Largest plane-strain modulus E/(1−ν²) of any material of the scene (Pa): the same
-    /// on every rank, whichever grains it holds.
-    pub e_prime_max: f64,
-    pub stable_step: StableStepReport,
-}
-
-impl ContactModel {
-    /// Builds the surface data of the grains (model node ids) and binds the walls.
-    pub fn build(
-        scene: &Scene,
-        grains: &[GrainBlock],
-        x0: &[[f64; 3]],
-        e_prime: &[f64],
-        owned_grains: usize,
-    ) -> ContactModel {
-        let spec = &scene.contact;
-        let mut cm = ContactModel {
-            friction: spec.friction,
-            penalty_factor: spec.penalty_factor.unwrap_or(DEFAULT_PENALTY_FACTOR),
-            damping: spec.damping.unwrap_or(DEFAULT_CONTACT_DAMPING),
-            grain_contact: scene.grains.len() >= 2,
-            surface_index: vec![NONE; x0.len()],
-            min_edge: f64::INFINITY,
-            ..Default::default()
-        };
-        let mut edges: Vec<(u32, u32, u32)> = Vec::new();
-        cm.e_prime_max = e_prime.iter().cloned().fold(0.0, f64::max);
-        for (gi, g) in grains.iter().enumerate() {
-            let n0 = cm.node.len();
-            let f0 = cm.facet.len();
-            for (k, &n) in g.surface.nodes.iter().enumerate() {
-                cm.surface_index[n as usize] = (n0 + k) as u32;
-                cm.node.push(n);
-            }
-            cm.node_area.resize(cm.node.len(), 0.0);
-            cm.node_h.resize(cm.node.len(), 0.0);
-            let mut edge_count = vec![0u32; g.surface.nodes.len()];
-            let mut min_edge = f64::INFINITY;
-            for f in &g.surface.facets {
-                let p = f.map(|n| x0[n as usize]);
-                let area = 0.5 * norm(cross(sub(p[1], p[0]), sub(p[2], p[0])));
-                for k in 0..3 {
-                    let s = cm.surface_index[f[k] as usize] as usize;
-                    cm.node_area[s] += area / 3.0;
-                    // each edge is seen from both of its facets: counted twice at both
-                    // ends, which leaves the mean unchanged
-                    for other in [f[(k + 1) % 3], f[(k + 2) % 3]] {
-                        let l = norm(sub(x0[other as usize], p[k]));
-                        cm.node_h[s] += l;
-                        edge_count[s - n0] += 1;
-                        min_edge = min_edge.min(l);
-                    }
-                }
-                cm.facet.push(*f);
-            }
-            for (k, c) in edge_count.iter().enumerate() {
-                if *c > 0 {
-                    cm.node_h[n0 + k] /= *c as f64;
-                }
-            }
-            // facet adjacency by matching each directed edge (a, b) with (b, a)
-            edges.clear();
-            for (fi, f) in cm.facet[f0..].iter().enumerate() {
-                for k in 0..3 {
-                    let (a, b) = (f[k], f[(k + 1) % 3]);
-                    edges.push((a.min(b), a.max(b), ((f0 + fi) * 3 + k) as u32));
-                }
-            }
-            edges.sort_unstable();
-            cm.facet_adjacent.resize(cm.facet.len(), [NONE; 3]);
-            for w in edges.windows(2) {
-                if w[0].0 == w[1].0 && w[0].1 == w[1].1 {
-                    let (fa, ka) = ((w[0].2 / 3) as usize, (w[0].2 % 3) as usize);
-                    let (fb, kb) = ((w[1].2 / 3) as usize, (w[1].2 % 3) as usize);
-                    cm.facet_adjacent[fa][ka] = fb as u32;
-                    cm.facet_adjacent[fb][kb] = fa as u32;
-                }
-            }
-            let hs = &cm.node_h[n0..];
-            cm.surfaces.push(GrainSurface {
-                nodes: n0..cm.node.len(),
-                facets: f0..cm.facet.len(),
-                global_id: g.global_id,
-                owned: gi < owned_grains,
-                node_base: g.nodes.start as u32,
-                e_prime: e_prime[g.material],
-                h_min: hs.iter().cloned().fold(f64::INFINITY, f64::min),
-                h_max: hs.iter().cloned().fold(0.0, f64::max),
-                min_edge,
-            });
-            cm.min_edge = cm.min_edge.min(min_edge);
-        }
-        // vertex → facets
-        let n = cm.node.len();
-        let mut offsets = vec![0u32; n + 1];
-        for f in &cm.facet {
-            for &v in f {
-                offsets[cm.surface_index[v as usize] as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut entries = vec![0u32; offsets[n] as usize];
-        for (fi, f) in cm.facet.iter().enumerate() {
-            for &v in f {
-                let s = cm.surface_index[v as usize] as usize;
-                entries[fill[s] as usize] = fi as u32;
-                fill[s] += 1;
-            }
-        }
-        cm.vertex_facet_offsets = offsets;
-        cm.vertex_facets = entries;
-        if !cm.min_edge.is_finite() {
-            cm.min_edge = 0.0;
-        }
-        cm.margin = spec.margin.unwrap_or(DEFAULT_MARGIN_FRACTION * cm.min_edge);
-        cm.walls = scene
-            .walls
-            .iter()
-            .map(|w| {
-                let l = norm(w.normal);
-                walls::Wall {
-                    name: w.name.clone(),
-                    point0: w.point,
-                    normal: scale(w.normal, 1.0 / l),
-                    friction: w.friction,
-                    translation: match (&w.velocity, &w.displacement) {
-                        (Some(v), _) => Translation::Velocity(v.clone()),
-                        (_, Some(d)) => Translation::Displacement(d.clone()),
-                        _ => Translation::Fixed,
-                    },
-                }
-            })
-            .collect();
-        cm
-    }
-
-    /// Whether contact does anything in this model (two grains or a wall).
-    pub fn active(&self) -> bool {
-        self.grain_contact || !self.walls.is_empty()
-    }
-
-    /// Penalty ε_n (Pa/m) for a slave node of mean edge `h_s` against a master point of
-    /// mean edge `h_m`, with `e_prime` the plane-strain modulus of the stiffer side.
-    #[inline]
-    pub fn penalty(&self, e_prime: f64, h_s: f64, h_m: f64) -> f64 {
-        self.penalty_factor * e_prime * h_s.min(h_m) / (h_s * h_s)
-    }
-
-    /// Accounts for the contact springs in the stable step (see module docs) and, with a
-    /// target step, raises the mass of the contact nodes that would limit it. `elem_dt` is
-    /// each element's own critical step (no safety, physical mass) and `elem_scale` its
-    /// mass-scaling factor. Returns the contact-limited stable step of the unscaled model
-    /// (with safety), infinite when no grain can touch another.
-    #[allow(clippy::too_many_arguments)]
-    pub fn account_stable_step(
-        &mut self,
-        tets: &[[u32; 4]],
-        elem_dt: &[f64],
-        elem_scale: &[f64],
-        physical_mass: &[f64],
-        mass: &mut [f64],
-        safety: f64,
-        target_dt: Option<f64>,
-    ) -> f64 {
-        let element_omega = elem_dt.iter().map(|d| 2.0 / d).fold(0.0, f64::max);
-        let mut report = StableStepReport {
-            element_dt: safety * 2.0 / element_omega,
-            contact_dt: f64::INFINITY,
-            ..Default::default()
-        };
-        if !self.grain_contact || self.node.is_empty() {
-            self.stable_step = report;
-            return f64::INFINITY;
-        }
-        let e_max = self.e_prime_max;
-        // ω_el² per surface node, physical and scaled
-        let n = self.node.len();
-        let mut w2_phys = vec![0.0f64; n];
-        let mut w2_scaled = vec![0.0f64; n];
-        for (e, t) in tets.iter().enumerate() {
-            let w2 = (2.0 / elem_dt[e]).powi(2);
-            for &node in t {
-                let s = self.surface_index[node as usize];
-                if s != NONE {
-                    let s = s as usize;
-                    w2_phys[s] = w2_phys[s].max(w2);
-                    w2_scaled[s] = w2_scaled[s].max(w2 / elem_scale[e]);
-                }
-            }
-        }
-        let mut worst = 0.0;
-        let omega_t = target_dt.map(|t| 2.0 * safety / t);
-        for s in 0..n {
-            let node = self.node[s] as usize;
-            let eps = self.penalty_factor * e_max / self.node_h[s];
-            report.max_penalty = report.max_penalty.max(eps);
-            let k = eps * self.node_area[s];
-            let w2 = w2_phys[s] + 2.0 * k / physical_mass[node];
-            if w2 > worst {
-                worst = w2;
-                report.critical_node = Some(node);
-            }
-            if let Some(wt) = omega_t {
-                let wt = wt * ((1.0 + self.damping * self.damping).sqrt() - self.damping);
-                let m = mass[node];
-                let w2s = w2_scaled[s] + 2.0 * k / m;
-                if w2s > wt * wt {
-                    let needed = (w2_scaled[s] * m + 2.0 * k) / (wt * wt);
-                    report.scaled_nodes += 1;
-                    report.added_mass += needed - m;
-                    mass[node] = needed;
-                }
-            }
-        }
-        // central differences with a lagged damper of ratio ζ: Δt ≤ (2/ω)(√(1+ζ²) − ζ)
-        let z = self.damping;
-        report.contact_dt = safety * 2.0 / worst.sqrt() * ((1.0 + z * z).sqrt() - z);
-        let dt = report.contact_dt;
-        self.stable_step = report;
-        dt
-    }
-
-    /// Fails with an input error naming both grains (or the wall and the grain) when any
-    /// surface node starts inside another grain, or behind a wall, by more than
-    /// [`OVERLAP_TOLERANCE`] × the smallest surface edge involved.
-    pub fn check_initial_overlap(
-        &self,
-        file: &str,
-        grains: &[GrainBlock],
-        x0: &[[f64; 3]],
-    ) -> Result<(), InputError> {
-        if !self.active() {
-            return Ok(());
-        }
-        let mut broad = BroadPhase::default();
-        let mut lists = CandidateLists::default();
-        let wall0 = vec![[0.0; 3]; self.walls.len()];
-        broad.rebuild(self, x0, &wall0, &mut lists);
-        let zeros = vec![[0.0; 3]; x0.len()];
-        let ctx = EvalContext {
-            cm: self,
-            passes: &lists.passes,
-            candidates: &lists.candidates,
-            x: x0,
-            v: &zeros,
-            mass: &[],
-            dt: 0.0,
-            history: &[],
-            friction: false,
-        };
-        let mut worst: Option<(f64, usize, usize)> = None;
-        for e in &lists.entries {
-            let r = evaluate_entry(&ctx, e, 0.0);
-            if !r.active {
-                continue;
-            }
-            let p = lists.passes[e.pass as usize];
-            let (a, b) = (p.slave as usize, p.master as usize);
-            let tol = OVERLAP_TOLERANCE * self.surfaces[a].min_edge.min(self.surfaces[b].min_edge);
-            if r.gap > tol && worst.is_none_or(|w| r.gap > w.0) {
-                worst = Some((r.gap, a.min(b), a.max(b)));
-            }
-        }
-        if let Some((g, a, b)) = worst {
-            let tol = OVERLAP_TOLERANCE * self.surfaces[a].min_edge.min(self.surfaces[b].min_edge);
-            return Err(InputError::new(
-                file,
-                format!("grains[{}] and grains[{}]", grains[a].global_id, grains[b].global_id),
-                format!(
-                    "'{}' and '{}' overlap by {g:.3e} m at t = 0 (tolerance {tol:.3e} m = {OVERLAP_TOLERANCE} × smallest surface edge); move them apart",
-                    grains[a].name, grains[b].name
-                ),
-            ));
-        }
-        for &(w, k) in &lists.wall_nodes {
-            let wall = &self.walls[w as usize];
-            let k = k as usize;
-            let depth = -dot(sub(x0[self.node[k] as usize], wall.point0), wall.normal);
-            let g = self.surfaces.partition_point(|s| s.nodes.end <= k);
-            let tol = OVERLAP_TOLERANCE * self.surfaces[g].min_edge;
-            if depth > tol {
-                return Err(InputError::new(
-                    file,
-                    format!("walls[{w}] and grains[{}]", grains[g].global_id),
-                    format!(
-                        "grain '{}' starts {depth:.3e} m behind wall '{}' (tolerance {tol:.3e} m); move the grain or the wall",
-                        grains[g].name, wall.name
-                    ),
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
 /// Contact scratch (not state): cached candidate lists and per-entry results.
 #[derive(Debug, Default, Clone)]
 pub struct ContactScratch {
@@ -619,7 +244,7 @@ pub fn evaluate(
     state: &mut ContactState,
     scratch: &mut ContactScratch,
 ) -> Result<(), MufeError> {
-    let rebuild = needs_rebuild(model, x, time, dt, scratch);
+    let rebuild = needs_rebuild(model, x, time, dt, state, scratch);
     evaluate_with(model, x, v, time, step, dt, rebuild, state, scratch)
 }
 
@@ -631,6 +256,7 @@ pub fn needs_rebuild(
     x: &[[f64; 3]],
     time: f64,
     dt: f64,
+    state: &ContactState,
     scratch: &mut ContactScratch,
 ) -> bool {
     let cm = &model.contact;
@@ -643,7 +269,9 @@ pub fn needs_rebuild(
         scratch.wall_now.push(w.displacement_at(time));
         scratch.wall_next.push(w.displacement_at(time + dt));
     }
-    scratch.broad.needs_rebuild(cm, x, &scratch.wall_next)
+    scratch
+        .broad
+        .needs_rebuild(cm, x, &scratch.wall_next, &state.detection)
 }
 
 /// [`evaluate`] with the rebuild decision taken by the caller (see [`needs_rebuild`]).
@@ -664,14 +292,22 @@ pub fn evaluate_with(
         return Ok(());
     }
     if scratch.wall_now.len() != cm.walls.len() {
-        needs_rebuild(model, x, time, dt, scratch);
+        needs_rebuild(model, x, time, dt, state, scratch);
     }
     if rebuild {
+        scratch.broad.rebuild(
+            cm,
+            x,
+            &scratch.wall_now,
+            &mut scratch.lists,
+            &mut state.detection,
+        );
+    } else if !scratch.broad.built {
         scratch
             .broad
-            .rebuild(cm, x, &scratch.wall_now, &mut scratch.lists);
+            .restore(cm, x, &state.detection, &mut scratch.lists);
     }
-    state.stats.rebuilds = scratch.broad.rebuilds;
+    state.stats.rebuilds = state.detection.rebuilds;
 
     std::mem::swap(&mut state.history, &mut scratch.history_old);
     state.history.clear();
@@ -867,8 +503,9 @@ pub fn enforce_walls(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::{norm, sub};
     use crate::scene::parse_scene;
-    use crate::solver::run::build_solver;
+    use crate::solver::build_solver;
     use crate::solver::Solver;
 
     const GLASS: &str = r#"

@@ -20,35 +20,7 @@
 //! two walls is corrected wall after wall, in scene order.
 
 use super::{ContactModel, ContactState};
-use crate::boundary::Translation;
 use crate::math::{add, dot, norm, scale, sub};
-
-/// A rigid plane wall bound to the model (set up from a `WallSpec`).
-#[derive(Debug, Clone)]
-pub struct Wall {
-    pub name: String,
-    /// Point of the plane at t = 0 (m).
-    pub point0: [f64; 3],
-    /// Unit normal pointing into the grains' side.
-    pub normal: [f64; 3],
-    /// Coulomb μ against grains.
-    pub friction: f64,
-    pub translation: Translation,
-}
-
-impl Wall {
-    /// Displacement of the wall from t = 0 (m).
-    #[inline]
-    pub fn displacement_at(&self, t: f64) -> [f64; 3] {
-        self.translation.displacement_at(t)
-    }
-
-    /// Point of the plane after displacement `u`.
-    #[inline]
-    pub fn point_at_displacement(&self, u: [f64; 3]) -> [f64; 3] {
-        add(self.point0, u)
-    }
-}
 
 /// Corrects `v_next` (v_{n+½}) of the candidate nodes `wall_nodes` (wall, flat surface
 /// index; ordered by wall) so that no node ends behind a wall at t_{n+1}; records each

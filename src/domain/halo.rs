@@ -4,10 +4,10 @@
 //! and each rank keeps the contact forces on its own nodes (no reverse exchange needed).
 //! Begin/end halves let interior work (internal forces) overlap the communication.
 
-use super::decomposition::Decomposition;
 use super::{Domain, Exchange, PendingExchange};
 use crate::error::MufeError;
-use crate::solver::Model;
+use crate::model::decomposition::Decomposition;
+use crate::model::Model;
 
 /// Values sent per surface node: x (3) and v (3).
 pub const VALUES_PER_NODE: usize = 6;

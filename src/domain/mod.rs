@@ -23,7 +23,6 @@
 //! prefixed with `rank R:` and then calls `MPI_Abort`, so a panic on one rank ends the whole
 //! job within seconds instead of leaving the other ranks waiting forever in a collective.
 
-pub mod decomposition;
 pub mod halo;
 
 use std::marker::PhantomData;

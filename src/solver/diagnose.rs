@@ -1,7 +1,7 @@
 //! Diagnostics for failed runs: which element to blame when the energy explodes.
 
-use super::model::Model;
 use crate::element::tet_forces;
+use crate::model::Model;
 
 /// The element with the largest strain energy density at positions `x`, with that
 /// density (J/m³); non-finite values rank highest. Only called after a failure.

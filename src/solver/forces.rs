@@ -3,8 +3,8 @@
 //! step depends on the number of threads, so 1 and N threads give bitwise identical
 //! forces and energies (no atomics, no reduction whose order follows scheduling).
 
-use super::model::Model;
 use crate::element::{tet_forces, ElementForces};
+use crate::model::Model;
 use rayon::prelude::*;
 
 /// Elements per parallel work item. Fixed (not derived from the thread count) so that

@@ -1,14 +1,27 @@
-//! Stable Δt, mass scaling, damping, central-difference integration: the step pipeline.
+//! The physics of one explicit step, and what it needs set up once.
+//!
+//! - [`stable_step`]: element and contact-spring stable steps, mass scaling;
+//! - [`setup`]: a [`Solver`] from a scene (model assembly, time step, overlap check,
+//!   initial velocities);
+//! - [`step`]: the step pipeline as named, timed stages ([`timing`]): internal forces
+//!   ([`forces`]), halo, contact, boundary ([`damping`], [`motions`]), walls, integrate,
+//!   energy; [`diagnose`] names the element behind a blow-up;
+//! - [`state`]: the one serde [`State`] that evolves; everything else is model or scratch.
+//!
+//! Nothing here knows about output, partitioning or the command line (that is
+//! `crate::driver`); what a step needs from other ranks comes through [`StepHooks`].
 
+pub mod damping;
 pub mod diagnose;
 pub mod forces;
-pub mod model;
-pub mod parallel;
-pub mod progress;
-pub mod run;
+pub mod motions;
+pub mod setup;
+pub mod stable_step;
+pub mod state;
 pub mod step;
 pub mod timing;
 
-pub use model::{build_model, GrainBlock, Model};
-pub use step::{Reaction, Scratch, Solver, State};
+pub use setup::{build_solver, build_solver_for, initial_velocities};
+pub use state::{Reaction, State};
+pub use step::{Scratch, Serial, Solver, StepHooks};
 pub use timing::{Stage, StageTimers};

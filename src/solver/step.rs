@@ -6,50 +6,18 @@
 //! Convention: at the start of step n the state holds x_n and v_{n−½};
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
 
+use super::damping::{apply_body_and_damping_forces, damping_force, RigidVelocity};
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
-use super::model::Model;
+use super::motions::drive_prescribed_motions;
+use super::state::{Reaction, State};
 use super::timing::{Stage, StageTimers};
 use crate::boundary::PrescribedMotion;
 use crate::contact::{ContactScratch, ContactState};
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::error::MufeError;
+use crate::model::decomposition::Partition;
+use crate::model::Model;
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
-
-/// Reaction of a prescribed motion at the last step.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
-pub struct Reaction {
-    /// Force the motion exerts on the grain (N).
-    pub force: [f64; 3],
-    /// Moment about the motion's current centre (N·m).
-    pub moment: [f64; 3],
-    /// Centre displacement since t = 0 (m).
-    pub displacement: [f64; 3],
-    /// Rotation vector of the prescribed rotation (rad).
-    pub rotation: [f64; 3],
-}
-
-/// Everything that evolves during a run (a checkpoint is this plus the scene).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct State {
-    /// t_n (s).
-    pub time: f64,
-    /// n.
-    pub step: u64,
-    /// x_n (m).
-    pub x: Vec<[f64; 3]>,
-    /// v_{n−½} (m/s).
-    pub v: Vec<[f64; 3]>,
-    pub energy: EnergyLedger,
-    /// Rotation of each prescribed motion at t_n.
-    pub motion_rotation: Vec<[f64; 9]>,
-    pub reactions: Vec<Reaction>,
-    /// Work done by each prescribed motion (J).
-    pub motion_work: Vec<WorkAccumulator>,
-    /// Friction history, wall work and contact diagnostics.
-    #[serde(default)]
-    pub contact: ContactState,
-}
 
 /// What a step needs from other ranks. The serial implementation ([`Serial`]) does
 /// nothing; the MPI one lives in `crate::domain` (the only module that talks to MPI).
@@ -86,116 +54,7 @@ pub struct Scratch {
     pub contact: ContactScratch,
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
-    grain_rigid: Vec<RigidVelocity>,
-}
-
-/// A grain's rigid-body velocity field v(x) = v_c + ω × (x − x_c), from its linear and
-/// angular momentum (so that damping relative to it exerts no net force or moment).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct RigidVelocity {
-    pub centre: [f64; 3],
-    pub velocity: [f64; 3],
-    pub omega: [f64; 3],
-}
-
-impl RigidVelocity {
-    #[inline(always)]
-    pub fn at(&self, x: &[f64; 3]) -> [f64; 3] {
-        let r = [
-            x[0] - self.centre[0],
-            x[1] - self.centre[1],
-            x[2] - self.centre[2],
-        ];
-        let w = &self.omega;
-        [
-            self.velocity[0] + w[1] * r[2] - w[2] * r[1],
-            self.velocity[1] + w[2] * r[0] - w[0] * r[2],
-            self.velocity[2] + w[0] * r[1] - w[1] * r[0],
-        ]
-    }
-}
-
-/// Rigid-body velocity of every grain from v_{n−½} at x_n: mass-weighted centre and
-/// velocity, ω = I⁻¹L about the centre.
-fn compute_grain_rigid_velocities(model: &Model, state: &State, out: &mut [RigidVelocity]) {
-    let owned = model.owned_grains;
-    out[..owned]
-        .par_iter_mut()
-        .zip(model.grains[..owned].par_iter())
-        .for_each(|(rv, g)| {
-            let (mut m_tot, mut mx, mut mv) = (0.0, [0.0; 3], [0.0; 3]);
-            for n in g.nodes.clone() {
-                let m = model.mass[n];
-                m_tot += m;
-                for i in 0..3 {
-                    mx[i] += m * state.x[n][i];
-                    mv[i] += m * state.v[n][i];
-                }
-            }
-            if m_tot <= 0.0 {
-                *rv = RigidVelocity::default();
-                return;
-            }
-            let c = mx.map(|v| v / m_tot);
-            let vc = mv.map(|v| v / m_tot);
-            let mut l = [0.0; 3];
-            let mut inertia = nalgebra::Matrix3::<f64>::zeros();
-            for n in g.nodes.clone() {
-                let m = model.mass[n];
-                let r = [
-                    state.x[n][0] - c[0],
-                    state.x[n][1] - c[1],
-                    state.x[n][2] - c[2],
-                ];
-                let u = [
-                    state.v[n][0] - vc[0],
-                    state.v[n][1] - vc[1],
-                    state.v[n][2] - vc[2],
-                ];
-                l[0] += m * (r[1] * u[2] - r[2] * u[1]);
-                l[1] += m * (r[2] * u[0] - r[0] * u[2]);
-                l[2] += m * (r[0] * u[1] - r[1] * u[0]);
-                let rr = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-                for i in 0..3 {
-                    for j in 0..3 {
-                        inertia[(i, j)] += m * (if i == j { rr } else { 0.0 } - r[i] * r[j]);
-                    }
-                }
-            }
-            let omega = inertia
-                .try_inverse()
-                .map(|inv| inv * nalgebra::Vector3::new(l[0], l[1], l[2]))
-                .map_or([0.0; 3], |w| [w[0], w[1], w[2]]);
-            *rv = RigidVelocity {
-                centre: c,
-                velocity: vc,
-                omega,
-            };
-        });
-}
-
-/// Damping force on node n: −α m v − α_def m (v − v_rigid(x)) (N).
-#[inline(always)]
-fn damping_force(
-    model: &Model,
-    rigid: &[RigidVelocity],
-    n: usize,
-    x: &[f64; 3],
-    v: &[f64; 3],
-) -> [f64; 3] {
-    let m = model.mass[n];
-    let mut f = [
-        -model.damping * m * v[0],
-        -model.damping * m * v[1],
-        -model.damping * m * v[2],
-    ];
-    if model.deformation_damping > 0.0 {
-        let vr = rigid[model.node_grain[n] as usize].at(x);
-        for i in 0..3 {
-            f[i] -= model.deformation_damping * m * (v[i] - vr[i]);
-        }
-    }
-    f
+    pub(super) grain_rigid: Vec<RigidVelocity>,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -215,8 +74,6 @@ pub struct Solver {
     pub state: State,
     pub scratch: Scratch,
     pub timers: StageTimers,
-    /// Energy supplied so far, for the blow-up check (J).
-    energy_scale: f64,
     /// This rank's share of the smallest energy the blow-up check reacts to (J):
     /// 1e-12 × M c_p², far below any physical energy of the run yet far above round-off
     /// (a run starting at rest with a gap has KE + U ~ 1e-28 J of pure noise).
@@ -244,6 +101,11 @@ impl Solver {
             reactions: vec![Reaction::default(); motions.len()],
             motion_work: vec![WorkAccumulator::default(); motions.len()],
             contact: ContactState::new(&model),
+            supplied_energy: 0.0,
+            partition: Partition {
+                owner: vec![0; model.grains.len()],
+                planned_bounds: Vec::new(),
+            },
         };
         let scratch = Scratch {
             force: vec![[0.0; 3]; n],
@@ -259,9 +121,37 @@ impl Solver {
             state,
             scratch,
             timers: StageTimers::default(),
-            energy_scale: 0.0,
             energy_floor,
         }
+    }
+
+    /// Continues from `state` (taken from this solver, or from one built from the same
+    /// scene and partition, e.g. a checkpoint): the scratch is dropped and rebuilt from
+    /// the model and the state at the next step, so the run goes on exactly as it would
+    /// have. Fails when the state does not fit this model.
+    pub fn restore(&mut self, state: State) -> Result<(), MufeError> {
+        let m = &self.model;
+        let fits = state.x.len() == m.num_nodes()
+            && state.v.len() == m.num_nodes()
+            && state.reactions.len() == self.motions.len()
+            && state.motion_rotation.len() == self.motions.len()
+            && state.motion_work.len() == self.motions.len()
+            && state.contact.walls.len() == m.contact.walls.len()
+            && state.partition.owner.len() == self.state.partition.owner.len();
+        if !fits {
+            return Err(MufeError::Run(format!(
+                "the state ({} nodes, {} motions, {} walls) does not fit this model ({} nodes, {} motions, {} walls)",
+                state.x.len(),
+                state.reactions.len(),
+                state.contact.walls.len(),
+                m.num_nodes(),
+                self.motions.len(),
+                m.contact.walls.len()
+            )));
+        }
+        self.state = state;
+        self.scratch.contact = ContactScratch::default();
+        Ok(())
     }
 
     /// Advances one step on one rank. Errors name time, step and the element or node that
@@ -291,6 +181,7 @@ impl Solver {
                 &state.x,
                 state.time,
                 dt,
+                &state.contact,
                 &mut scratch.contact,
             );
             let rebuild = hooks.any(local);
@@ -328,8 +219,22 @@ impl Solver {
         }
 
         timers.time(Stage::Boundary, || {
-            apply_body_and_damping_forces(model, state, scratch, dt);
-            drive_prescribed_motions(model, &self.motions, state, scratch, dt);
+            apply_body_and_damping_forces(
+                model,
+                state,
+                &mut scratch.grain_rigid,
+                &mut scratch.force,
+                &mut scratch.v_next,
+                dt,
+            );
+            drive_prescribed_motions(
+                model,
+                &self.motions,
+                state,
+                &scratch.force,
+                &mut scratch.v_next,
+                dt,
+            );
         });
         timers.time(Stage::Contact, || {
             crate::contact::enforce_walls(
@@ -400,11 +305,11 @@ impl Solver {
             self.energy_floor,
         ];
         hooks.sum(&mut global);
-        self.energy_scale = self
-            .energy_scale
+        state.supplied_energy = state
+            .supplied_energy
             .max(global[0].abs() + global[1].abs() + global[2].abs());
         let stored = global[3];
-        if !stored.is_finite() || (stored > 10.0 * self.energy_scale && stored > global[4]) {
+        if !stored.is_finite() || (stored > 10.0 * state.supplied_energy && stored > global[4]) {
             let (e, density) = super::diagnose::most_strained_element(&self.model, &state.x);
             let g = &self.model.grains[self.model.grain_of_element(e)];
             return Err(MufeError::Run(format!(
@@ -412,7 +317,7 @@ impl Solver {
                 state.time,
                 state.step,
                 stored,
-                self.energy_scale,
+                state.supplied_energy,
                 e - g.elements.start,
                 g.name,
                 density
@@ -443,100 +348,6 @@ impl Solver {
         }
         l
     }
-}
-
-/// f ← f_int + m_phys g − α m v_{n−½}; v_{n+½} ← v_{n−½} + Δt f/m for every node (driven
-/// components are overwritten by the motions afterwards). Gravity acts on the physical
-/// mass only: mass added by scaling is numerical and must not weigh anything.
-fn apply_body_and_damping_forces(model: &Model, state: &State, scratch: &mut Scratch, dt: f64) {
-    let g = model.gravity;
-    if model.deformation_damping > 0.0 {
-        compute_grain_rigid_velocities(model, state, &mut scratch.grain_rigid);
-    }
-    let rigid = &scratch.grain_rigid;
-    let owned = model.owned_nodes;
-    scratch.force[..owned]
-        .par_chunks_mut(NODE_CHUNK)
-        .zip(scratch.v_next[..owned].par_chunks_mut(NODE_CHUNK))
-        .enumerate()
-        .for_each(|(chunk, (f, vn))| {
-            let base = chunk * NODE_CHUNK;
-            for k in 0..f.len() {
-                let n = base + k;
-                let (m, mp, v) = (model.mass[n], model.physical_mass[n], state.v[n]);
-                let fd = damping_force(model, rigid, n, &state.x[n], &v);
-                for i in 0..3 {
-                    f[k][i] += mp * g[i] + fd[i];
-                    vn[k][i] = v[i] + dt * f[k][i] / m;
-                }
-            }
-        });
-}
-
-/// Overrides the driven components of v_{n+½} so that driven nodes land exactly on their
-/// prescribed positions at t_{n+1}; records reaction force, moment and work.
-fn drive_prescribed_motions(
-    model: &Model,
-    motions: &[PrescribedMotion],
-    state: &mut State,
-    scratch: &mut Scratch,
-    dt: f64,
-) {
-    let t = state.time;
-    for (k, motion) in motions.iter().enumerate() {
-        let working = motion;
-        let q_next = working.rotation_after(&state.motion_rotation[k], t, dt);
-        let c_next = working.centre_at(t + dt);
-        let c_now = working.centre_at(t);
-        let mut reaction = Reaction::default();
-        let (mut p_before, mut p_after) = (0.0, 0.0);
-        for (j, &node) in working.nodes.iter().enumerate() {
-            let n = node as usize;
-            let target = working.position(j, &c_next, &q_next);
-            let x = state.x[n];
-            let m = model.mass[n];
-            let mut r = [0.0; 3];
-            for i in 0..3 {
-                if working.components[i] {
-                    let v_new = (target[i] - x[i]) / dt;
-                    r[i] = m * (v_new - state.v[n][i]) / dt - scratch.force[n][i];
-                    scratch.v_next[n][i] = v_new;
-                    p_before += r[i] * state.v[n][i];
-                    p_after += r[i] * v_new;
-                }
-            }
-            let arm = [x[0] - c_now[0], x[1] - c_now[1], x[2] - c_now[2]];
-            for i in 0..3 {
-                reaction.force[i] += r[i];
-            }
-            reaction.moment[0] += arm[1] * r[2] - arm[2] * r[1];
-            reaction.moment[1] += arm[2] * r[0] - arm[0] * r[2];
-            reaction.moment[2] += arm[0] * r[1] - arm[1] * r[0];
-        }
-        reaction.displacement = [
-            c_now[0] - working.centre0[0],
-            c_now[1] - working.centre0[1],
-            c_now[2] - working.centre0[2],
-        ];
-        reaction.rotation = rotation_vector(&state.motion_rotation[k]);
-        state.reactions[k] = reaction;
-        state.motion_work[k].record(dt, p_before, p_after);
-        state.motion_rotation[k] = q_next;
-    }
-}
-
-/// Rotation vector (axis × angle, rad) of a rotation matrix.
-pub fn rotation_vector(q: &[f64; 9]) -> [f64; 3] {
-    let cos = ((q[0] + q[4] + q[8] - 1.0) * 0.5).clamp(-1.0, 1.0);
-    let angle = cos.acos();
-    let w = [q[7] - q[5], q[2] - q[6], q[3] - q[1]];
-    let s = angle.sin();
-    if s.abs() < 1e-12 {
-        // small angle: θ ≈ ½ vee(Q − Qᵀ)
-        return [0.5 * w[0], 0.5 * w[1], 0.5 * w[2]];
-    }
-    let f = angle / (2.0 * s);
-    [f * w[0], f * w[1], f * w[2]]
 }
 
 /// Kinetic energy and power sums over nodes (fixed chunks, summed in order), then

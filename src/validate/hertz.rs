@@ -9,10 +9,10 @@
 //! is converged), so the finest meshes do not converge to zero error: see
 //! docs/BENCHMARKS.md (Validation).
 
-use crate::io::plot::{Plot, Scale, Series};
 use super::reference::{FiniteSphereReference, Hertz};
 use super::runner::{case_solver, load_case_scene, Case, CaseOutcome, Probe};
 use crate::error::{MufeError, Result};
+use crate::io::plot::{Plot, Scale, Series};
 use crate::material::ElasticParameters;
 use crate::scene::ShapeSpec;
 use serde_json::json;

@@ -1,9 +1,10 @@
 //! Running validation cases over meshing ratios: table, `validation.json`, PNG plots.
 
-use crate::io::plot::{self, Plot, Scale, Series};
+use crate::driver::{history_columns, history_row};
 use crate::error::{InputError, MufeError, Result};
+use crate::io::plot::{self, Plot, Scale, Series};
 use crate::scene::{parse_scene, LoadedScene};
-use crate::solver::run::{build_solver, history_columns, history_row};
+use crate::solver::build_solver;
 use crate::solver::Solver;
 use serde::Serialize;
 use std::path::{Path, PathBuf};

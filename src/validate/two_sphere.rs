@@ -19,12 +19,12 @@
 //! - rolling: max |M − M_ref(θ)| / (μN R') over the loading branch, R' = R − δn/2 the
 //!   lever of the contact force about the upper centre.
 
-use crate::io::plot::{Plot, Scale, Series};
 use super::reference::{Lubkin, Mindlin, Rolling};
 use super::runner::{
     case_solver, deformation_kinetic_energy, load_case_scene, Case, CaseOutcome, Probe,
 };
 use crate::error::{MufeError, Result};
+use crate::io::plot::{Plot, Scale, Series};
 use crate::material::ElasticParameters;
 use crate::scene::ShapeSpec;
 use serde_json::json;

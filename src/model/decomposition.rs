@@ -21,6 +21,18 @@ impl GrainBound {
     }
 }
 
+/// The partition of the grains over the ranks as it evolves (part of the run's state, the
+/// same on every rank): the owner of every grain, and every grain's bounding sphere when
+/// the ghosts were last planned (the ghost plan is renewed once some grain has moved
+/// far enough from it).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Partition {
+    /// Owning rank of every grain (global id order).
+    pub owner: Vec<u32>,
+    /// Bounding spheres at the last ghost plan.
+    pub planned_bounds: Vec<GrainBound>,
+}
+
 /// One rank's share of the grains and its halo pattern.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Decomposition {

@@ -1,112 +1,19 @@
-//! Set-up: meshes every grain, places it, and lays the model out as structure-of-arrays
-//! contiguous per rank (grain = unit of ownership; owned nodes/elements first, ghosts
-//! after). Immutable during a run except through [`crate::solver::State`].
+//! Mesh-to-model assembly: meshes every grain shape (identical shapes once), places the
+//! grains in the scene, and lays them out as one rank's [`Model`]: owned grains first,
+//! ghosts after, with physical lumped masses, node incidence, the contact layout and the
+//! prescribed motions. The time step and mass scaling are the solver's
+//! (`crate::solver::stable_step`); the initial-overlap check is contact's.
 
+use super::contact_layout::ContactModel;
+use super::{GrainBlock, Model, NodeIncidence};
 use crate::boundary::{PrescribedMotion, Translation};
-use crate::contact::ContactModel;
-use crate::element::{max_stiffness_eigenvalue, TetReference};
+use crate::element::TetReference;
 use crate::error::InputError;
 use crate::material::{ElasticLaw, ElasticParameters};
 use crate::mesh::{self, SurfaceMesh, TetMesh};
 use crate::scene::{LoadedScene, NodeSelector, ShapeSpec};
 use std::collections::BTreeMap;
-use std::ops::Range;
 use std::sync::Arc;
-
-/// One grain's slice of the model arrays.
-#[derive(Debug, Clone)]
-pub struct GrainBlock {
-    pub name: String,
-    /// Index in the scene's `grains` list (global across ranks).
-    pub global_id: u32,
-    /// Index into [`Model::materials`].
-    pub material: usize,
-    pub nodes: Range<usize>,
-    pub elements: Range<usize>,
-    /// Surface facets and nodes, as model node indices.
-    pub surface: SurfaceMesh,
-    /// Bounding sphere centre at t = 0 and radius (m).
-    pub centre0: [f64; 3],
-    pub bounding_radius: f64,
-    /// Mesh quality of the grain's mesh.
-    pub quality: mesh::QualityReport,
-}
-
-/// Compressed node → (element, local corner) incidence, for race-free deterministic
-/// gathering of element forces.
-#[derive(Debug, Clone, Default)]
-pub struct NodeIncidence {
-    /// `offsets[n]..offsets[n+1]` indexes `entries` for node n.
-    pub offsets: Vec<u32>,
-    /// `4·element + corner`.
-    pub entries: Vec<u32>,
-}
-
-/// The model as laid out on this rank.
-#[derive(Debug, Clone)]
-pub struct Model {
-    pub grains: Vec<GrainBlock>,
-    pub materials: Vec<ElasticParameters>,
-    pub laws: Vec<ElasticLaw>,
-    /// Reference node positions (m).
-    pub x0: Vec<[f64; 3]>,
-    pub tets: Vec<[u32; 4]>,
-    pub tet_reference: Vec<TetReference>,
-    /// Material law index per element.
-    pub tet_law: Vec<u16>,
-    /// Lumped nodal mass after mass scaling (kg).
-    pub mass: Vec<f64>,
-    /// Physical lumped mass before scaling (kg).
-    pub physical_mass: Vec<f64>,
-    pub incidence: NodeIncidence,
-    /// Bitmask of prescribed translation components per node (bit i = axis i).
-    pub driven: Vec<u8>,
-    /// Time step used (s).
-    pub dt: f64,
-    /// Stable time step of the unscaled model (s), including the contact penalty springs
-    /// (see `contact.stable_step` for the element-only value), and the element with the
-    /// smallest own step.
-    pub dt_stable: f64,
-    pub dt_critical_element: usize,
-    /// Mass added by mass scaling (kg), and the number of scaled elements.
-    pub added_mass: f64,
-    pub scaled_elements: usize,
-    pub gravity: [f64; 3],
-    /// Mass-proportional damping α (1/s).
-    pub damping: f64,
-    /// Mass-proportional damping of each grain's velocity relative to its rigid-body
-    /// motion (1/s): damps vibration without any net force or moment on the grain.
-    pub deformation_damping: f64,
-    /// Grain (index into `grains`) of every node.
-    pub node_grain: Vec<u32>,
-    /// Surfaces, penalty data and walls for contact.
-    pub contact: ContactModel,
-    /// Grains, nodes and elements owned (advanced) by this rank: `grains[..owned_grains]`,
-    /// nodes `..owned_nodes`, elements `..owned_elements`; the rest are ghosts.
-    pub owned_grains: usize,
-    pub owned_nodes: usize,
-    pub owned_elements: usize,
-    /// Names of all prescribed motions of the scene (on every rank, whichever grains it
-    /// owns), so that history columns are the same everywhere.
-    pub boundary_names: Vec<String>,
-}
-
-impl Model {
-    pub fn num_nodes(&self) -> usize {
-        self.x0.len()
-    }
-    pub fn num_elements(&self) -> usize {
-        self.tets.len()
-    }
-    /// Total physical mass (kg).
-    pub fn total_physical_mass(&self) -> f64 {
-        self.physical_mass.iter().sum()
-    }
-    /// Grain owning a model element.
-    pub fn grain_of_element(&self, e: usize) -> usize {
-        self.grains.partition_point(|g| g.elements.end <= e)
-    }
-}
 
 /// Meshes one grain shape in its own frame. Identical shapes are meshed once.
 pub fn mesh_shape(shape: &ShapeSpec) -> Result<TetMesh, mesh::MeshError> {
@@ -255,49 +162,14 @@ pub fn build_model_with_ghosts(
         tet_reference.push(r);
     }
 
-    // Stable step per element from the exact element eigenvalue (see element docs).
-    let sim = &scene.simulation;
-    let elem_dt: Vec<f64> = tet_reference
-        .iter()
-        .zip(&tet_law)
-        .map(|(r, &l)| {
-            let law = &laws[l as usize];
-            let k = max_stiffness_eigenvalue(r, law.lambda, law.mu);
-            let m = materials[l as usize].density * r.volume / 4.0;
-            2.0 / (k / m).sqrt()
-        })
-        .collect();
-    let (dt_critical_element, dt_crit) = elem_dt.iter().enumerate().fold(
-        (0, f64::INFINITY),
-        |acc, (e, &d)| if d < acc.1 { (e, d) } else { acc },
-    );
-    let dt_stable_elements = sim.dt_safety * dt_crit;
-
-    // Mass scaling: raise an element's density so its own stable step reaches target_dt.
+    // Physical lumped mass: a quarter of each element's mass on each corner. Mass scaling
+    // (solver::stable_step) raises `mass` above it where a target step asks for it.
     let n = x0.len();
     let mut physical_mass = vec![0.0; n];
-    let mut mass = vec![0.0; n];
-    let mut added_mass = 0.0;
-    let mut scaled_elements = 0;
-    let target = sim.target_dt.map(|t| t / sim.dt_safety);
-    let mut elem_scale = vec![1.0; tets.len()];
     for (e, t) in tets.iter().enumerate() {
-        let rho = materials[tet_law[e] as usize].density;
-        let m_phys = rho * tet_reference[e].volume / 4.0;
-        let scale = match target {
-            Some(tgt) if elem_dt[e] < tgt => {
-                scaled_elements += 1;
-                (tgt / elem_dt[e]).powi(2)
-            }
-            _ => 1.0,
-        };
-        if e < owned_elements {
-            added_mass += 4.0 * m_phys * (scale - 1.0);
-        }
-        elem_scale[e] = scale;
+        let m_phys = materials[tet_law[e] as usize].density * tet_reference[e].volume / 4.0;
         for &node in t {
             physical_mass[node as usize] += m_phys;
-            mass[node as usize] += m_phys * scale;
         }
     }
     // node → element incidence (CSR)
@@ -331,48 +203,12 @@ pub fn build_model_with_ghosts(
         ));
     }
 
-    // Contact: surfaces, penalty springs in the stable step (and contact-node mass scaling
-    // towards target_dt), then the initial-overlap check.
+    // Contact layout: surfaces and walls.
     let e_prime: Vec<f64> = materials
         .iter()
         .map(|m| m.youngs_modulus / (1.0 - m.poisson_ratio * m.poisson_ratio))
         .collect();
-    let mut contact = ContactModel::build(scene, &grains, &x0, &e_prime, owned.len());
-    let dt_contact = contact.account_stable_step(
-        &tets,
-        &elem_dt,
-        &elem_scale,
-        &physical_mass,
-        &mut mass,
-        sim.dt_safety,
-        sim.target_dt,
-    );
-    added_mass += contact.stable_step.added_mass;
-    contact.check_initial_overlap(file, &grains, &x0)?;
-    let dt_stable = dt_stable_elements.min(dt_contact);
-
-    // After scaling every element's (and contact node's) own step is ≥ target_dt/safety,
-    // so target_dt is stable.
-    let scaled_dt = sim.target_dt.unwrap_or(dt_stable);
-    let dt = match sim.dt {
-        Some(d) => {
-            if d > scaled_dt * (1.0 + 1e-12) {
-                let why = match contact.stable_step.critical_node {
-                    Some(n) if dt_contact < dt_stable_elements && sim.target_dt.is_none() => {
-                        format!("contact node {n}")
-                    }
-                    _ => format!("element {dt_critical_element}"),
-                };
-                return Err(InputError::new(
-                    file,
-                    "simulation.dt",
-                    format!("{d:e} s exceeds the stable step {scaled_dt:e} s ({why})"),
-                ));
-            }
-            d
-        }
-        None => scaled_dt,
-    };
+    let contact = ContactModel::build(scene, &grains, &x0, &e_prime, owned.len());
 
     // Prescribed motions
     let mut node_grain = vec![0u32; n];
@@ -474,21 +310,21 @@ pub fn build_model_with_ghosts(
             tets,
             tet_reference,
             tet_law,
-            mass,
+            mass: physical_mass.clone(),
             physical_mass,
             incidence: NodeIncidence {
                 offsets: counts,
                 entries,
             },
             driven,
-            dt,
-            dt_stable,
-            dt_critical_element,
-            added_mass,
-            scaled_elements,
-            gravity: sim.gravity,
-            damping: sim.damping,
-            deformation_damping: sim.deformation_damping,
+            dt: 0.0,
+            dt_stable: 0.0,
+            dt_critical_element: 0,
+            added_mass: 0.0,
+            scaled_elements: 0,
+            gravity: scene.simulation.gravity,
+            damping: scene.simulation.damping,
+            deformation_damping: scene.simulation.deformation_damping,
             node_grain,
             owned_grains: owned.len(),
             boundary_names: scene.boundaries.iter().map(|b| b.name.clone()).collect(),

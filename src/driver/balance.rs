@@ -1,0 +1,160 @@
+//! Load balance and ghost re-planning between steps (MPI runs only).
+//!
+//! Both decisions are taken from counted work and positions, never from wall-clock time,
+//! so that two runs of one scene — and a run and its restart — migrate the same grains at
+//! the same steps. A grain's work per step is
+//! `cost_per_element × elements + cost_per_contact_node × contact candidate entries`
+//! (slave nodes of the grain with candidate facets in the current lists; the partition
+//! crate's [`partition::CostModel`] prices). A rank's load is the sum over its grains;
+//! when max/mean − 1 exceeds `parallel.imbalance_threshold`, METIS re-partitions with
+//! those weights. The ghosts are re-planned when some grain's bounding sphere has moved
+//! (centre shift + radius change) by more than a quarter of the ghost margin since the
+//! last plan ([`Partition::planned_bounds`]).
+
+use super::frames::gather_rows;
+use super::migration::redistribute;
+use super::rank::metis_owner;
+use crate::domain::halo::HaloPlan;
+use crate::domain::Domain;
+use crate::error::Result;
+use crate::model::decomposition::{imbalance, GrainBound, Partition};
+use crate::model::global::{ghost_margin, GlobalMesh};
+use crate::scene::LoadedScene;
+use crate::solver::Solver;
+
+/// A new decomposition: grains changed hands or the ghosts were re-planned.
+pub struct Rebalanced {
+    pub solver: Solver,
+    pub halo: HaloPlan,
+    /// Grains whose owner changed.
+    pub migrated: usize,
+}
+
+/// Work of each owned grain per step (cost units), in model grain order.
+fn owned_grain_work(solver: &Solver) -> Vec<f64> {
+    let m = &solver.model;
+    let prices = partition::CostModel::default();
+    let mut entries = vec![0usize; m.grains.len()];
+    let lists = &solver.scratch.contact.lists;
+    for e in &lists.entries {
+        entries[lists.passes[e.pass as usize].slave as usize] += 1;
+    }
+    m.grains[..m.owned_grains]
+        .iter()
+        .zip(&entries)
+        .map(|(g, &n)| {
+            prices.cost_per_element * g.elements.len() as f64
+                + prices.cost_per_contact_node * n as f64
+        })
+        .collect()
+}
+
+/// Current bounding sphere and work of every grain, from its owner (every rank gets the
+/// whole table). All ranks must call.
+fn gather_grain_status(
+    domain: &Domain,
+    solver: &Solver,
+    n_grains: usize,
+) -> (Vec<GrainBound>, Vec<f64>) {
+    let m = &solver.model;
+    let work = owned_grain_work(solver);
+    let mut local = Vec::with_capacity(5 * m.owned_grains);
+    for (g, w) in m.grains[..m.owned_grains].iter().zip(&work) {
+        let nodes = &solver.state.x[g.nodes.clone()];
+        let n = nodes.len() as f64;
+        let mut c = [0.0; 3];
+        for p in nodes {
+            for i in 0..3 {
+                c[i] += p[i] / n;
+            }
+        }
+        let r = nodes
+            .iter()
+            .map(|p| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt())
+            .fold(0.0, f64::max);
+        local.extend_from_slice(&[c[0], c[1], c[2], r, *w]);
+    }
+    let offsets: Vec<usize> = (0..=n_grains).collect();
+    let owner = &solver.state.partition.owner;
+    let mut bytes = gather_rows(domain, owner, &offsets, &local, 5)
+        .map(|v| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>())
+        .unwrap_or_default();
+    domain.broadcast_bytes(&mut bytes);
+    bytes
+        .chunks_exact(40)
+        .map(|c| {
+            let f = |k: usize| f64::from_le_bytes(c[8 * k..8 * k + 8].try_into().expect("8 bytes"));
+            (
+                GrainBound {
+                    centre: [f(0), f(1), f(2)],
+                    radius: f(3),
+                },
+                f(4),
+            )
+        })
+        .unzip()
+}
+
+/// Re-partitions when the counted load imbalance exceeds the threshold, or re-plans the
+/// ghosts when some grain moved far from the last plan (see the module docs); `None` when
+/// nothing needs to change. The caller must have completed any halo exchange in flight.
+/// All ranks must call.
+pub fn rebalance(
+    domain: &Domain,
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+    solver: &Solver,
+) -> Result<Option<Rebalanced>> {
+    let n = loaded.scene.grains.len();
+    let (bounds, work) = gather_grain_status(domain, solver, n);
+    let partition = &solver.state.partition;
+    let mut load = vec![0.0; domain.size()];
+    for (g, w) in work.iter().enumerate() {
+        load[partition.owner[g] as usize] += w;
+    }
+    let moved = bounds
+        .iter()
+        .zip(&partition.planned_bounds)
+        .map(|(now, then)| {
+            let shift = (0..3)
+                .map(|i| (now.centre[i] - then.centre[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            shift + (now.radius - then.radius).abs()
+        })
+        .fold(0.0, f64::max);
+    let repartition = imbalance(&load) > loaded.scene.parallel.imbalance_threshold;
+    if !repartition && moved <= 0.25 * ghost_margin(global) {
+        return Ok(None);
+    }
+    let old_owner = partition.owner.clone();
+    let new_owner = if repartition {
+        let infos: Vec<partition::GrainInfo> = (0..n)
+            .map(|g| partition::GrainInfo {
+                centre: bounds[g].centre,
+                bounding_radius: bounds[g].radius,
+                elements: work[g].round().max(1.0) as usize,
+                surface_nodes: 0,
+            })
+            .collect();
+        metis_owner(domain, &infos, ghost_margin(global), "re-partitioning")?
+    } else {
+        old_owner.clone()
+    };
+    let migrated = old_owner
+        .iter()
+        .zip(&new_owner)
+        .filter(|(a, b)| a != b)
+        .count();
+    let (mut solver, _plan, halo) =
+        redistribute(domain, loaded, global, solver, &new_owner, &bounds)?;
+    solver.state.partition = Partition {
+        owner: new_owner,
+        planned_bounds: bounds,
+    };
+    Ok(Some(Rebalanced {
+        solver,
+        halo,
+        migrated,
+    }))
+}

@@ -1,0 +1,278 @@
+//! The `/history` series of a run: column definitions (names, units, Abaqus names),
+//! one row per output step, and how each column combines over ranks.
+
+use crate::domain::Domain;
+use crate::energy::{EnergyLedger, WorkAccumulator};
+use crate::io::results::HistoryColumn;
+use crate::solver::Solver;
+
+/// The `/history` columns of a solver: energies, then one group per prescribed motion.
+pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
+    let mut c = vec![
+        HistoryColumn::new("time", "s", None, "simulated time t_n"),
+        HistoryColumn::new("step", "", None, "step number n"),
+        HistoryColumn::new(
+            "kinetic_energy",
+            "J",
+            Some("ALLKE"),
+            "½ v(n−½)·M v(n+½), consistent with central differences",
+        ),
+        HistoryColumn::new(
+            "strain_energy",
+            "J",
+            Some("ALLSE"),
+            "elastic strain energy Σ V0 W(F)",
+        ),
+        HistoryColumn::new(
+            "recoverable_strain_energy",
+            "J",
+            None,
+            "recoverable part of the strain energy",
+        ),
+        HistoryColumn::new(
+            "internal_energy",
+            "J",
+            Some("ALLIE"),
+            "strain + plastic dissipation + contact spring energy",
+        ),
+        HistoryColumn::new(
+            "plastic_dissipation",
+            "J",
+            Some("ALLPD"),
+            "energy dissipated by plastic flow",
+        ),
+        HistoryColumn::new(
+            "friction_dissipation",
+            "J",
+            Some("ALLFD"),
+            "energy dissipated by Coulomb friction, Σ f_t·Δslip",
+        ),
+        HistoryColumn::new(
+            "external_work",
+            "J",
+            Some("ALLWK"),
+            "work of prescribed motions, walls and body forces",
+        ),
+        HistoryColumn::new(
+            "damping_dissipation",
+            "J",
+            Some("ALLVD"),
+            "energy removed by mass-proportional damping and normal contact damping",
+        ),
+        HistoryColumn::new(
+            "energy_balance",
+            "J",
+            Some("ETOTAL"),
+            "ALLKE + ALLIE + ALLVD + ALLFD − ALLWK",
+        ),
+    ];
+    for name in &solver.model.boundary_names {
+        for (what, units, desc) in [
+            (
+                "force",
+                "N",
+                "reaction force the prescribed motion exerts on the grain",
+            ),
+            (
+                "moment",
+                "N*m",
+                "reaction moment about the motion's current centre",
+            ),
+            ("displacement", "m", "displacement of the motion's centre"),
+            (
+                "rotation",
+                "rad",
+                "rotation vector of the prescribed rotation",
+            ),
+        ] {
+            for axis in ["x", "y", "z"] {
+                c.push(HistoryColumn::new(
+                    &format!("{name}_{what}_{axis}"),
+                    units,
+                    None,
+                    desc,
+                ));
+            }
+        }
+    }
+    let cm = &solver.model.contact;
+    if cm.active() {
+        c.push(HistoryColumn::new(
+            "contacts",
+            "",
+            None,
+            "active contact points: grain–grain (per pass) plus wall nodes",
+        ));
+        c.push(HistoryColumn::new(
+            "max_penetration",
+            "m",
+            None,
+            "largest grain–grain penetration depth at this step",
+        ));
+        c.push(HistoryColumn::new(
+            "contact_energy",
+            "J",
+            None,
+            "elastic energy stored in the contact penalty springs (part of ALLIE)",
+        ));
+    }
+    for w in &cm.walls {
+        for (what, units, desc) in [
+            ("force", "N", "force the wall exerts on the grains"),
+            ("displacement", "m", "displacement of the wall since t = 0"),
+        ] {
+            for axis in ["x", "y", "z"] {
+                c.push(HistoryColumn::new(
+                    &format!("{}_{what}_{axis}", w.name),
+                    units,
+                    None,
+                    desc,
+                ));
+            }
+        }
+    }
+    c
+}
+
+/// How each column of [`history_columns`] combines over ranks.
+pub fn history_reductions(solver: &Solver) -> Vec<Reduce> {
+    let mut k = vec![Reduce::Same, Reduce::Same];
+    k.extend([Reduce::Sum; 9]);
+    k.extend(std::iter::repeat_n(
+        Reduce::Sum,
+        12 * solver.model.boundary_names.len(),
+    ));
+    if solver.model.contact.active() {
+        k.extend([Reduce::Sum, Reduce::Max, Reduce::Sum]);
+    }
+    for _ in &solver.model.contact.walls {
+        k.extend([Reduce::Sum; 3]);
+        k.extend([Reduce::Same; 3]);
+    }
+    k
+}
+
+/// One history row matching [`history_columns`].
+pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
+    let s = &solver.state;
+    let e = &s.energy;
+    row.clear();
+    row.extend_from_slice(&[
+        // energies, reactions and wall forces of a step describe t_n, the start of the step
+        // that has just been taken
+        if s.step > 0 {
+            s.time - solver.model.dt
+        } else {
+            s.time
+        },
+        s.step.saturating_sub(1) as f64,
+        e.kinetic,
+        e.strain,
+        e.recoverable_strain,
+        e.internal(),
+        e.plastic_dissipation,
+        e.friction_dissipation,
+        e.external_work(),
+        e.damping_dissipation(),
+        e.total(),
+    ]);
+    // a motion lives on the rank owning its grain; other ranks report zeros (summed)
+    for name in &solver.model.boundary_names {
+        match solver.motions.iter().position(|m| &m.name == name) {
+            Some(k) => {
+                let r = &s.reactions[k];
+                row.extend_from_slice(&r.force);
+                row.extend_from_slice(&r.moment);
+                row.extend_from_slice(&r.displacement);
+                row.extend_from_slice(&r.rotation);
+            }
+            None => row.extend_from_slice(&[0.0; 12]),
+        }
+    }
+    if solver.model.contact.active() {
+        let c = &s.contact;
+        row.extend_from_slice(&[c.contacts() as f64, c.stats.max_penetration, c.stats.energy]);
+    }
+    for w in &s.contact.walls {
+        row.extend_from_slice(&w.force);
+        row.extend_from_slice(&w.displacement);
+    }
+}
+
+/// How a history column combines over ranks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Reduce {
+    /// Identical on every rank (time, wall displacement).
+    Same,
+    Sum,
+    Max,
+}
+
+/// Reduces a history row in place. All ranks must call.
+pub fn reduce_row(domain: &Domain, kinds: &[Reduce], row: &mut [f64]) {
+    if domain.size() == 1 {
+        return;
+    }
+    let mut sums: Vec<f64> = kinds
+        .iter()
+        .zip(row.iter())
+        .filter(|(k, _)| **k == Reduce::Sum)
+        .map(|(_, v)| *v)
+        .collect();
+    let mut maxes: Vec<f64> = kinds
+        .iter()
+        .zip(row.iter())
+        .filter(|(k, _)| **k == Reduce::Max)
+        .map(|(_, v)| *v)
+        .collect();
+    domain.sum_in_place(&mut sums);
+    domain.max_in_place(&mut maxes);
+    let (mut s, mut m) = (sums.into_iter(), maxes.into_iter());
+    for (k, v) in kinds.iter().zip(row.iter_mut()) {
+        match k {
+            Reduce::Sum => *v = s.next().unwrap_or(*v),
+            Reduce::Max => *v = m.next().unwrap_or(*v),
+            Reduce::Same => {}
+        }
+    }
+}
+
+/// The energy ledger summed over ranks (each rank's ledger covers its owned grains). All
+/// ranks must call.
+pub fn global_ledger(domain: &Domain, e: &EnergyLedger) -> EnergyLedger {
+    let mut v = [
+        e.kinetic,
+        e.strain,
+        e.recoverable_strain,
+        e.plastic_dissipation,
+        e.friction_dissipation,
+        e.contact_energy,
+        e.body_force.work,
+        e.body_force.pending,
+        e.boundary_work,
+        e.damping.work,
+        e.damping.pending,
+        e.initial_total.unwrap_or(0.0),
+    ];
+    if domain.size() > 1 {
+        domain.sum_in_place(&mut v);
+    }
+    EnergyLedger {
+        kinetic: v[0],
+        strain: v[1],
+        recoverable_strain: v[2],
+        plastic_dissipation: v[3],
+        friction_dissipation: v[4],
+        contact_energy: v[5],
+        body_force: WorkAccumulator {
+            work: v[6],
+            pending: v[7],
+        },
+        boundary_work: v[8],
+        damping: WorkAccumulator {
+            work: v[9],
+            pending: v[10],
+        },
+        initial_total: e.initial_total.map(|_| v[11]),
+    }
+}

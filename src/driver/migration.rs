@@ -1,0 +1,239 @@
+//! Grain migration between ranks: what travels with a grain when it changes hands, and
+//! the redistribution that builds every rank's new solver around it.
+
+use crate::domain::halo::HaloPlan;
+use crate::domain::{Domain, Exchange};
+use crate::error::{MufeError, Result};
+use crate::model::decomposition::{Decomposition, GrainBound};
+use crate::model::global::{ghost_margin, GlobalMesh};
+use crate::scene::LoadedScene;
+use crate::solver::{build_solver_for, Solver};
+
+/// Serialises what travels with a grain when it changes hands: its nodes' x and v, the
+/// friction history of its surface nodes as slaves, and the state of its prescribed
+/// motions. Integers are stored as f64 (exact below 2⁵³).
+pub fn pack_grain(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
+    let m = &solver.model;
+    let g = &m.grains[model_grain];
+    let st = &solver.state;
+    let hist: Vec<&crate::contact::FrictionPoint> = st
+        .contact
+        .history
+        .iter()
+        .filter(|p| p.key.grain == g.global_id)
+        .collect();
+    let nodes = g.nodes.clone();
+    let motion_ix: Vec<usize> = solver
+        .motions
+        .iter()
+        .enumerate()
+        .filter(|(_, mo)| {
+            mo.nodes
+                .first()
+                .is_some_and(|&n| g.nodes.contains(&(n as usize)))
+        })
+        .map(|(k, _)| k)
+        .collect();
+    out.extend_from_slice(&[
+        g.global_id as f64,
+        nodes.len() as f64,
+        hist.len() as f64,
+        motion_ix.len() as f64,
+    ]);
+    for n in nodes.clone() {
+        out.extend_from_slice(&st.x[n]);
+    }
+    for n in nodes {
+        out.extend_from_slice(&st.v[n]);
+    }
+    for p in hist {
+        out.extend_from_slice(&[
+            p.key.other as f64,
+            p.key.node as f64,
+            p.traction[0],
+            p.traction[1],
+            p.traction[2],
+        ]);
+    }
+    for k in motion_ix {
+        let b = m
+            .boundary_names
+            .iter()
+            .position(|n| *n == solver.motions[k].name)
+            .unwrap_or(usize::MAX);
+        out.push(b as f64);
+        out.extend_from_slice(&st.motion_rotation[k]);
+        let r = &st.reactions[k];
+        for v in [r.force, r.moment, r.displacement, r.rotation] {
+            out.extend_from_slice(&v);
+        }
+        out.extend_from_slice(&[st.motion_work[k].work, st.motion_work[k].pending]);
+    }
+}
+
+/// Installs packed grains (see [`pack_grain`]) into a freshly built solver. Returns the
+/// global ids installed.
+pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
+    let bad = || MufeError::Run("migration: malformed grain package".into());
+    let mut installed = Vec::new();
+    let mut i = 0;
+    while i < data.len() {
+        let head = data.get(i..i + 4).ok_or_else(bad)?;
+        let (gid, nn, nh, nm) = (
+            head[0] as u32,
+            head[1] as usize,
+            head[2] as usize,
+            head[3] as usize,
+        );
+        i += 4;
+        let Some(mg) = solver.model.grains.iter().position(|g| g.global_id == gid) else {
+            // not held here: skip the package
+            i += 6 * nn + 5 * nh + nm * (1 + 9 + 12 + 2);
+            continue;
+        };
+        let range = solver.model.grains[mg].nodes.clone();
+        if range.len() != nn {
+            return Err(MufeError::Run(format!(
+                "migration: grain {gid} has {} nodes here, {nn} in the package",
+                range.len()
+            )));
+        }
+        for (k, n) in range.clone().enumerate() {
+            let p = data.get(i + 3 * k..i + 3 * k + 3).ok_or_else(bad)?;
+            solver.state.x[n] = [p[0], p[1], p[2]];
+            let q = data
+                .get(i + 3 * nn + 3 * k..i + 3 * nn + 3 * k + 3)
+                .ok_or_else(bad)?;
+            solver.state.v[n] = [q[0], q[1], q[2]];
+        }
+        i += 6 * nn;
+        for _ in 0..nh {
+            let p = data.get(i..i + 5).ok_or_else(bad)?;
+            solver
+                .state
+                .contact
+                .history
+                .push(crate::contact::FrictionPoint {
+                    key: crate::contact::ContactKey {
+                        grain: gid,
+                        other: p[0] as u32,
+                        node: p[1] as u32,
+                    },
+                    traction: [p[2], p[3], p[4]],
+                });
+            i += 5;
+        }
+        for _ in 0..nm {
+            let p = data.get(i..i + 24).ok_or_else(bad)?;
+            let name = solver
+                .model
+                .boundary_names
+                .get(p[0] as usize)
+                .cloned()
+                .unwrap_or_default();
+            if let Some(k) = solver.motions.iter().position(|mo| mo.name == name) {
+                solver.state.motion_rotation[k].copy_from_slice(&p[1..10]);
+                let r = &mut solver.state.reactions[k];
+                r.force.copy_from_slice(&p[10..13]);
+                r.moment.copy_from_slice(&p[13..16]);
+                r.displacement.copy_from_slice(&p[16..19]);
+                r.rotation.copy_from_slice(&p[19..22]);
+                solver.state.motion_work[k] = crate::energy::WorkAccumulator {
+                    work: p[22],
+                    pending: p[23],
+                };
+            }
+            i += 24;
+        }
+        installed.push(gid);
+    }
+    solver.state.contact.history.sort_by_key(|p| p.key);
+    solver.state.contact.history.dedup_by_key(|p| p.key);
+    Ok(installed)
+}
+
+/// Moves grains between ranks: builds every rank's model for `new_owner` (with ghosts from
+/// the grain bounds `bounds`) and carries over the full state of every grain it will hold
+/// from that grain's previous owner. Per-rank energy accumulators stay where they are
+/// (only their sum over ranks is meaningful). The caller must have completed any halo
+/// exchange in flight. All ranks must call.
+pub fn redistribute(
+    domain: &Domain,
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+    old: &Solver,
+    new_owner: &[u32],
+    bounds: &[GrainBound],
+) -> Result<(Solver, Decomposition, HaloPlan)> {
+    let plan = Decomposition::plan(new_owner, bounds, ghost_margin(global), domain.rank());
+    // who will hold each grain (owner + ghost holders): every rank can compute every plan
+    let plans: Vec<Decomposition> = (0..domain.size())
+        .map(|r| Decomposition::plan(new_owner, bounds, ghost_margin(global), r))
+        .collect();
+    let me = domain.rank();
+    let mut sends: Vec<Vec<f64>> = vec![Vec::new(); domain.size()];
+    for (mg, g) in old.model.grains[..old.model.owned_grains]
+        .iter()
+        .enumerate()
+    {
+        let gid = g.global_id as usize;
+        debug_assert_eq!(old.state.partition.owner[gid] as usize, me);
+        for (r, p) in plans.iter().enumerate() {
+            if p.owned.binary_search(&gid).is_ok() || p.ghosts.binary_search(&gid).is_ok() {
+                pack_grain(old, mg, &mut sends[r]);
+            }
+        }
+    }
+    let counts = domain.all_to_all_u64(&sends.iter().map(|s| s.len() as u64).collect::<Vec<_>>());
+    let local = std::mem::take(&mut sends[me]);
+    let outgoing: Vec<(usize, Vec<f64>)> = sends
+        .into_iter()
+        .enumerate()
+        .filter(|(r, s)| *r != me && !s.is_empty())
+        .collect();
+    let incoming: Vec<(usize, usize)> = counts
+        .iter()
+        .enumerate()
+        .filter(|(r, c)| *r != me && **c > 0)
+        .map(|(r, c)| (r, *c as usize))
+        .collect();
+    let exchange = Exchange::new(202);
+    let pending = exchange.begin(domain, &outgoing, &incoming)?;
+    let received = exchange.end(pending)?;
+
+    let mut solver = build_solver_for(loaded, &plan.owned, &plan.ghosts)?;
+    solver.model.dt = old.model.dt;
+    // run-level state that is not per grain
+    solver.state.time = old.state.time;
+    solver.state.step = old.state.step;
+    solver.state.energy = old.state.energy.clone();
+    solver.state.supplied_energy = old.state.supplied_energy;
+    solver.state.contact.detection.rebuilds = old.state.contact.detection.rebuilds;
+    solver.state.contact.friction_dissipation = old.state.contact.friction_dissipation;
+    solver.state.contact.walls = old.state.contact.walls.clone();
+    solver.state.contact.stats.max_penetration_run = old.state.contact.stats.max_penetration_run;
+    solver.state.contact.stats.max_contacts_run = old.state.contact.stats.max_contacts_run;
+    solver.timers = old.timers.clone();
+    solver.state.contact.history.clear();
+    let mut installed = unpack_grains(&mut solver, &local)?;
+    for (_, data) in &received {
+        installed.extend(unpack_grains(&mut solver, data)?);
+    }
+    installed.sort_unstable();
+    installed.dedup();
+    let expected: Vec<u32> = plan
+        .owned
+        .iter()
+        .chain(&plan.ghosts)
+        .map(|&g| g as u32)
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    if installed != expected {
+        return Err(MufeError::Run(format!(
+            "migration on rank {me}: received grains {installed:?}, expected {expected:?}"
+        )));
+    }
+    let halo = HaloPlan::new(&solver.model, &plan);
+    Ok((solver, plan, halo))
+}

@@ -1,0 +1,228 @@
+//! `mufe run`: a run as named phases, top-down.
+//!
+//! load scene (done by the CLI, which validates before anything is written) →
+//! [`GlobalMesh`] (every grain meshed, identical on all ranks) → partition (METIS,
+//! [`rank`]) → build the rank's solver (owned grains + ghosts) → open the output
+//! ([`output`]: `results.h5`, `/mesh`, history columns, frame 0) → loop { step, history,
+//! frames, progress, rebalance ([`balance`]) } → finish (last rows and frame, energy
+//! plot, summary).
+//!
+//! The driver sits above the solver: it owns everything about output, partitioning and
+//! reporting; the solver advances one step at a time and keeps all evolving data in its
+//! `State`. MPI is reached only through [`crate::domain::Domain`].
+
+pub mod balance;
+pub mod energy_plot;
+pub mod frames;
+pub mod history;
+pub mod migration;
+pub mod output;
+pub mod progress;
+pub mod rank;
+pub mod summary;
+
+use crate::domain::halo::Halo;
+use crate::domain::Domain;
+use crate::error::{MufeError, Result};
+use crate::model::global::GlobalMesh;
+use crate::scene::LoadedScene;
+use crate::solver::{Solver, Stage};
+use balance::{rebalance, Rebalanced};
+use output::Output;
+use progress::Progress;
+use rank::{build_rank_solver, partition_grains, RankHooks};
+use std::path::PathBuf;
+use std::time::Instant;
+
+pub use history::{history_columns, history_row};
+pub use summary::print_model_summary;
+
+/// Options of one run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Output directory (created if missing).
+    pub out: PathBuf,
+    /// Threads per rank (rayon pool size).
+    pub threads: usize,
+    /// Stop after this many steps from t = 0.
+    pub max_steps: Option<u64>,
+    /// No progress or summary printing.
+    pub quiet: bool,
+}
+
+/// What a finished run reports.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    pub steps: u64,
+    pub time: f64,
+    pub dt: f64,
+    pub wall_s: f64,
+    pub elements: usize,
+    pub nodes: usize,
+    pub energy: crate::energy::EnergyLedger,
+    pub timing_table: String,
+    pub results: PathBuf,
+    /// Most contact points at one step (grain–grain per pass + wall nodes).
+    pub max_contacts: usize,
+    /// Largest grain–grain penetration over the run (m).
+    pub max_penetration: f64,
+    /// Share of step time spent in the contact stage (0..1).
+    pub contact_share: f64,
+    /// Broad-phase rebuilds (summed over ranks).
+    pub rebuilds: u64,
+    /// Contact points at the end (summed over ranks).
+    pub contacts_now: usize,
+}
+
+/// Runs a scene to its duration (or `max_steps`) and writes the results: serially, or
+/// under `mpirun` with the grains partitioned over the ranks (all ranks must call).
+pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<RunSummary> {
+    let wall0 = Instant::now();
+    let global = GlobalMesh::build(loaded)?;
+    let owner = partition_grains(domain, loaded, &global)?;
+    let (solver, plan, halo_plan) =
+        build_rank_solver(domain, loaded, &global, &owner, &global.bounds)?;
+    let mut run = Run {
+        domain,
+        loaded,
+        global: &global,
+        hooks: RankHooks {
+            domain,
+            halo: Halo::new(domain, halo_plan),
+        },
+        solver,
+        talk: domain.is_root() && !opts.quiet,
+    };
+    let total_steps = (loaded.scene.simulation.duration / run.solver.model.dt).ceil() as u64;
+    let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
+    if run.talk {
+        print_model_summary(&run.solver, loaded, total_steps);
+        if domain.size() > 1 {
+            println!(
+                "ranks: {} (METIS), rank 0 owns {} grains and mirrors {} ghosts; halo {} bytes/step from rank 0",
+                domain.size(),
+                plan.owned.len(),
+                plan.ghosts.len(),
+                run.hooks.halo.plan.bytes_per_step()
+            );
+        }
+    }
+    let mut output = Output::open(domain, loaded, opts, &global, &run.solver)?;
+    let failure = run.advance_to(last_step, &mut output)?;
+    let summary = run.finish(output, failure, opts, wall0)?;
+    if run.talk {
+        summary::print_run_summary(&summary, &run.solver);
+    }
+    Ok(summary)
+}
+
+/// A run in progress on one rank.
+struct Run<'a, 'd> {
+    domain: &'d Domain,
+    loaded: &'a LoadedScene,
+    global: &'a GlobalMesh,
+    hooks: RankHooks<'d>,
+    solver: Solver,
+    /// This rank prints progress and summaries.
+    talk: bool,
+}
+
+impl Run<'_, '_> {
+    /// The time loop up to `last_step`. A step error on one rank of several aborts the
+    /// job (the others cannot know); serially it is returned after the loop so that the
+    /// output can still be finished.
+    fn advance_to(&mut self, last_step: u64, output: &mut Output) -> Result<Option<MufeError>> {
+        let mut progress = Progress::new(self.talk, "run");
+        let check_interval = self.loaded.scene.parallel.check_interval;
+        while self.solver.state.step < last_step {
+            if let Err(e) = self.solver.step_with(&mut self.hooks) {
+                if self.domain.size() > 1 {
+                    eprintln!("rank {}: error: {e}", self.domain.rank());
+                    self.domain.abort(e.exit_code().max(1));
+                }
+                return Ok(Some(e));
+            }
+            let n = self.solver.state.step;
+            let t_out = Instant::now();
+            output.after_step(&self.solver, n == last_step)?;
+            self.solver.timers.add(Stage::Output, t_out.elapsed());
+            progress.update(n as f64 / last_step as f64, n, self.solver.state.time);
+            if self.domain.size() > 1 && n % check_interval == 0 && n != last_step {
+                self.rebalance(n)?;
+            }
+        }
+        progress.finish();
+        Ok(None)
+    }
+
+    /// Completes the halo in flight, then re-partitions or re-plans ghosts if needed.
+    fn rebalance(&mut self, step: u64) -> Result<()> {
+        let (domain, loaded) = (self.domain, self.loaded);
+        let s = &mut self.solver.state;
+        self.hooks.halo.end(&mut s.x, &mut s.v)?;
+        match rebalance(domain, loaded, self.global, &self.solver)? {
+            None => {
+                let s = &self.solver.state;
+                self.hooks.halo.begin(&s.x, &s.v)?;
+            }
+            Some(Rebalanced {
+                solver,
+                halo,
+                migrated,
+            }) => {
+                self.solver = solver;
+                self.hooks.halo = Halo::new(domain, halo);
+                if self.talk {
+                    println!(
+                        "re-partitioned at step {step}: {migrated} grains migrated (imbalance above {})",
+                        loaded.scene.parallel.imbalance_threshold
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Last history row and frame, closes the file, draws the energy plot, and gathers
+    /// the global figures of the summary. A step failure is returned after the output is
+    /// complete, so what was computed up to it can be inspected.
+    fn finish(
+        &mut self,
+        output: Output,
+        failure: Option<MufeError>,
+        opts: &RunOptions,
+        wall0: Instant,
+    ) -> Result<RunSummary> {
+        let solver = &self.solver;
+        output.close(solver, failure.is_some(), &opts.out)?;
+        let domain = self.domain;
+        let energy = history::global_ledger(domain, &solver.state.energy);
+        let stats = &solver.state.contact.stats;
+        let mut maxima = [stats.max_penetration_run, stats.max_contacts_run as f64];
+        domain.max_in_place(&mut maxima);
+        let mut now = [
+            solver.state.contact.contacts() as f64,
+            stats.rebuilds as f64,
+        ];
+        domain.sum_in_place(&mut now[..1]);
+        if let Some(e) = failure {
+            return Err(e);
+        }
+        Ok(RunSummary {
+            steps: solver.state.step,
+            time: solver.state.time,
+            dt: solver.model.dt,
+            wall_s: wall0.elapsed().as_secs_f64(),
+            elements: solver.model.num_elements(),
+            nodes: solver.model.num_nodes(),
+            energy,
+            timing_table: solver.timers.table(solver.state.step),
+            results: opts.out.join(crate::io::results::RESULTS_FILE_NAME),
+            max_contacts: maxima[1] as usize,
+            max_penetration: maxima[0],
+            contact_share: solver.timers.share(Stage::Contact),
+            rebuilds: now[1] as u64,
+            contacts_now: now[0] as usize,
+        })
+    }
+}

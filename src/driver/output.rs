@@ -1,0 +1,177 @@
+//! The output of a run: `DIR/results.h5` (mesh, history rows, frames) and
+//! `DIR/energy.png`, on the schedule the scene's `[output]` sets.
+
+use super::energy_plot::EnergyPlot;
+use super::frames::write_frame;
+use super::history::{history_columns, history_reductions, history_row, reduce_row, Reduce};
+use super::RunOptions;
+use crate::domain::Domain;
+use crate::error::{MufeError, Result};
+use crate::io::results::{MeshPart, Provenance, ResultsWriter, RESULTS_FILE_NAME};
+use crate::model::global::GlobalMesh;
+use crate::scene::LoadedScene;
+use crate::solver::Solver;
+use std::path::Path;
+
+/// Output state of a run in progress on one rank.
+pub struct Output<'a, 'd> {
+    domain: &'d Domain,
+    global: &'a GlobalMesh,
+    writer: ResultsWriter<'d>,
+    reductions: Vec<Reduce>,
+    /// Steps between history rows and between frames (none: first and last frame only).
+    history_every: u64,
+    frame_every: Option<u64>,
+    frames: bool,
+    frame_index: usize,
+    energy_plot: EnergyPlot,
+    row: Vec<f64>,
+}
+
+impl<'a, 'd> Output<'a, 'd> {
+    /// Creates the output directory and `results.h5` with `/scene`, `/provenance`,
+    /// `/mesh`, the history columns and the first frame. All ranks must call.
+    pub fn open(
+        domain: &'d Domain,
+        loaded: &LoadedScene,
+        opts: &RunOptions,
+        global: &'a GlobalMesh,
+        solver: &Solver,
+    ) -> Result<Self> {
+        std::fs::create_dir_all(&opts.out).map_err(|e| {
+            MufeError::Io(format!(
+                "{}: cannot create output directory: {e}",
+                opts.out.display()
+            ))
+        })?;
+        let results = opts.out.join(RESULTS_FILE_NAME);
+        let provenance = Provenance::collect(domain, opts.threads);
+        let mut writer = ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
+        write_mesh(
+            &mut writer,
+            domain,
+            loaded,
+            global,
+            &solver.state.partition.owner,
+        )?;
+        writer.define_history(&history_columns(solver))?;
+
+        let scene = &loaded.scene;
+        let dt = solver.model.dt;
+        let history_interval = scene
+            .output
+            .history_interval
+            .unwrap_or(scene.simulation.duration / 1000.0);
+        let mut output = Self {
+            domain,
+            global,
+            writer,
+            reductions: history_reductions(solver),
+            history_every: ((history_interval / dt).round() as u64).max(1),
+            frame_every: scene
+                .output
+                .frame_interval
+                .map(|f| ((f / dt).round() as u64).max(1)),
+            frames: scene.output.frames,
+            frame_index: 0,
+            energy_plot: EnergyPlot::default(),
+            row: Vec::new(),
+        };
+        if output.frames {
+            output.write_frame(solver)?;
+        }
+        Ok(output)
+    }
+
+    /// After step n: a history row every `history_every` steps and at the last step, a
+    /// frame every `frame_every` steps (the last frame is written by [`Self::close`]).
+    /// All ranks must call.
+    pub fn after_step(&mut self, solver: &Solver, last: bool) -> Result<()> {
+        let n = solver.state.step;
+        if n % self.history_every == 0 || last {
+            self.push_history_row(solver)?;
+        }
+        if let Some(fe) = self.frame_every {
+            if n % fe == 0 && !last && self.frames {
+                self.write_frame(solver)?;
+                self.writer.flush_history()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes what a finished (or failed) run leaves: a last history row when the loop
+    /// wrote none for this state, the last frame, then closes the file and draws
+    /// `DIR/energy.png`. All ranks must call.
+    pub fn close(mut self, solver: &Solver, failed: bool, dir: &Path) -> Result<()> {
+        // Keep what was computed up to a failure: history and a last frame help diagnose it.
+        if failed || solver.state.step == 0 {
+            self.push_history_row(solver)?;
+        }
+        if self.frames {
+            self.write_frame(solver)?;
+        }
+        self.writer.close()?;
+        if self.domain.is_root() {
+            self.energy_plot.draw(&dir.join("energy.png"))?;
+        }
+        Ok(())
+    }
+
+    fn push_history_row(&mut self, solver: &Solver) -> Result<()> {
+        history_row(solver, &mut self.row);
+        reduce_row(self.domain, &self.reductions, &mut self.row);
+        self.writer.push_history(&self.row)?;
+        self.energy_plot.push(&self.row);
+        Ok(())
+    }
+
+    fn write_frame(&mut self, solver: &Solver) -> Result<()> {
+        write_frame(
+            &mut self.writer,
+            self.domain,
+            solver,
+            self.global,
+            &solver.state.partition.owner,
+            self.frame_index,
+        )?;
+        self.frame_index += 1;
+        Ok(())
+    }
+}
+
+/// `/mesh` from the global layout (identical on all ranks); rank 0 writes it. All ranks
+/// must call.
+fn write_mesh(
+    writer: &mut ResultsWriter,
+    domain: &Domain,
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+    owner: &[u32],
+) -> Result<()> {
+    let (mut nodes, mut tets, mut grain_of_tet) = (Vec::new(), Vec::new(), Vec::new());
+    if domain.is_root() {
+        for (g, spec) in loaded.scene.grains.iter().enumerate() {
+            let mesh = &global.meshes[g];
+            let base = global.node_offset[g] as u64;
+            let c = spec.centre;
+            nodes.extend(
+                mesh.nodes
+                    .iter()
+                    .map(|p| [p[0] + c[0], p[1] + c[1], p[2] + c[2]]),
+            );
+            tets.extend(mesh.tets.iter().map(|t| t.map(|n| n as u64 + base)));
+            grain_of_tet.extend(std::iter::repeat_n(g as u32, mesh.tets.len()));
+        }
+    }
+    writer.write_mesh(&MeshPart {
+        nodes: &nodes,
+        node_offset: 0,
+        total_nodes: global.total_nodes() as u64,
+        tets: &tets,
+        tet_offset: 0,
+        total_tets: global.total_elements() as u64,
+        grain_of_tet: &grain_of_tet,
+        grain_owner_rank: owner,
+    })
+}

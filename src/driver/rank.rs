@@ -1,0 +1,113 @@
+//! One rank's part of a run: the METIS partition of the grains, the rank's solver (owned
+//! grains + ghosts) and the MPI side of a step (halo exchange, reductions).
+
+use crate::domain::halo::{Halo, HaloPlan};
+use crate::domain::Domain;
+use crate::error::{InputError, MufeError, Result};
+use crate::model::decomposition::{Decomposition, GrainBound, Partition};
+use crate::model::global::{ghost_margin, GlobalMesh};
+use crate::scene::LoadedScene;
+use crate::solver::{build_solver_for, Solver, StepHooks};
+
+/// Partitions the grains over the ranks by their static cost (elements, surface nodes).
+/// All ranks must call.
+pub fn partition_grains(
+    domain: &Domain,
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+) -> Result<Vec<u32>> {
+    let n = loaded.scene.grains.len();
+    let parts = domain.size();
+    if parts > n {
+        return Err(InputError::new(
+            &loaded.path,
+            "grains",
+            format!("{parts} ranks but only {n} grains: every rank needs at least one grain"),
+        )
+        .into());
+    }
+    let infos: Vec<partition::GrainInfo> = (0..n)
+        .map(|g| partition::GrainInfo {
+            centre: global.bounds[g].centre,
+            bounding_radius: global.bounds[g].radius,
+            elements: global.element_offset[g + 1] - global.element_offset[g],
+            surface_nodes: global.surface_nodes[g],
+        })
+        .collect();
+    metis_owner(domain, &infos, ghost_margin(global), "partitioning")
+}
+
+/// The owner of every grain from METIS over the grain graph of `infos` (rank 0 computes,
+/// all receive, so every rank holds the same table). All ranks must call.
+pub fn metis_owner(
+    domain: &Domain,
+    infos: &[partition::GrainInfo],
+    margin: f64,
+    what: &str,
+) -> Result<Vec<u32>> {
+    let mut bytes = Vec::new();
+    if domain.is_root() {
+        let graph = partition::GrainGraph::build(infos, margin, &partition::CostModel::default());
+        let owner = partition::partition(&graph, domain.size(), 1)
+            .map_err(|e| MufeError::Run(format!("{what}: {e}")))?;
+        bytes = owner.iter().flat_map(|o| o.to_le_bytes()).collect();
+    }
+    domain.broadcast_bytes(&mut bytes);
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
+}
+
+/// This rank's solver for the partition `owner` with ghosts planned from `bounds`, the
+/// decomposition and its halo plan. Every rank steps with the smallest stable step of all
+/// ranks. All ranks must call.
+pub fn build_rank_solver(
+    domain: &Domain,
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+    owner: &[u32],
+    bounds: &[GrainBound],
+) -> Result<(Solver, Decomposition, HaloPlan)> {
+    let plan = Decomposition::plan(owner, bounds, ghost_margin(global), domain.rank());
+    // A bad scene fails on every rank alike (same input), so returning is safe; anything
+    // rank-specific would need the job aborted.
+    let mut solver = build_solver_for(loaded, &plan.owned, &plan.ghosts)?;
+    let mut dt = [solver.model.dt];
+    domain.min_in_place(&mut dt);
+    solver.model.dt = dt[0];
+    solver.state.partition = Partition {
+        owner: owner.to_vec(),
+        planned_bounds: bounds.to_vec(),
+    };
+    let halo = HaloPlan::new(&solver.model, &plan);
+    Ok((solver, plan, halo))
+}
+
+/// The MPI side of a step: ghost exchange and reductions.
+pub struct RankHooks<'d> {
+    pub domain: &'d Domain,
+    pub halo: Halo<'d>,
+}
+
+impl StepHooks for RankHooks<'_> {
+    fn ghosts_in(&mut self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) -> Result<(), MufeError> {
+        self.halo.end(x, v)
+    }
+    fn ghosts_out(&mut self, x: &[[f64; 3]], v: &[[f64; 3]]) -> Result<(), MufeError> {
+        self.halo.begin(x, v)
+    }
+    fn any(&mut self, local: bool) -> bool {
+        if self.domain.size() == 1 {
+            return local;
+        }
+        let mut v = [if local { 1.0 } else { 0.0 }];
+        self.domain.max_in_place(&mut v);
+        v[0] > 0.0
+    }
+    fn sum(&mut self, values: &mut [f64]) {
+        if self.domain.size() > 1 {
+            self.domain.sum_in_place(values);
+        }
+    }
+}

@@ -1,0 +1,144 @@
+//! What a run prints: the model summary (`mufe check` and the head of `mufe run`), the
+//! memory estimate, and the closing summary of `mufe run`.
+
+use super::RunSummary;
+use crate::model::Model;
+use crate::scene::LoadedScene;
+use crate::solver::Solver;
+
+/// The `mufe check`/`run` header: grains, elements, nodes, Δt, mass scaling, memory.
+pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u64) {
+    let m = &solver.model;
+    println!("scene: {}", loaded.path);
+    println!(
+        "{:<12} {:>10} {:>10} {:>9} {:>9} {:>10} {:>10}",
+        "grain", "elements", "nodes", "facets", "min dih°", "max aspect", "min edge m"
+    );
+    for g in m.grains.iter().take(20) {
+        let q = &g.quality;
+        println!(
+            "{:<12} {:>10} {:>10} {:>9} {:>9.2} {:>10.2} {:>10.3e}",
+            g.name,
+            q.elements,
+            q.nodes,
+            q.surface_facets,
+            q.min_dihedral_deg,
+            q.max_aspect_ratio,
+            q.min_edge
+        );
+    }
+    if m.grains.len() > 20 {
+        println!("... {} more grains", m.grains.len() - 20);
+    }
+    let phys = m.total_physical_mass();
+    println!(
+        "totals: {} grains, {} elements, {} nodes; mass {:.4e} kg",
+        m.grains.len(),
+        m.num_elements(),
+        m.num_nodes(),
+        phys
+    );
+    println!(
+        "time step: stable {:.4e} s (element {}, safety {}), used {:.4e} s; {} steps for {:.4e} s",
+        m.dt_stable,
+        m.dt_critical_element,
+        loaded.scene.simulation.dt_safety,
+        m.dt,
+        total_steps,
+        loaded.scene.simulation.duration
+    );
+    if m.scaled_elements > 0 {
+        println!(
+            "mass scaling: {} elements scaled, added mass {:.4e} kg ({:.3}% of {:.4e} kg)",
+            m.scaled_elements,
+            m.added_mass,
+            100.0 * m.added_mass / phys,
+            phys
+        );
+    }
+    let cm = &m.contact;
+    if cm.active() {
+        let st = &cm.stable_step;
+        if cm.grain_contact {
+            println!(
+                "contact: friction {}, penalty factor {} (max ε_n {:.3e} Pa/m), damping {} of critical, margin {:.3e} m, {} surface nodes, {} facets, {} walls",
+                cm.friction,
+                cm.penalty_factor,
+                st.max_penalty,
+                cm.damping,
+                cm.margin,
+                cm.node.len(),
+                cm.facet.len(),
+                cm.walls.len()
+            );
+        } else {
+            println!(
+                "contact: {} walls (kinematic), margin {:.3e} m",
+                cm.walls.len(),
+                cm.margin
+            );
+        }
+        if st.contact_dt.is_finite() {
+            println!(
+                "contact stable step: {:.4e} s (node {}) vs {:.4e} s from elements alone (×{:.3}){}",
+                st.contact_dt,
+                st.critical_node.unwrap_or(0),
+                st.element_dt,
+                (st.contact_dt / st.element_dt).min(1.0),
+                if st.scaled_nodes > 0 {
+                    format!("; {} contact nodes mass-scaled, added {:.4e} kg", st.scaled_nodes, st.added_mass)
+                } else {
+                    String::new()
+                }
+            );
+        }
+    }
+    let bytes = estimate_memory_bytes(m);
+    println!(
+        "memory estimate: {:.1} MiB ({:.0} bytes/element)",
+        bytes as f64 / 1048576.0,
+        bytes as f64 / m.num_elements().max(1) as f64
+    );
+}
+
+/// Bytes held by the model, state and scratch arrays.
+pub fn estimate_memory_bytes(m: &Model) -> usize {
+    let ne = m.num_elements();
+    let nn = m.num_nodes();
+    let per_element = 16 /* tets */ + 80 /* reference */ + 2 /* law */ + 96 /* corner forces */ + 16 /* incidence */;
+    let per_node = 24 * 5 /* x0, x, v, v_next, force */ + 16 /* masses */ + 1 + 4;
+    ne * per_element + nn * per_node
+}
+
+/// The closing lines of `mufe run`: stage table, throughput, energy balance, contact.
+pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
+    let e = &summary.energy;
+    println!("{}", summary.timing_table);
+    println!(
+        "done: {} steps to t = {:.6e} s in {:.2} s wall ({:.3e} element updates/s)",
+        summary.steps,
+        summary.time,
+        summary.wall_s,
+        summary.elements as f64 * summary.steps as f64 / solver.timers.total_seconds().max(1e-9)
+    );
+    println!(
+        "energy: kinetic {:.4e} J, strain {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
+        e.kinetic,
+        e.strain,
+        e.external_work(),
+        e.damping_dissipation(),
+        e.relative_balance_error()
+    );
+    if solver.model.contact.active() {
+        println!(
+            "contact: {} points now, at most {}; max penetration {:.3e} m ({:.2e} × smallest surface edge); {} broad-phase rebuilds; {:.1}% of step time in contact",
+            summary.contacts_now,
+            summary.max_contacts,
+            summary.max_penetration,
+            summary.max_penetration / solver.model.contact.min_edge.max(f64::MIN_POSITIVE),
+            summary.rebuilds,
+            100.0 * summary.contact_share
+        );
+    }
+    println!("results: {}", summary.results.display());
+}
