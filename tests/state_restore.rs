@@ -1,0 +1,98 @@
+//! The solver's `State` holds everything that evolves: serialised in the middle of a run
+//! and restored into a fresh solver built from the same scene, the run continues with a
+//! bitwise-identical history and ends in an identical state. This is what checkpoints
+//! and restart stand on; a field that evolves outside `State` breaks it.
+
+use mufe::driver::history_row;
+use mufe::scene::load_scene;
+use mufe::solver::{build_solver, Solver, State};
+use std::path::Path;
+
+fn solver_for(scene: &str) -> (mufe::scene::LoadedScene, Solver) {
+    let loaded = load_scene(&Path::new(env!("CARGO_MANIFEST_DIR")).join(scene), &[]).unwrap();
+    let solver = build_solver(&loaded).expect("model builds");
+    (loaded, solver)
+}
+
+/// Advances `steps` steps and returns one history row per step.
+fn advance(solver: &mut Solver, steps: usize) -> Vec<Vec<f64>> {
+    let mut rows = Vec::new();
+    for _ in 0..steps {
+        solver.step().expect("step");
+        let mut row = Vec::new();
+        history_row(solver, &mut row);
+        rows.push(row);
+    }
+    rows
+}
+
+fn assert_bitwise(a: &[Vec<f64>], b: &[Vec<f64>], what: &str) {
+    assert_eq!(a.len(), b.len());
+    for (i, (ra, rb)) in a.iter().zip(b).enumerate() {
+        for (k, (x, y)) in ra.iter().zip(rb).enumerate() {
+            assert_eq!(
+                x.to_bits(),
+                y.to_bits(),
+                "{what}: row {i}, column {k}: restored {y:e}, uninterrupted {x:e}"
+            );
+        }
+    }
+}
+
+/// Runs `before` steps, serialises the state to JSON, runs `after` more; a second solver
+/// built from the scene restores the JSON and runs `after` steps.
+fn round_trip(scene: &str, before: usize, after: usize) -> State {
+    let (_, mut original) = solver_for(scene);
+    advance(&mut original, before);
+    let json = serde_json::to_string(&original.state).expect("state serialises");
+    let expected = advance(&mut original, after);
+
+    let (_, mut restored) = solver_for(scene);
+    let state: State = serde_json::from_str(&json).expect("state deserialises");
+    let mid = state.clone();
+    restored.restore(state).expect("state fits the model");
+    let got = advance(&mut restored, after);
+    assert_bitwise(&expected, &got, scene);
+    assert!(
+        original.state == restored.state,
+        "{scene}: final states differ"
+    );
+    mid
+}
+
+#[test]
+fn assembly_with_friction_walls_and_contact_lists_restores_bitwise() {
+    let mid = round_trip("jobs/tests/assembly.toml", 260, 140);
+    // the restore point really carries what must be restored
+    let c = &mid.contact;
+    assert!(
+        !c.history.is_empty(),
+        "friction history at the restore point"
+    );
+    assert!(
+        c.detection.built && c.detection.rebuilds > 0,
+        "candidate lists built before the restore point"
+    );
+    assert!(
+        mid.contact.walls.iter().any(|w| w.contacts > 0),
+        "a wall touches"
+    );
+    assert!(mid.supplied_energy > 0.0);
+}
+
+#[test]
+fn prescribed_motions_restore_bitwise() {
+    let mid = round_trip("jobs/demo/sphere_compression.toml", 120, 80);
+    assert!(mid
+        .reactions
+        .iter()
+        .any(|r| r.force.iter().any(|f| *f != 0.0)));
+}
+
+#[test]
+fn a_state_of_another_scene_is_refused() {
+    let (_, sphere) = solver_for("jobs/demo/sphere_compression.toml");
+    let (_, mut assembly) = solver_for("jobs/tests/assembly.toml");
+    let err = assembly.restore(sphere.state.clone()).unwrap_err();
+    assert!(err.to_string().contains("does not fit"), "{err}");
+}
