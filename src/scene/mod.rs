@@ -42,8 +42,8 @@ pub struct Scene {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParallelSpec {
-    /// Re-partition when the measured load imbalance (max/mean − 1 of the ranks' compute
-    /// time over the last check interval) exceeds this (–).
+    /// Re-partition when the load imbalance (max/mean − 1 of the ranks' counted work per
+    /// step: elements and contact candidate entries) exceeds this (–).
     #[serde(default = "default_imbalance_threshold")]
     pub imbalance_threshold: f64,
     /// Steps between imbalance checks and ghost re-planning checks.
