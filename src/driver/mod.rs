@@ -147,7 +147,7 @@ impl Run<'_, '_> {
             output.after_step(&self.solver, n == last_step)?;
             self.solver.timers.add(Stage::Output, t_out.elapsed());
             progress.update(n as f64 / last_step as f64, n, self.solver.state.time);
-            if self.domain.size() > 1 && n % check_interval == 0 && n != last_step {
+            if self.domain.size() > 1 && n.is_multiple_of(check_interval) && n != last_step {
                 self.rebalance(n)?;
             }
         }

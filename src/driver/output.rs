@@ -88,11 +88,11 @@ impl<'a, 'd> Output<'a, 'd> {
     /// All ranks must call.
     pub fn after_step(&mut self, solver: &Solver, last: bool) -> Result<()> {
         let n = solver.state.step;
-        if n % self.history_every == 0 || last {
+        if n.is_multiple_of(self.history_every) || last {
             self.push_history_row(solver)?;
         }
         if let Some(fe) = self.frame_every {
-            if n % fe == 0 && !last && self.frames {
+            if n.is_multiple_of(fe) && !last && self.frames {
                 self.write_frame(solver)?;
                 self.writer.flush_history()?;
             }

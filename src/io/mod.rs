@@ -7,6 +7,7 @@
 
 pub mod collective;
 pub mod plot;
+pub mod provenance;
 pub mod results;
 
 pub use collective::IoMode;

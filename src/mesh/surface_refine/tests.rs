@@ -1,0 +1,226 @@
+use super::*;
+use std::collections::HashMap;
+
+fn check_closed_outward(s: &SphereSurface) {
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in &s.triangles {
+        for k in 0..3 {
+            *directed.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+        let [a, b, c] = t.map(|i| s.points[i as usize]);
+        let n = cross(sub(b, a), sub(c, a));
+        assert!(dot(n, add(add(a, b), c)) > 0.0, "inward triangle {t:?}");
+    }
+    for (&(a, b), &cnt) in &directed {
+        assert_eq!(cnt, 1, "directed edge ({a},{b}) used {cnt} times");
+        assert_eq!(
+            directed.get(&(b, a)),
+            Some(&1),
+            "edge ({a},{b}) has no twin"
+        );
+    }
+    // Euler characteristic of a sphere: V − E + F = 2.
+    let (v, e, f) = (
+        s.points.len() as i64,
+        directed.len() as i64 / 2,
+        s.triangles.len() as i64,
+    );
+    assert_eq!(v - e + f, 2);
+}
+
+fn edge_stats(s: &SphereSurface) -> (f64, f64, f64, f64) {
+    let (mut sum, mut n, mut lo, mut hi) = (0.0, 0usize, f64::MAX, 0f64);
+    let mut min_angle = f64::MAX;
+    for t in &s.triangles {
+        let p = t.map(|i| s.points[i as usize]);
+        for k in 0..3 {
+            if t[k] < t[(k + 1) % 3] {
+                let l = norm(sub(p[k], p[(k + 1) % 3]));
+                sum += l;
+                n += 1;
+                lo = lo.min(l);
+                hi = hi.max(l);
+            }
+            let e1 = sub(p[(k + 1) % 3], p[k]);
+            let e2 = sub(p[(k + 2) % 3], p[k]);
+            min_angle = min_angle.min((dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees());
+        }
+    }
+    (sum / n as f64, lo, hi, min_angle)
+}
+
+#[test]
+fn geodesic_base_is_closed_regular_and_calibrated() {
+    for n in [1usize, 2, 5, 13, 40] {
+        let r = Refiner::geodesic(1.0, n);
+        let s = SphereSurface {
+            points: r.pts.clone(),
+            triangles: r.tris.iter().map(|t| t.v).collect(),
+        };
+        assert_eq!(s.triangles.len(), 20 * n * n);
+        check_closed_outward(&s);
+        let (mean, _lo, hi, min_angle) = edge_stats(&s);
+        if n >= 5 {
+            assert!(
+                (mean * n as f64 / GEODESIC_MEAN_EDGE - 1.0).abs() < 0.01,
+                "n={n}: mean {mean}"
+            );
+        }
+        // The base mesh must never trigger refinement by itself.
+        assert!(hi < 1.11 * mean && 1.11 * 1.1 < LONGEST_EDGE_FACTOR);
+        assert!(min_angle > 53.0, "n={n}: min angle {min_angle}");
+    }
+}
+
+#[test]
+fn icosahedron_is_closed_and_outward() {
+    let s = triangulate_sphere(2.0, 100.0, |_| 100.0, "seeding").unwrap();
+    assert_eq!(s.triangles.len(), 20);
+    assert_eq!(s.points.len(), 12);
+    check_closed_outward(&s);
+    for p in &s.points {
+        assert!((norm(*p) - 2.0).abs() < 1e-14);
+    }
+}
+
+fn max_angle_deg(s: &SphereSurface) -> f64 {
+    let mut worst: f64 = 0.0;
+    for t in &s.triangles {
+        let p = t.map(|i| s.points[i as usize]);
+        for k in 0..3 {
+            let e1 = sub(p[(k + 1) % 3], p[k]);
+            let e2 = sub(p[(k + 2) % 3], p[k]);
+            worst = worst.max((dot(e1, e2) / (norm(e1) * norm(e2))).acos().to_degrees());
+        }
+    }
+    worst
+}
+
+/// Convex: no vertex above any triangle's plane (checked on a sample).
+fn assert_convex(s: &SphereSurface) {
+    for t in s.triangles.iter().step_by(13) {
+        let [a, b, c] = t.map(|i| s.points[i as usize]);
+        let n = cross(sub(b, a), sub(c, a));
+        for p in s.points.iter().step_by(3) {
+            assert!(
+                dot(sub(*p, a), n) <= 1e-12 * norm(n),
+                "vertex above facet {t:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn uniform_sizing_hits_mean_edge_and_is_convex() {
+    for h in [0.05, 0.083, 0.17, 0.21] {
+        let s = triangulate_sphere(1.0, h, |_| h, "seeding").unwrap();
+        check_closed_outward(&s);
+        let (mean, lo, hi, min_angle) = edge_stats(&s);
+        assert!((mean / h - 1.0).abs() < 0.1, "h {h}: mean edge {mean}");
+        assert!(hi <= LONGEST_EDGE_FACTOR * h, "h {h}: longest edge {hi}");
+        assert!(lo > 0.6 * h, "h {h}: shortest edge {lo}");
+        assert!(
+            min_angle > 50.0 && max_angle_deg(&s) < 75.0,
+            "h {h}: angles"
+        );
+        for p in &s.points {
+            assert!((norm(*p) - 1.0).abs() < 1e-14);
+        }
+        assert_convex(&s);
+    }
+}
+
+#[test]
+fn bisection_is_conforming_and_meets_the_size_criterion() {
+    let size =
+        |x: [f64; 3]| 0.5f64.min(0.03 + 0.5 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.05).max(0.0));
+    let mut r = Refiner::geodesic(1.0, 2);
+    r.refine(&size, "seeding", usize::MAX).unwrap();
+    let s = SphereSurface {
+        points: r.pts.clone(),
+        triangles: r.tris.iter().map(|t| t.v).collect(),
+    };
+    check_closed_outward(&s); // no hanging nodes: every edge has its twin
+    for (i, t) in r.tris.iter().enumerate() {
+        assert!(
+            !r.needs_split(i as u32, &size),
+            "triangle {t:?} still too long"
+        );
+    }
+    // Neighbour links are consistent.
+    for (i, t) in r.tris.iter().enumerate() {
+        for k in 0..3 {
+            let u = r.tris[t.n[k] as usize];
+            assert!(u.n.contains(&(i as u32)));
+        }
+    }
+    for p in &s.points {
+        assert!((norm(*p) - 1.0).abs() < 1e-14);
+    }
+}
+
+#[test]
+fn refined_patch_is_acute_convex_and_fine_near_the_point() {
+    let (coarse, fine, zone): (f64, f64, f64) = (0.1, 0.02, 0.05);
+    let pole = [0.0, 0.0, 1.0];
+    let size = |x: [f64; 3]| coarse.min(fine + 0.3 * (norm(sub(x, pole)) - zone).max(0.0));
+    let s = triangulate_sphere(1.0, coarse, size, "seeding").unwrap();
+    check_closed_outward(&s);
+    assert_convex(&s);
+    // Acute everywhere, so TetGen has no encroached segment to split.
+    assert!(
+        max_angle_deg(&s) < MAX_ANGLE_DEG + 3.0,
+        "max angle {}",
+        max_angle_deg(&s)
+    );
+    let (mut near_max, mut far_sum, mut far_n) = (0f64, 0.0, 0);
+    for t in &s.triangles {
+        for k in 0..3 {
+            let (a, b) = (s.points[t[k] as usize], s.points[t[(k + 1) % 3] as usize]);
+            let (mid, l) = (scale(add(a, b), 0.5), norm(sub(a, b)));
+            let d = norm(sub(mid, pole));
+            if d < zone {
+                near_max = near_max.max(l);
+            } else if d > 1.0 {
+                far_sum += l;
+                far_n += 1;
+            }
+        }
+    }
+    assert!(near_max > 0.0 && near_max <= 1.5 * fine, "near {near_max}");
+    let far_mean = far_sum / far_n as f64;
+    assert!((far_mean / coarse - 1.0).abs() < 0.1, "far {far_mean}");
+    for p in &s.points {
+        assert!((norm(*p) - 1.0).abs() < 1e-14);
+    }
+}
+
+#[test]
+fn deterministic_and_fast() {
+    let size =
+        |x: [f64; 3]| 0.01f64.min(0.002 + 0.3 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.05).max(0.0));
+    let t0 = std::time::Instant::now();
+    let a = triangulate_sphere(1.0, 0.01, size, "seeding").unwrap();
+    let dt = t0.elapsed();
+    let b = triangulate_sphere(1.0, 0.01, size, "seeding").unwrap();
+    assert_eq!(a, b);
+    check_closed_outward(&a);
+    // Uniform h = 0.012 on the unit sphere → 2×10⁵ triangles.
+    let t0 = std::time::Instant::now();
+    let big = triangulate_sphere(1.0, 0.012, |_| 0.012, "seeding").unwrap();
+    let dt_big = t0.elapsed();
+    assert!(big.triangles.len() > 150_000, "{}", big.triangles.len());
+    eprintln!(
+        "graded: {} triangles in {dt:?}; uniform: {} triangles in {dt_big:?}",
+        a.triangles.len(),
+        big.triangles.len()
+    );
+    assert!(dt_big.as_secs_f64() < 2.0, "too slow: {dt_big:?}");
+}
+
+#[test]
+fn too_many_triangles_is_an_error() {
+    let e = triangulate_sphere_limited(1.0, 1e-3, |_| 1e-3, "seeding", 10_000).unwrap_err();
+    assert!(matches!(e, MeshError::TooLarge { .. }));
+    assert!(e.to_string().starts_with("seeding: "));
+}
