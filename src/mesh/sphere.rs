@@ -110,6 +110,14 @@ pub struct LocalRefinement {
     pub growth: f64,
 }
 
+/// Smallest meaningful growth of a refinement patch: at 0.01 the size has grown by only
+/// 1 % of the distance, so the fine zone of any useful patch already covers the grain.
+pub const MIN_GROWTH: f64 = 0.01;
+/// Largest meaningful growth: the edge length may grow at most as fast as the distance
+/// (as the interior does, `CORE_GROWTH`); above, the surface bisection cannot follow the
+/// size field (the mesh no longer changes with the value) and transitions are abrupt.
+pub const MAX_GROWTH: f64 = 1.0;
+
 fn default_growth() -> f64 {
     0.3
 }
@@ -176,6 +184,15 @@ impl SphereMeshSpec {
     pub fn validate(&self) -> Result<(), MeshError> {
         check_positive("radius", self.radius)?;
         check_positive("seeding", self.seeding)?;
+        if self.seeding < 1e-4 * self.radius {
+            return Err(invalid(
+                "seeding",
+                format!(
+                    "{} is below 1e-4 × radius {}: too fine to mesh (~1e12 elements)",
+                    self.seeding, self.radius
+                ),
+            ));
+        }
         if self.seeding > self.radius {
             return Err(invalid(
                 "seeding",
@@ -259,10 +276,23 @@ impl SphereMeshSpec {
                     format!("must be a finite length ≥ 0, got {}", r.radius),
                 ));
             }
-            if !r.growth.is_finite() || r.growth < 0.0 {
+            if r.radius > 2.0 * self.radius {
+                return Err(invalid(
+                    f("radius"),
+                    format!(
+                        "{} exceeds the sphere's diameter {}: the zone would cover the whole sphere (use seeding instead)",
+                        r.radius,
+                        2.0 * self.radius
+                    ),
+                ));
+            }
+            if !(MIN_GROWTH..=MAX_GROWTH).contains(&r.growth) {
                 return Err(invalid(
                     f("growth"),
-                    format!("must be finite and ≥ 0, got {}", r.growth),
+                    format!(
+                        "must be in [{MIN_GROWTH}, {MAX_GROWTH}], got {}: below, the fine zone spreads over the whole grain (use a finer seeding instead); above, the size would grow faster than the distance and bisection cannot follow it",
+                        r.growth
+                    ),
                 ));
             }
         }
