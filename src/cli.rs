@@ -241,7 +241,7 @@ fn estimate_and_guard(
     use crate::scene::estimate;
     let est = estimate::estimate_scene(&loaded.path, &loaded.scene)?;
     if !force {
-        estimate::guard(&loaded.path, &est, estimate::machine_memory(), max_steps)?;
+        estimate::guard(&loaded.path, &est, estimate::memory_limit()?, max_steps)?;
     }
     Ok(est)
 }

@@ -52,6 +52,16 @@ const MAX_ITEM_CHARS: usize = 200;
 /// Longest message part of an error line.
 const MAX_MESSAGE_CHARS: usize = 400;
 
+/// A number as echoed in a message: plain for ordinary magnitudes (`0.3`, `2500`),
+/// scientific otherwise (`1e-300`, not three hundred zeros).
+pub fn num(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// `s` cut to at most `max` characters, ending with "…" when cut.
 pub fn clip(s: &str, max: usize) -> String {
     if s.chars().count() <= max {

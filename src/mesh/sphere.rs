@@ -25,6 +25,7 @@ use super::surface_refine::triangulate_sphere;
 use super::tetgen::{tetrahedralize, Region};
 use crate::math::{add, cross, dot, norm, scale, sub};
 use super::{validate, MeshError, TetMesh};
+use crate::error::num;
 
 /// TetGen's maximum radius–edge ratio (`-q`). The lattice-seeded interior rarely needs
 /// refinement. Measured on R = 1.1 mm, MR 0.09/0.045/0.023 × uniform/graded/patch: at 2.0
@@ -133,7 +134,7 @@ fn check_positive(field: &str, v: f64) -> Result<(), MeshError> {
     if !v.is_finite() || v <= 0.0 {
         return Err(invalid(
             field,
-            format!("must be a positive finite length, got {v}"),
+            format!("must be a positive finite length, got {}", num(v)),
         ));
     }
     Ok(())
@@ -189,7 +190,7 @@ impl SphereMeshSpec {
                 "seeding",
                 format!(
                     "{} is below 1e-4 × radius {}: too fine to mesh (~1e12 elements)",
-                    self.seeding, self.radius
+                    num(self.seeding), num(self.radius)
                 ),
             ));
         }
@@ -198,7 +199,7 @@ impl SphereMeshSpec {
                 "seeding",
                 format!(
                     "{} is larger than the radius {} (meshing ratio > 0.5)",
-                    self.seeding, self.radius
+                    num(self.seeding), num(self.radius)
                 ),
             ));
         }
@@ -210,7 +211,7 @@ impl SphereMeshSpec {
                     "graded.band_depth",
                     format!(
                         "{} must be smaller than the radius {}",
-                        g.band_depth, self.radius
+                        num(g.band_depth), num(self.radius)
                     ),
                 ));
             }
@@ -219,7 +220,7 @@ impl SphereMeshSpec {
                     "graded.band_depth",
                     format!(
                         "{} must be at least one surface element deep (≥ seeding {})",
-                        g.band_depth, self.seeding
+                        num(g.band_depth), num(self.seeding)
                     ),
                 ));
             }
@@ -228,7 +229,7 @@ impl SphereMeshSpec {
                     "graded.core_seeding",
                     format!(
                         "{} must not be finer than the surface seeding {}",
-                        g.core_seeding, self.seeding
+                        num(g.core_seeding), num(self.seeding)
                     ),
                 ));
             }
@@ -237,7 +238,7 @@ impl SphereMeshSpec {
                     "graded.core_seeding",
                     format!(
                         "{} is larger than the radius {}",
-                        g.core_seeding, self.radius
+                        num(g.core_seeding), num(self.radius)
                     ),
                 ));
             }
@@ -257,7 +258,7 @@ impl SphereMeshSpec {
                     f("seeding"),
                     format!(
                         "{} is coarser than the global seeding {}: no refinement",
-                        r.seeding, self.seeding
+                        num(r.seeding), num(self.seeding)
                     ),
                 ));
             }
@@ -266,14 +267,14 @@ impl SphereMeshSpec {
                     f("seeding"),
                     format!(
                         "{} is below 1e-4 × radius {}: too fine to mesh",
-                        r.seeding, self.radius
+                        num(r.seeding), num(self.radius)
                     ),
                 ));
             }
             if !r.radius.is_finite() || r.radius < 0.0 {
                 return Err(invalid(
                     f("radius"),
-                    format!("must be a finite length ≥ 0, got {}", r.radius),
+                    format!("must be a finite length ≥ 0, got {}", num(r.radius)),
                 ));
             }
             if r.radius > 2.0 * self.radius {
@@ -281,8 +282,8 @@ impl SphereMeshSpec {
                     f("radius"),
                     format!(
                         "{} exceeds the sphere's diameter {}: the zone would cover the whole sphere (use seeding instead)",
-                        r.radius,
-                        2.0 * self.radius
+                        num(r.radius),
+                        num(2.0 * self.radius)
                     ),
                 ));
             }
@@ -291,7 +292,7 @@ impl SphereMeshSpec {
                     f("growth"),
                     format!(
                         "must be in [{MIN_GROWTH}, {MAX_GROWTH}], got {}: below, the fine zone spreads over the whole grain (use a finer seeding instead); above, the size would grow faster than the distance and bisection cannot follow it",
-                        r.growth
+                        num(r.growth)
                     ),
                 ));
             }

@@ -2,7 +2,7 @@
 
 use super::estimate::{estimate_scene, wave_speed, MAX_EXACT_STEPS};
 use super::{BoundarySpec, History3, NodeSelector, Scene, ShapeSpec, WallSpec};
-use crate::error::{echo, InputError};
+use crate::error::{echo, num, InputError};
 
 struct Checker<'a> {
     file: &'a str,
@@ -17,7 +17,7 @@ impl Checker<'_> {
         if v.is_finite() {
             Ok(())
         } else {
-            Err(self.err(field, format!("must be a finite number, got {v}")))
+            Err(self.err(field, format!("must be a finite number, got {}", num(v))))
         }
     }
 
@@ -26,7 +26,7 @@ impl Checker<'_> {
         if v > 0.0 {
             Ok(())
         } else {
-            Err(self.err(field, format!("must be > 0, got {v}")))
+            Err(self.err(field, format!("must be > 0, got {}", num(v))))
         }
     }
 
@@ -35,7 +35,7 @@ impl Checker<'_> {
         if v >= 0.0 {
             Ok(())
         } else {
-            Err(self.err(field, format!("must be ≥ 0, got {v}")))
+            Err(self.err(field, format!("must be ≥ 0, got {}", num(v))))
         }
     }
 
@@ -105,8 +105,9 @@ impl Checker<'_> {
                 return Err(self.err(
                     format!("{field}.times[{i}]"),
                     format!(
-                        "times must increase strictly, got {t} after {}",
-                        h.times[i - 1]
+                        "times must increase strictly, got {} after {}",
+                        num(*t),
+                        num(h.times[i - 1])
                     ),
                 ));
             }
@@ -126,7 +127,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     if s.dt_safety > 1.0 {
         return Err(c.err(
             "simulation.dt_safety",
-            format!("must be ≤ 1, got {}", s.dt_safety),
+            format!("must be ≤ 1, got {}", num(s.dt_safety)),
         ));
     }
     if let Some(t) = s.target_dt {
@@ -147,7 +148,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         if !(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5) {
             return Err(c.err(
                 f("poisson_ratio"),
-                format!("must be in (−1, 0.5), got {}", m.poisson_ratio),
+                format!("must be in (−1, 0.5), got {}", num(m.poisson_ratio)),
             ));
         }
     }
@@ -210,7 +211,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         if z > 1.0 {
             return Err(c.err(
                 "contact.damping",
-                format!("must be ≤ 1 (fraction of critical damping), got {z}"),
+                format!("must be ≤ 1 (fraction of critical damping), got {}", num(z)),
             ));
         }
     }
@@ -406,11 +407,11 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
             history_speed(f("displacement"), h, true)?;
         }
         if w.friction > MAX_FRICTION {
-            return Err(c.err(f("friction"), format!("must be ≤ {MAX_FRICTION} (no real pair of surfaces has a Coulomb coefficient above a few), got {}", w.friction)));
+            return Err(c.err(f("friction"), format!("must be ≤ {MAX_FRICTION} (no real pair of surfaces has a Coulomb coefficient above a few), got {}", num(w.friction))));
         }
     }
     if scene.contact.friction > MAX_FRICTION {
-        return Err(c.err("contact.friction", format!("must be ≤ {MAX_FRICTION} (no real pair of surfaces has a Coulomb coefficient above a few), got {}", scene.contact.friction)));
+        return Err(c.err("contact.friction", format!("must be ≤ {MAX_FRICTION} (no real pair of surfaces has a Coulomb coefficient above a few), got {}", num(scene.contact.friction))));
     }
     if let Some(p) = scene.contact.penalty_factor {
         if p > MAX_PENALTY_FACTOR {
@@ -426,8 +427,15 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
     let file = c.file;
     let est = estimate_scene(file, scene)?;
     if !(est.steps <= MAX_EXACT_STEPS) {
+        // Blame the step when it is below a femtosecond (shorter than any elastic wave
+        // crossing of a mesh element), else the duration.
+        let field = if est.dt < 1e-15 || est.dt_field == "simulation.duration" {
+            est.dt_field
+        } else {
+            "simulation.duration"
+        };
         return Err(c.err(
-            est.dt_field,
+            field,
             format!(
                 "duration {:e} s / Δt {:e} s = {:.3e} steps: more than 2^53, where step counts and times are no longer exact (the run could never finish)",
                 sim.duration, est.dt, est.steps
