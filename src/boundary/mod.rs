@@ -179,8 +179,7 @@ mod tests {
     #[test]
     fn rodrigues_is_orthonormal() {
         let q = rotation_from_vector([0.3, -1.2, 0.7]);
-        let qtq =
-            crate::math::mat_mul(&[q[0], q[3], q[6], q[1], q[4], q[7], q[2], q[5], q[8]], &q);
+        let qtq = crate::math::mat_mul(&[q[0], q[3], q[6], q[1], q[4], q[7], q[2], q[5], q[8]], &q);
         for i in 0..3 {
             for j in 0..3 {
                 let e = if i == j { 1.0 } else { 0.0 };

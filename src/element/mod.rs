@@ -6,8 +6,8 @@
 //! extract, no polar decomposition, no rate integration that could drift. Dm⁻¹ and the
 //! reference volume are the only per-element data the force kernel needs (80 bytes).
 
-use crate::math::{det3};
-use crate::material::{ElasticLaw};
+use crate::material::ElasticLaw;
+use crate::math::det3;
 
 /// Reference data of one tetrahedron needed by the force kernel.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

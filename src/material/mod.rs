@@ -268,7 +268,6 @@ pub fn green_lagrange_strain(f: &[f64; 9]) -> [f64; 9] {
     e
 }
 
-
 /// Cauchy stress σ = J⁻¹ P Fᵀ (Pa), row-major, for output.
 pub fn cauchy_from_first_piola(p: &[f64; 9], f: &[f64; 9]) -> [f64; 9] {
     let j = det3(f);
@@ -282,7 +281,6 @@ pub fn cauchy_from_first_piola(p: &[f64; 9], f: &[f64; 9]) -> [f64; 9] {
     }
     sigma
 }
-
 
 /// von Mises equivalent of a symmetric stress (Pa).
 pub fn von_mises(s: &[f64; 9]) -> f64 {

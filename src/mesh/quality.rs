@@ -3,8 +3,8 @@
 use std::fmt;
 
 use super::surface::extract_surface;
-use crate::math::{cross, dot, norm, sub};
 use super::{MeshError, TetMesh};
+use crate::math::{cross, dot, norm, sub};
 
 /// Shape statistics of a tet mesh. The explicit time step is set by the worst element, so
 /// the extremes (minimum dihedral angle, maximum aspect ratio, shortest edge) matter more

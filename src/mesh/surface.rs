@@ -1,7 +1,7 @@
 //! Boundary extraction and surface geometry for contact.
 
-use crate::math::{add, cross, norm, scale, sub};
 use super::{SurfaceMesh, TetMesh};
+use crate::math::{add, cross, norm, scale, sub};
 
 /// Faces of a positively oriented tet `[x0,x1,x2,x3]`, each ordered so that its normal
 /// `(b−a)×(c−a)` points away from the opposite node (out of the tet).

@@ -19,8 +19,8 @@
 
 use std::sync::Mutex;
 
-use crate::math::{cross, dot, sub};
 use super::{MeshError, TetMesh};
+use crate::math::{cross, dot, sub};
 
 /// Serialises every TetGen call in the process (TetGen is not thread-safe).
 static TETGEN_LOCK: Mutex<()> = Mutex::new(());
