@@ -150,7 +150,8 @@ pub fn clap_error(e: &clap::Error) -> InputError {
     let value = context(ContextKind::InvalidValue).map(|v| crate::error::echo(&v));
     let (field, message) = match e.kind() {
         ErrorKind::InvalidValue | ErrorKind::ValueValidation => {
-            let field = context(ContextKind::InvalidArg).map_or_else(|| "argument".into(), arg_name);
+            let field =
+                context(ContextKind::InvalidArg).map_or_else(|| "argument".into(), arg_name);
             let why = std::error::Error::source(e)
                 .map(|s| format!(": {s}"))
                 .unwrap_or_default();
@@ -204,10 +205,7 @@ pub fn clap_error(e: &clap::Error) -> InputError {
                 value.map(|v| format!(" ('{v}')")).unwrap_or_default()
             ),
         ),
-        ErrorKind::InvalidUtf8 => (
-            "argument".into(),
-            "is not valid UTF-8".into(),
-        ),
+        ErrorKind::InvalidUtf8 => ("argument".into(), "is not valid UTF-8".into()),
         _ => {
             // Anything else: clap's own words, on one line.
             let text = e.render().to_string();
@@ -220,7 +218,10 @@ pub fn clap_error(e: &clap::Error) -> InputError {
             let joined = message.join(" ");
             (
                 "argument".into(),
-                joined.strip_prefix("error: ").unwrap_or(&joined).to_string(),
+                joined
+                    .strip_prefix("error: ")
+                    .unwrap_or(&joined)
+                    .to_string(),
             )
         }
     };
@@ -268,7 +269,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             let est = estimate_and_guard(&loaded, force, Some(crate::scene::estimate::MAX_STEPS))?;
             let solver = build_solver(&loaded)?;
             let steps = (loaded.scene.simulation.duration / solver.model.dt).ceil();
-            if !force && !(steps <= crate::scene::estimate::MAX_STEPS as f64) {
+            if !force && (steps.is_nan() || steps > crate::scene::estimate::MAX_STEPS as f64) {
                 return Err(InputError::new(
                     &loaded.path,
                     est.dt_field,
@@ -280,7 +281,11 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                 )
                 .into());
             }
-            let steps = if steps.is_finite() && steps < 1.8e19 { steps as u64 } else { u64::MAX };
+            let steps = if steps.is_finite() && steps < 1.8e19 {
+                steps as u64
+            } else {
+                u64::MAX
+            };
             print_model_summary(&solver, &loaded, steps);
             println!("{}", est.summary());
             println!("ok: {} is valid", scene.display());
@@ -304,9 +309,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             // With --max-steps the run stops early: the step limit applies to what is run.
             let step_limit = crate::scene::estimate::MAX_STEPS;
             let est = estimate_and_guard(&loaded, force, None)?;
-            if !force
-                && max_steps.is_none_or(|m| m > step_limit)
-            {
+            if !force && max_steps.is_none_or(|m| m > step_limit) {
                 crate::scene::estimate::guard(&loaded.path, &est, None, Some(step_limit))?;
             }
             let domain = Domain::init();

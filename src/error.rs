@@ -136,7 +136,10 @@ mod tests {
         assert!(line.contains('…'));
         assert!(line.starts_with("s.toml: grains[0].name: bad name 'xxx"));
         let e = InputError::new("<command line>", "--set a=1\nb=2", "has a newline");
-        assert_eq!(e.to_string(), "<command line>: --set a=1\\nb=2: has a newline");
+        assert_eq!(
+            e.to_string(),
+            "<command line>: --set a=1\\nb=2: has a newline"
+        );
         assert!(!e.to_string().contains('\n'));
         let words = "ab ".repeat(1_000_000);
         let e = InputError::new("f", "i", words);

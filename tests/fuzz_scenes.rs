@@ -258,7 +258,10 @@ fn mutate(rng: &mut Rng, text: &str) -> (&'static str, Vec<u8>) {
         }
         8 => {
             // overlapping grains: a grain moved onto another (or next to it)
-            let n = v.get("grains").and_then(|g| g.as_array()).map_or(0, Vec::len);
+            let n = v
+                .get("grains")
+                .and_then(|g| g.as_array())
+                .map_or(0, Vec::len);
             if n >= 1 {
                 let a = rng.below(n);
                 let centre = v["grains"][a]
@@ -306,21 +309,69 @@ fn bad_command_line(rng: &mut Rng, scene: &str, out: &str) -> Vec<String> {
     let s = |x: &str| x.to_string();
     let options: Vec<Vec<String>> = vec![
         vec![s("check"), s(scene), s("--set"), s("simulation.duration")],
-        vec![s("check"), s(scene), s("--set"), s("simulation.duration=1e-8\nx=1")],
-        vec![s("check"), s(scene), s("--set"), s("simulation.duration=\u{7}")],
+        vec![
+            s("check"),
+            s(scene),
+            s("--set"),
+            s("simulation.duration=1e-8\nx=1"),
+        ],
+        vec![
+            s("check"),
+            s(scene),
+            s("--set"),
+            s("simulation.duration=\u{7}"),
+        ],
         vec![s("check"), s(scene), s("--set"), s("nosuch.field=1")],
-        vec![s("check"), s(scene), s("--set"), s("grains[99].centre=[0,0,0]")],
+        vec![
+            s("check"),
+            s(scene),
+            s("--set"),
+            s("grains[99].centre=[0,0,0]"),
+        ],
         vec![s("check"), s(scene), s("--set"), s("=1")],
-        vec![s("check"), s(scene), s("--set"), format!("simulation.duration={}", "9".repeat(5000))],
+        vec![
+            s("check"),
+            s(scene),
+            s("--set"),
+            format!("simulation.duration={}", "9".repeat(5000)),
+        ],
         vec![s("check"), s(scene), s("--bogus")],
         vec![s("check")],
         vec![s("check"), s("/no/such/scene.toml")],
-        vec![s("run"), s(scene), s("--threads"), s("0"), s("--out"), s(out)],
-        vec![s("run"), s(scene), s("--threads"), s("-3"), s("--out"), s(out)],
-        vec![s("run"), s(scene), s("--max-steps"), s("x"), s("--out"), s(out)],
+        vec![
+            s("run"),
+            s(scene),
+            s("--threads"),
+            s("0"),
+            s("--out"),
+            s(out),
+        ],
+        vec![
+            s("run"),
+            s(scene),
+            s("--threads"),
+            s("-3"),
+            s("--out"),
+            s(out),
+        ],
+        vec![
+            s("run"),
+            s(scene),
+            s("--max-steps"),
+            s("x"),
+            s("--out"),
+            s(out),
+        ],
         vec![s("run"), s(scene), s("--out"), s(scene)],
         vec![s("partition"), s(scene), s("--parts"), s("0")],
-        vec![s("partition"), s(scene), s("--parts"), s("1"), s("--margin"), s("nan")],
+        vec![
+            s("partition"),
+            s(scene),
+            s("--parts"),
+            s("1"),
+            s("--margin"),
+            s("nan"),
+        ],
         vec![s("validate"), s("nosuchcase")],
         vec![s("validate"), s("hertz"), s("--mr"), s("a,b")],
         vec![s("frobnicate")],
@@ -394,7 +445,10 @@ fn check_case(case: &Case) -> Result<Duration, String> {
         Some(2) => {
             let lines: Vec<&str> = stderr.lines().collect();
             if lines.len() != 1 || !stderr.ends_with('\n') {
-                return Err(format!("exit 2 with {} stderr lines: {stderr:?}", lines.len()));
+                return Err(format!(
+                    "exit 2 with {} stderr lines: {stderr:?}",
+                    lines.len()
+                ));
             }
             let parts: Vec<&str> = lines[0].splitn(4, ": ").collect();
             if parts.len() != 4 || parts[0] != "error" || parts[1].is_empty() || parts[2].is_empty()
@@ -451,8 +505,14 @@ fn fuzz_the_input_contract() {
         let b = rng.below(bases.len());
         let out = work.join(format!("out{id}"));
         if rng.below(12) == 0 {
-            let args = bad_command_line(&mut rng, bases[b].to_str().unwrap(), out.to_str().unwrap());
-            cases.push(Case { id, class: "bad command line", args, out: None });
+            let args =
+                bad_command_line(&mut rng, bases[b].to_str().unwrap(), out.to_str().unwrap());
+            cases.push(Case {
+                id,
+                class: "bad command line",
+                args,
+                out: None,
+            });
             continue;
         }
         let (class, bytes) = mutate(&mut rng, &texts[b]);
@@ -463,12 +523,32 @@ fn fuzz_the_input_contract() {
         if rng.below(8) == 0 {
             std::fs::create_dir_all(&out).unwrap();
             std::fs::write(out.join("sentinel.txt"), b"keep\n").unwrap();
-            let args = ["run", &scene, "--out", out.to_str().unwrap(), "--max-steps", "3", "--threads", "1", "--quiet"]
-                .map(String::from)
-                .to_vec();
-            cases.push(Case { id, class, args, out: Some(out) });
+            let args = [
+                "run",
+                &scene,
+                "--out",
+                out.to_str().unwrap(),
+                "--max-steps",
+                "3",
+                "--threads",
+                "1",
+                "--quiet",
+            ]
+            .map(String::from)
+            .to_vec();
+            cases.push(Case {
+                id,
+                class,
+                args,
+                out: Some(out),
+            });
         } else {
-            cases.push(Case { id, class, args: vec!["check".into(), scene], out: None });
+            cases.push(Case {
+                id,
+                class,
+                args: vec!["check".into(), scene],
+                out: None,
+            });
         }
     }
 
@@ -494,7 +574,11 @@ fn fuzz_the_input_contract() {
                         case.class,
                         case.args
                             .iter()
-                            .map(|a| if a.len() > 100 { format!("{}…", &a[..100]) } else { a.clone() })
+                            .map(|a| if a.len() > 100 {
+                                format!("{}…", &a[..100])
+                            } else {
+                                a.clone()
+                            })
                             .collect::<Vec<_>>()
                             .join(" ")
                     )),
@@ -511,7 +595,12 @@ fn fuzz_the_input_contract() {
         counts.lock().unwrap()
     );
     let failures = failures.into_inner().unwrap();
-    assert!(failures.is_empty(), "{} failures:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} failures:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
     assert!(cases.len() >= 500 || n_cases < 500);
 }
 
@@ -524,7 +613,10 @@ fn accepted_scenes_run_three_finite_steps() {
     }
     let cases: [(&str, &[&str]); 4] = [
         ("tests/fixtures/valid_small.toml", &[]),
-        ("jobs/examples/free_vibration.toml", &["grains[0].shape.sphere.seeding=4e-4"]),
+        (
+            "jobs/examples/free_vibration.toml",
+            &["grains[0].shape.sphere.seeding=4e-4"],
+        ),
         ("jobs/tests/wall_friction.toml", &[]),
         (
             "jobs/tests/contact_head_on.toml",
@@ -538,9 +630,19 @@ fn accepted_scenes_run_three_finite_steps() {
     ];
     for (i, (scene, sets)) in cases.iter().enumerate() {
         let out = work.join(format!("run{i}"));
-        let mut args: Vec<String> = ["run", &root().join(scene).display().to_string(), "--out", out.to_str().unwrap(), "--max-steps", "3", "--threads", "1", "--quiet"]
-            .map(String::from)
-            .to_vec();
+        let mut args: Vec<String> = [
+            "run",
+            &root().join(scene).display().to_string(),
+            "--out",
+            out.to_str().unwrap(),
+            "--max-steps",
+            "3",
+            "--threads",
+            "1",
+            "--quiet",
+        ]
+        .map(String::from)
+        .to_vec();
         for s in *sets {
             args.push("--set".into());
             args.push(s.to_string());
@@ -548,7 +650,12 @@ fn accepted_scenes_run_three_finite_steps() {
         let (code, _, err, _) = run_case(&args).unwrap();
         assert_eq!(code, Some(0), "{scene}: {err}");
         let file = hdf5::File::open(out.join("results.h5")).unwrap();
-        for name in ["energy_balance", "kinetic_energy", "strain_energy", "external_work"] {
+        for name in [
+            "energy_balance",
+            "kinetic_energy",
+            "strain_energy",
+            "external_work",
+        ] {
             let v = file
                 .dataset(&format!("history/{name}"))
                 .unwrap()

@@ -52,7 +52,12 @@ fn mufe(args: &[&str]) -> (Output, Duration) {
 fn refused(o: &(Output, Duration), seconds: u64, needles: &[&str]) -> String {
     let (o, took) = o;
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert_eq!(o.status.code(), Some(2), "exit {:?}; stderr:\n{err}", o.status);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "exit {:?}; stderr:\n{err}",
+        o.status
+    );
     assert!(!err.contains("panicked"), "{err}");
     let lines: Vec<&str> = err.lines().collect();
     assert_eq!(lines.len(), 1, "expected one stderr line:\n{err}");
@@ -147,8 +152,15 @@ fn seeding_5e_minus_6_is_refused_by_the_memory_estimate() {
 
 #[test]
 fn huge_block_divisions_are_refused_not_aborted() {
-    let o = check_set(PUCK, "grains[0].shape.block.divisions=[100000, 100000, 100000]");
-    refused(&o, 5, &["grains[0].shape.block.divisions", "6.000e15 elements"]);
+    let o = check_set(
+        PUCK,
+        "grains[0].shape.block.divisions=[100000, 100000, 100000]",
+    );
+    refused(
+        &o,
+        5,
+        &["grains[0].shape.block.divisions", "6.000e15 elements"],
+    );
     // a product that overflows 64 bits
     let o = check_set(
         PUCK,
@@ -160,12 +172,17 @@ fn huge_block_divisions_are_refused_not_aborted() {
 #[test]
 fn force_skips_the_memory_guard() {
     // The guard refuses a modest scene under a tiny limit; --force meshes it anyway.
-    let args = [
-        "check",
-        &root("jobs/examples/free_vibration.toml"),
-    ];
+    let args = ["check", &root("jobs/examples/free_vibration.toml")];
     let o = mufe_env(&args, &[("MUFE_MEMORY_LIMIT", "1M")]);
-    refused(&o, 5, &["grains[0].shape.sphere.seeding", "MUFE_MEMORY_LIMIT", "--force"]);
+    refused(
+        &o,
+        5,
+        &[
+            "grains[0].shape.sphere.seeding",
+            "MUFE_MEMORY_LIMIT",
+            "--force",
+        ],
+    );
     let mut forced = args.to_vec();
     forced.push("--force");
     let (o, _) = mufe_env(&forced, &[("MUFE_MEMORY_LIMIT", "1M")]);
@@ -315,7 +332,11 @@ fn duplicate_boundary_names_are_refused_before_the_run() {
         "--max-steps",
         "3",
     ]);
-    refused(&o, 10, &["boundaries[1].name", "duplicate boundary name 'bottom'"]);
+    refused(
+        &o,
+        10,
+        &["boundaries[1].name", "duplicate boundary name 'bottom'"],
+    );
     let names: Vec<_> = std::fs::read_dir(&out)
         .unwrap()
         .map(|e| e.unwrap().file_name())
@@ -382,7 +403,13 @@ fn out_naming_an_existing_file_exits_2() {
 #[test]
 fn validation_scenes_naming_a_missing_folder_exits_2() {
     let o = mufe_env(
-        &["validate", "hertz", "--quick", "--out", tmp("val").to_str().unwrap()],
+        &[
+            "validate",
+            "hertz",
+            "--quick",
+            "--out",
+            tmp("val").to_str().unwrap(),
+        ],
         &[("MUFE_VALIDATION_SCENES", "/no/such/folder")],
     );
     refused(&o, 5, &["MUFE_VALIDATION_SCENES", "/no/such/folder"]);
@@ -450,12 +477,23 @@ fn estimator_tracks_the_jobs() {
     assert!(scenes.len() >= 10);
     let number_before = |s: &str, key: &str| -> f64 {
         let i = s.find(key).unwrap_or_else(|| panic!("no {key:?} in {s}"));
-        s[..i].split_whitespace().last().unwrap().trim_matches(',').parse().unwrap()
+        s[..i]
+            .split_whitespace()
+            .last()
+            .unwrap()
+            .trim_matches(',')
+            .parse()
+            .unwrap()
     };
     for scene in scenes {
         let (o, took) = mufe(&["check", scene.to_str().unwrap()]);
         let out = String::from_utf8_lossy(&o.stdout);
-        assert!(o.status.success(), "{}: {}", scene.display(), String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "{}: {}",
+            scene.display(),
+            String::from_utf8_lossy(&o.stderr)
+        );
         assert!(took < Duration::from_secs(60));
         let totals = out.lines().find(|l| l.starts_with("totals:")).unwrap();
         let steps_line = out.lines().find(|l| l.starts_with("time step:")).unwrap();
@@ -463,11 +501,25 @@ fn estimator_tracks_the_jobs() {
             .lines()
             .find(|l| l.starts_with("estimate before meshing:"))
             .unwrap();
-        let (e_real, e_est) = (number_before(totals, " elements"), number_before(est, " elements"));
-        let (s_real, s_est) = (number_before(steps_line, " steps"), number_before(est, " steps"));
+        let (e_real, e_est) = (
+            number_before(totals, " elements"),
+            number_before(est, " elements"),
+        );
+        let (s_real, s_est) = (
+            number_before(steps_line, " steps"),
+            number_before(est, " steps"),
+        );
         let re = e_est / e_real;
         let rs = s_est / s_real;
-        assert!((1.0 / 1.6..1.6).contains(&re), "{}: elements {e_est} vs {e_real}", scene.display());
-        assert!((0.5..2.0).contains(&rs), "{}: steps {s_est} vs {s_real}", scene.display());
+        assert!(
+            (1.0 / 1.6..1.6).contains(&re),
+            "{}: elements {e_est} vs {e_real}",
+            scene.display()
+        );
+        assert!(
+            (0.5..2.0).contains(&rs),
+            "{}: steps {s_est} vs {s_real}",
+            scene.display()
+        );
     }
 }

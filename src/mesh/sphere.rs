@@ -23,9 +23,9 @@ use serde::{Deserialize, Serialize};
 
 use super::surface_refine::triangulate_sphere;
 use super::tetgen::{tetrahedralize, Region};
-use crate::math::{add, cross, dot, norm, scale, sub};
 use super::{validate, MeshError, TetMesh};
 use crate::error::num;
+use crate::math::{add, cross, dot, norm, scale, sub};
 
 /// TetGen's maximum radius–edge ratio (`-q`). The lattice-seeded interior rarely needs
 /// refinement. Measured on R = 1.1 mm, MR 0.09/0.045/0.023 × uniform/graded/patch: at 2.0
@@ -190,7 +190,8 @@ impl SphereMeshSpec {
                 "seeding",
                 format!(
                     "{} is below 1e-4 × radius {}: too fine to mesh (~1e12 elements)",
-                    num(self.seeding), num(self.radius)
+                    num(self.seeding),
+                    num(self.radius)
                 ),
             ));
         }
@@ -199,7 +200,8 @@ impl SphereMeshSpec {
                 "seeding",
                 format!(
                     "{} is larger than the radius {} (meshing ratio > 0.5)",
-                    num(self.seeding), num(self.radius)
+                    num(self.seeding),
+                    num(self.radius)
                 ),
             ));
         }
@@ -211,7 +213,8 @@ impl SphereMeshSpec {
                     "graded.band_depth",
                     format!(
                         "{} must be smaller than the radius {}",
-                        num(g.band_depth), num(self.radius)
+                        num(g.band_depth),
+                        num(self.radius)
                     ),
                 ));
             }
@@ -220,7 +223,8 @@ impl SphereMeshSpec {
                     "graded.band_depth",
                     format!(
                         "{} must be at least one surface element deep (≥ seeding {})",
-                        num(g.band_depth), num(self.seeding)
+                        num(g.band_depth),
+                        num(self.seeding)
                     ),
                 ));
             }
@@ -229,7 +233,8 @@ impl SphereMeshSpec {
                     "graded.core_seeding",
                     format!(
                         "{} must not be finer than the surface seeding {}",
-                        num(g.core_seeding), num(self.seeding)
+                        num(g.core_seeding),
+                        num(self.seeding)
                     ),
                 ));
             }
@@ -238,7 +243,8 @@ impl SphereMeshSpec {
                     "graded.core_seeding",
                     format!(
                         "{} is larger than the radius {}",
-                        num(g.core_seeding), num(self.radius)
+                        num(g.core_seeding),
+                        num(self.radius)
                     ),
                 ));
             }
@@ -258,7 +264,8 @@ impl SphereMeshSpec {
                     f("seeding"),
                     format!(
                         "{} is coarser than the global seeding {}: no refinement",
-                        num(r.seeding), num(self.seeding)
+                        num(r.seeding),
+                        num(self.seeding)
                     ),
                 ));
             }
@@ -267,7 +274,8 @@ impl SphereMeshSpec {
                     f("seeding"),
                     format!(
                         "{} is below 1e-4 × radius {}: too fine to mesh",
-                        num(r.seeding), num(self.radius)
+                        num(r.seeding),
+                        num(self.radius)
                     ),
                 ));
             }

@@ -23,8 +23,8 @@
 
 use std::collections::HashMap;
 
+use super::MeshError;
 use crate::math::{add, cross, dot, norm, scale, sub};
-use super::{MeshError};
 
 /// Refinement criterion: a triangle is split while its longest edge exceeds
 /// `LONGEST_EDGE_FACTOR × h(centroid)`. It sits above the longest edge of the geodesic base

@@ -168,7 +168,7 @@ fn ball(r: f64) -> f64 {
 
 /// A non-negative finite float as a count, or `None` if it does not fit in 2⁶³.
 fn to_count(x: f64) -> Option<u64> {
-    if x.is_finite() && x >= 0.0 && x < 9.2e18 {
+    if (0.0..9.2e18).contains(&x) {
         Some(x.ceil() as u64)
     } else {
         None
@@ -177,7 +177,7 @@ fn to_count(x: f64) -> Option<u64> {
 
 /// Trapezoid rule of `f` over [a, b] on a grid refined towards `a` (geometric when a > 0).
 fn integrate(a: f64, b: f64, f: impl Fn(f64) -> f64) -> f64 {
-    if !(b > a) {
+    if b.is_nan() || a.is_nan() || b <= a {
         return 0.0;
     }
     let n = QUADRATURE;
@@ -227,7 +227,11 @@ pub fn sphere_estimate(s: &SphereMeshSpec) -> Option<ShapeEstimate> {
     for (k, p) in s.refine.iter().enumerate() {
         let (sr, r, g) = (p.seeding, p.radius, p.growth);
         min_size = min_size.min(sr);
-        let reach = if g > 0.0 { r + (h - sr) / g } else { f64::INFINITY };
+        let reach = if g > 0.0 {
+            r + (h - sr) / g
+        } else {
+            f64::INFINITY
+        };
         let d_max = reach.min(2.0 * big_r);
         let size = |d: f64| (sr + g * (d - r).max(0.0)).min(h);
         let shell = |d: f64| 2.0 * PI * d * d * (1.0 - d / (2.0 * big_r)).max(0.0);
@@ -327,7 +331,9 @@ pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputE
         elements = elements
             .checked_add(est.elements)
             .ok_or_else(|| too_big(field()))?;
-        nodes = nodes.checked_add(est.nodes).ok_or_else(|| too_big(field()))?;
+        nodes = nodes
+            .checked_add(est.nodes)
+            .ok_or_else(|| too_big(field()))?;
         triangles = triangles
             .checked_add(est.surface_triangles)
             .ok_or_else(|| too_big(field()))?;
@@ -335,7 +341,10 @@ pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputE
             ShapeSpec::Sphere(_) => SPHERE_DT_FACTOR,
             ShapeSpec::Block(_) => BLOCK_DT_FACTOR,
         };
-        let c = scene.materials.get(&g.material).map_or(f64::NAN, wave_speed);
+        let c = scene
+            .materials
+            .get(&g.material)
+            .map_or(f64::NAN, wave_speed);
         let dt = sim.dt_safety * factor * est.min_size / c;
         if dt < dt_stable {
             (dt_stable, critical_grain) = (dt, i);
@@ -445,7 +454,7 @@ pub fn guard(
         }
     }
     if let Some(limit) = max_steps {
-        if !(est.steps <= limit as f64) {
+        if est.steps.is_nan() || est.steps > limit as f64 {
             return Err(InputError::new(
                 file,
                 est.dt_field,
@@ -487,11 +496,8 @@ mod tests {
 
     #[test]
     fn zero_growth_spreads_the_patch_over_the_sphere() {
-        let mut spec = SphereMeshSpec::uniform(1.1e-3, 1.5e-4).with_refinement(
-            [0.0, 0.0, 1.0],
-            1e-5,
-            1e-5,
-        );
+        let mut spec =
+            SphereMeshSpec::uniform(1.1e-3, 1.5e-4).with_refinement([0.0, 0.0, 1.0], 1e-5, 1e-5);
         let graded = sphere_estimate(&spec).unwrap();
         spec.refine[0].growth = 0.0;
         let flat = sphere_estimate(&spec).unwrap();

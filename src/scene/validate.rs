@@ -160,7 +160,10 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     for (i, g) in scene.grains.iter().enumerate() {
         let f = |x: &str| format!("grains[{i}].{x}");
         if !scene.materials.contains_key(&g.material) {
-            return Err(c.err(f("material"), format!("unknown material '{}'", echo(&g.material))));
+            return Err(c.err(
+                f("material"),
+                format!("unknown material '{}'", echo(&g.material)),
+            ));
         }
         if !names.insert(g.display_name(i)) {
             return Err(c.err(
@@ -278,7 +281,7 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
             ));
         }
         let cp = wave_speed(m);
-        if !(cp <= MAX_WAVE_SPEED) {
+        if cp.is_nan() || cp > MAX_WAVE_SPEED {
             return Err(c.err(
                 f("poisson_ratio"),
                 format!("with E = {:e} Pa and ρ = {:e} kg/m³ the wave speed √((λ+2G)/ρ) is {cp:.3e} m/s, above {MAX_WAVE_SPEED:e} m/s (5× diamond's): no solid is that stiff", m.youngs_modulus, m.density),
@@ -349,7 +352,11 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
             if displacement {
                 point(&format!("{field}.values[{k}]"), v)?;
                 if k > 0 {
-                    let d = [v[0] - h.values[k - 1][0], v[1] - h.values[k - 1][1], v[2] - h.values[k - 1][2]];
+                    let d = [
+                        v[0] - h.values[k - 1][0],
+                        v[1] - h.values[k - 1][1],
+                        v[2] - h.values[k - 1][2],
+                    ];
                     speed(
                         format!("{field}.values[{k}]"),
                         len3(&d) / (h.times[k] - h.times[k - 1]),
@@ -386,7 +393,9 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
         }
         match &b.select {
             NodeSelector::All => {}
-            NodeSelector::BeyondPlane { point: p, .. } => point(&f("select.beyond_plane.point"), p)?,
+            NodeSelector::BeyondPlane { point: p, .. } => {
+                point(&f("select.beyond_plane.point"), p)?
+            }
             NodeSelector::FartherThan { point: p, distance } => {
                 point(&f("select.farther_than.point"), p)?;
                 length(f("select.farther_than.distance"), *distance)?;
@@ -426,7 +435,7 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
     // damping stable.
     let file = c.file;
     let est = estimate_scene(file, scene)?;
-    if !(est.steps <= MAX_EXACT_STEPS) {
+    if est.steps.is_nan() || est.steps > MAX_EXACT_STEPS {
         // Blame the step when it is below a femtosecond (shorter than any elastic wave
         // crossing of a mesh element), else the duration.
         let field = if est.dt < 1e-15 || est.dt_field == "simulation.duration" {
@@ -446,11 +455,14 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
         if t > sim.duration {
             return Err(c.err(
                 "simulation.target_dt",
-                format!("{t:e} s is longer than the whole duration {:e} s", sim.duration),
+                format!(
+                    "{t:e} s is longer than the whole duration {:e} s",
+                    sim.duration
+                ),
             ));
         }
         let ratio = t / est.dt_stable;
-        if !(ratio <= MAX_MASS_SCALING_STEP_RATIO) {
+        if ratio.is_nan() || ratio > MAX_MASS_SCALING_STEP_RATIO {
             return Err(c.err(
                 "simulation.target_dt",
                 format!(
@@ -464,7 +476,7 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
         ("simulation.damping", sim.damping),
         ("simulation.deformation_damping", sim.deformation_damping),
     ] {
-        if !(alpha * est.dt <= MAX_DAMPING_PER_STEP) {
+        if (alpha * est.dt).is_nan() || alpha * est.dt > MAX_DAMPING_PER_STEP {
             return Err(c.err(
                 field,
                 format!(
@@ -486,14 +498,23 @@ pub const MAX_PENALTY_FACTOR: f64 = 1e6;
 
 /// A grain's shape in the world frame for the overlap check.
 enum Body {
-    Ball { centre: [f64; 3], radius: f64, sag: f64 },
-    Box { lo: [f64; 3], hi: [f64; 3] },
+    Ball {
+        centre: [f64; 3],
+        radius: f64,
+        sag: f64,
+    },
+    Box {
+        lo: [f64; 3],
+        hi: [f64; 3],
+    },
 }
 
 impl Body {
     fn bounds(&self) -> ([f64; 3], [f64; 3]) {
         match self {
-            Body::Ball { centre, radius, .. } => (centre.map(|x| x - radius), centre.map(|x| x + radius)),
+            Body::Ball { centre, radius, .. } => {
+                (centre.map(|x| x - radius), centre.map(|x| x + radius))
+            }
             Body::Box { lo, hi } => (*lo, *hi),
         }
     }
@@ -525,7 +546,11 @@ fn initial_overlaps(c: &Checker, scene: &Scene) -> Result<(), InputError> {
                 }
                 bodies.push(Body::Box {
                     lo: g.centre,
-                    hi: [g.centre[0] + b.size[0], g.centre[1] + b.size[1], g.centre[2] + b.size[2]],
+                    hi: [
+                        g.centre[0] + b.size[0],
+                        g.centre[1] + b.size[1],
+                        g.centre[2] + b.size[2],
+                    ],
                 });
             }
         }
@@ -567,11 +592,33 @@ fn overlap_depth(a: &Body, b: &Body) -> f64 {
     };
     match (a, b) {
         (
-            Body::Ball { centre: p, radius: ra, sag: sa },
-            Body::Ball { centre: q, radius: rb, sag: sb },
+            Body::Ball {
+                centre: p,
+                radius: ra,
+                sag: sa,
+            },
+            Body::Ball {
+                centre: q,
+                radius: rb,
+                sag: sb,
+            },
         ) => ra + rb - dist(*p, *q) - sa - sb,
-        (Body::Ball { centre, radius, sag }, Body::Box { lo, hi })
-        | (Body::Box { lo, hi }, Body::Ball { centre, radius, sag }) => {
+        (
+            Body::Ball {
+                centre,
+                radius,
+                sag,
+            },
+            Body::Box { lo, hi },
+        )
+        | (
+            Body::Box { lo, hi },
+            Body::Ball {
+                centre,
+                radius,
+                sag,
+            },
+        ) => {
             let nearest = [0, 1, 2].map(|k| centre[k].clamp(lo[k], hi[k]));
             let inside = (0..3).all(|k| centre[k] > lo[k] && centre[k] < hi[k]);
             if inside {
@@ -652,7 +699,10 @@ fn validate_wall(c: &Checker, scene: &Scene, i: usize, w: &WallSpec) -> Result<(
     let f = |x: &str| format!("walls[{i}].{x}");
     c.identifier(&f("name"), &w.name)?;
     if scene.walls[..i].iter().any(|o| o.name == w.name) {
-        return Err(c.err(f("name"), format!("duplicate wall name '{}'", echo(&w.name))));
+        return Err(c.err(
+            f("name"),
+            format!("duplicate wall name '{}'", echo(&w.name)),
+        ));
     }
     if scene.boundaries.iter().any(|b| b.name == w.name) {
         return Err(c.err(
