@@ -40,12 +40,20 @@ pub enum Command {
         /// No progress output.
         #[arg(long)]
         quiet: bool,
+        /// Run even if the estimate before meshing says the scene will not fit in memory
+        /// or needs more than a billion steps.
+        #[arg(long)]
+        force: bool,
     },
     /// Validate a scene without running: grains, elements, nodes, stable Δt, mass scaling, memory.
     Check {
         scene: PathBuf,
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
+        /// Mesh and report even if the estimate says the scene will not fit in memory or
+        /// needs more than a billion steps.
+        #[arg(long)]
+        force: bool,
     },
     /// Partition the scene's grains with METIS; report balance, edge cut and halo size.
     Partition {
@@ -66,6 +74,9 @@ pub enum Command {
         exact: bool,
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
+        /// Mesh even if the estimate says the scene will not fit in memory.
+        #[arg(long)]
+        force: bool,
     },
     /// Run analytic validation cases (hertz, mindlin, torsion, rolling) over meshing ratios;
     /// print a table, write DIR/validation.json and one PNG per case.
@@ -100,15 +111,7 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> i32
                 let _ = e.print();
                 return 0;
             }
-            // one line, like every other input error (clap's usage text follows on --help)
-            let text = e.render().to_string();
-            let message: Vec<&str> = text
-                .lines()
-                .map(str::trim)
-                .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
-                .filter(|l| !l.is_empty())
-                .collect();
-            eprintln!("{} (see mufe --help)", message.join(" "));
+            eprintln!("error: {}", clap_error(&e));
             return 2;
         }
     };
@@ -121,17 +124,171 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> i32
     }
 }
 
+/// An argument-parser error in the one-line form of every input error:
+/// `<command line>: FIELD: what is wrong`, FIELD being the argument concerned.
+pub fn clap_error(e: &clap::Error) -> InputError {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    let context = |kind: ContextKind| -> Option<String> {
+        match e.get(kind)? {
+            ContextValue::String(s) => Some(s.clone()),
+            ContextValue::Strings(v) => Some(v.join(", ")),
+            ContextValue::StyledStr(s) => Some(s.to_string()),
+            ContextValue::StyledStrs(v) => Some(
+                v.iter()
+                    .map(ToString::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ),
+            ContextValue::Number(n) => Some(n.to_string()),
+            _ => None,
+        }
+    };
+    // "--threads <THREADS>" → "--threads"; "<SCENE>" stays.
+    let arg_name = |a: String| match a.split_whitespace().next() {
+        Some(first) if first.starts_with('-') => first.to_string(),
+        _ => a,
+    };
+    let value = context(ContextKind::InvalidValue).map(|v| crate::error::echo(&v));
+    let (field, message) = match e.kind() {
+        ErrorKind::InvalidValue | ErrorKind::ValueValidation => {
+            let field =
+                context(ContextKind::InvalidArg).map_or_else(|| "argument".into(), arg_name);
+            let why = std::error::Error::source(e)
+                .map(|s| format!(": {s}"))
+                .unwrap_or_default();
+            let valid = context(ContextKind::ValidValue)
+                .map(|v| format!(" (possible values: {v})"))
+                .unwrap_or_default();
+            (
+                field,
+                format!("invalid value '{}'{why}{valid}", value.unwrap_or_default()),
+            )
+        }
+        ErrorKind::UnknownArgument => {
+            let arg = context(ContextKind::InvalidArg).unwrap_or_default();
+            let hint = context(ContextKind::SuggestedArg)
+                .map(|a| format!("; did you mean '{a}'?"))
+                .unwrap_or_default();
+            (
+                crate::error::echo(&arg),
+                format!("unexpected argument{hint} (see mufe help)"),
+            )
+        }
+        ErrorKind::InvalidSubcommand => {
+            let sub = context(ContextKind::InvalidSubcommand).unwrap_or_default();
+            (
+                "command".into(),
+                format!(
+                    "unknown command '{}'; use run, check, partition or validate",
+                    crate::error::echo(&sub)
+                ),
+            )
+        }
+        ErrorKind::MissingRequiredArgument => (
+            context(ContextKind::InvalidArg).map_or_else(|| "argument".into(), arg_name),
+            "required argument is missing (see mufe help)".into(),
+        ),
+        ErrorKind::MissingSubcommand | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => (
+            "command".into(),
+            "no command given; use run, check, partition or validate (see mufe --help)".into(),
+        ),
+        ErrorKind::ArgumentConflict => (
+            context(ContextKind::InvalidArg).map_or_else(|| "argument".into(), arg_name),
+            format!(
+                "cannot be used with {}",
+                context(ContextKind::PriorArg).unwrap_or_else(|| "another argument".into())
+            ),
+        ),
+        ErrorKind::TooManyValues => (
+            context(ContextKind::InvalidArg).map_or_else(|| "argument".into(), arg_name),
+            format!(
+                "given too often or with too many values{}",
+                value.map(|v| format!(" ('{v}')")).unwrap_or_default()
+            ),
+        ),
+        ErrorKind::InvalidUtf8 => ("argument".into(), "is not valid UTF-8".into()),
+        _ => {
+            // Anything else: clap's own words, on one line.
+            let text = e.render().to_string();
+            let message: Vec<&str> = text
+                .lines()
+                .map(str::trim)
+                .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
+                .filter(|l| !l.is_empty())
+                .collect();
+            let joined = message.join(" ");
+            (
+                "argument".into(),
+                joined
+                    .strip_prefix("error: ")
+                    .unwrap_or(&joined)
+                    .to_string(),
+            )
+        }
+    };
+    InputError::new("<command line>", field, message)
+}
+
 fn load(scene: &std::path::Path, set: &[String]) -> Result<LoadedScene, InputError> {
     load_scene(scene, set)
 }
 
+/// The estimate before meshing and the resource guard (skipped with `--force`): refuses a
+/// scene that would not fit this machine's memory or, with `max_steps`, needs more steps.
+fn estimate_and_guard(
+    loaded: &LoadedScene,
+    force: bool,
+    max_steps: Option<u64>,
+) -> Result<crate::scene::estimate::SceneEstimate, InputError> {
+    use crate::scene::estimate;
+    let est = estimate::estimate_scene(&loaded.path, &loaded.scene)?;
+    if !force {
+        estimate::guard(&loaded.path, &est, estimate::memory_limit()?, max_steps)?;
+    }
+    Ok(est)
+}
+
+/// `--out DIR` must be a directory or not exist yet (it is created by the run).
+fn check_out_dir(out: &std::path::Path) -> Result<(), InputError> {
+    match std::fs::metadata(out) {
+        Ok(m) if !m.is_dir() => Err(InputError::new(
+            "<command line>",
+            "--out",
+            format!(
+                "'{}' exists and is not a directory",
+                crate::error::echo(&out.display().to_string())
+            ),
+        )),
+        _ => Ok(()),
+    }
+}
+
 fn dispatch(cli: Cli) -> Result<(), MufeError> {
     match cli.command {
-        Command::Check { scene, set } => {
+        Command::Check { scene, set, force } => {
             let loaded = load(&scene, &set)?;
+            let est = estimate_and_guard(&loaded, force, Some(crate::scene::estimate::MAX_STEPS))?;
             let solver = build_solver(&loaded)?;
-            let steps = (loaded.scene.simulation.duration / solver.model.dt).ceil() as u64;
+            let steps = (loaded.scene.simulation.duration / solver.model.dt).ceil();
+            if !force && (steps.is_nan() || steps > crate::scene::estimate::MAX_STEPS as f64) {
+                return Err(InputError::new(
+                    &loaded.path,
+                    est.dt_field,
+                    format!(
+                        "duration / Δt {:.3e} s = {steps:.3e} steps, more than the limit of {:.0e}; use a shorter duration or a larger step, or --force",
+                        solver.model.dt,
+                        crate::scene::estimate::MAX_STEPS as f64
+                    ),
+                )
+                .into());
+            }
+            let steps = if steps.is_finite() && steps < 1.8e19 {
+                steps as u64
+            } else {
+                u64::MAX
+            };
             print_model_summary(&solver, &loaded, steps);
+            println!("{}", est.summary());
             println!("ok: {} is valid", scene.display());
             Ok(())
         }
@@ -142,12 +299,20 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             set,
             max_steps,
             quiet,
+            force,
         } => {
             if threads == Some(0) {
                 return Err(InputError::new("<command line>", "--threads", "must be ≥ 1").into());
             }
+            check_out_dir(&out)?;
             // Validate the input before MPI starts so that a bad scene fails fast on every rank.
             let loaded = load(&scene, &set)?;
+            // With --max-steps the run stops early: the step limit applies to what is run.
+            let step_limit = crate::scene::estimate::MAX_STEPS;
+            let est = estimate_and_guard(&loaded, force, None)?;
+            if !force && max_steps.is_none_or(|m| m > step_limit) {
+                crate::scene::estimate::guard(&loaded.path, &est, None, Some(step_limit))?;
+            }
             let domain = Domain::init();
             let threads = threads.unwrap_or_else(|| {
                 if domain.size() == 1 {
@@ -182,6 +347,19 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             threads,
             set,
         } => {
+            if let Some(dir) = std::env::var_os("MUFE_VALIDATION_SCENES") {
+                if !std::path::Path::new(&dir).is_dir() {
+                    return Err(InputError::new(
+                        "<environment>",
+                        "MUFE_VALIDATION_SCENES",
+                        format!(
+                            "'{}' is not a directory",
+                            crate::error::echo(&dir.to_string_lossy())
+                        ),
+                    )
+                    .into());
+                }
+            }
             let mrs = mr
                 .as_deref()
                 .map(crate::validate::runner::parse_mr_list)
@@ -225,7 +403,8 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             margin,
             exact,
             set,
-        } => partition_command(&scene, &set, parts, out.as_deref(), margin, exact),
+            force,
+        } => partition_command(&scene, &set, parts, out.as_deref(), margin, exact, force),
     }
 }
 
@@ -352,6 +531,7 @@ fn partition_command(
     out: Option<&std::path::Path>,
     margin: Option<f64>,
     exact: bool,
+    force: bool,
 ) -> Result<(), MufeError> {
     let file = scene.display().to_string();
     if parts == 0 {
@@ -367,7 +547,22 @@ fn partition_command(
             .into());
         }
     }
+    if let Some(path) = out {
+        if path.is_dir() {
+            return Err(InputError::new(
+                "<command line>",
+                "--out",
+                format!(
+                    "'{}' is a directory; give a file name",
+                    crate::error::echo(&path.display().to_string())
+                ),
+            )
+            .into());
+        }
+    }
     let loaded = load(scene, set)?;
+    // Partitioning meshes refined spheres (all with --exact): same memory guard as check.
+    estimate_and_guard(&loaded, force, None)?;
     let n = loaded.scene.grains.len();
     if parts > n {
         return Err(InputError::new(

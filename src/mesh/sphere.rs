@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 use super::surface_refine::triangulate_sphere;
 use super::tetgen::{tetrahedralize, Region};
 use super::{validate, MeshError, TetMesh};
+use crate::error::num;
 use crate::math::{add, cross, dot, norm, scale, sub};
 
 /// TetGen's maximum radius–edge ratio (`-q`). The lattice-seeded interior rarely needs
@@ -110,6 +111,14 @@ pub struct LocalRefinement {
     pub growth: f64,
 }
 
+/// Smallest meaningful growth of a refinement patch: at 0.01 the size has grown by only
+/// 1 % of the distance, so the fine zone of any useful patch already covers the grain.
+pub const MIN_GROWTH: f64 = 0.01;
+/// Largest meaningful growth: the edge length may grow at most as fast as the distance
+/// (as the interior does, `CORE_GROWTH`); above, the surface bisection cannot follow the
+/// size field (the mesh no longer changes with the value) and transitions are abrupt.
+pub const MAX_GROWTH: f64 = 1.0;
+
 fn default_growth() -> f64 {
     0.3
 }
@@ -125,7 +134,7 @@ fn check_positive(field: &str, v: f64) -> Result<(), MeshError> {
     if !v.is_finite() || v <= 0.0 {
         return Err(invalid(
             field,
-            format!("must be a positive finite length, got {v}"),
+            format!("must be a positive finite length, got {}", num(v)),
         ));
     }
     Ok(())
@@ -176,12 +185,23 @@ impl SphereMeshSpec {
     pub fn validate(&self) -> Result<(), MeshError> {
         check_positive("radius", self.radius)?;
         check_positive("seeding", self.seeding)?;
+        if self.seeding < 1e-4 * self.radius {
+            return Err(invalid(
+                "seeding",
+                format!(
+                    "{} is below 1e-4 × radius {}: too fine to mesh (~1e12 elements)",
+                    num(self.seeding),
+                    num(self.radius)
+                ),
+            ));
+        }
         if self.seeding > self.radius {
             return Err(invalid(
                 "seeding",
                 format!(
                     "{} is larger than the radius {} (meshing ratio > 0.5)",
-                    self.seeding, self.radius
+                    num(self.seeding),
+                    num(self.radius)
                 ),
             ));
         }
@@ -193,7 +213,8 @@ impl SphereMeshSpec {
                     "graded.band_depth",
                     format!(
                         "{} must be smaller than the radius {}",
-                        g.band_depth, self.radius
+                        num(g.band_depth),
+                        num(self.radius)
                     ),
                 ));
             }
@@ -202,7 +223,8 @@ impl SphereMeshSpec {
                     "graded.band_depth",
                     format!(
                         "{} must be at least one surface element deep (≥ seeding {})",
-                        g.band_depth, self.seeding
+                        num(g.band_depth),
+                        num(self.seeding)
                     ),
                 ));
             }
@@ -211,7 +233,8 @@ impl SphereMeshSpec {
                     "graded.core_seeding",
                     format!(
                         "{} must not be finer than the surface seeding {}",
-                        g.core_seeding, self.seeding
+                        num(g.core_seeding),
+                        num(self.seeding)
                     ),
                 ));
             }
@@ -220,7 +243,8 @@ impl SphereMeshSpec {
                     "graded.core_seeding",
                     format!(
                         "{} is larger than the radius {}",
-                        g.core_seeding, self.radius
+                        num(g.core_seeding),
+                        num(self.radius)
                     ),
                 ));
             }
@@ -240,7 +264,8 @@ impl SphereMeshSpec {
                     f("seeding"),
                     format!(
                         "{} is coarser than the global seeding {}: no refinement",
-                        r.seeding, self.seeding
+                        num(r.seeding),
+                        num(self.seeding)
                     ),
                 ));
             }
@@ -249,20 +274,34 @@ impl SphereMeshSpec {
                     f("seeding"),
                     format!(
                         "{} is below 1e-4 × radius {}: too fine to mesh",
-                        r.seeding, self.radius
+                        num(r.seeding),
+                        num(self.radius)
                     ),
                 ));
             }
             if !r.radius.is_finite() || r.radius < 0.0 {
                 return Err(invalid(
                     f("radius"),
-                    format!("must be a finite length ≥ 0, got {}", r.radius),
+                    format!("must be a finite length ≥ 0, got {}", num(r.radius)),
                 ));
             }
-            if !r.growth.is_finite() || r.growth < 0.0 {
+            if r.radius > 2.0 * self.radius {
+                return Err(invalid(
+                    f("radius"),
+                    format!(
+                        "{} exceeds the sphere's diameter {}: the zone would cover the whole sphere (use seeding instead)",
+                        num(r.radius),
+                        num(2.0 * self.radius)
+                    ),
+                ));
+            }
+            if !(MIN_GROWTH..=MAX_GROWTH).contains(&r.growth) {
                 return Err(invalid(
                     f("growth"),
-                    format!("must be finite and ≥ 0, got {}", r.growth),
+                    format!(
+                        "must be in [{MIN_GROWTH}, {MAX_GROWTH}], got {}: below, the fine zone spreads over the whole grain (use a finer seeding instead); above, the size would grow faster than the distance and bisection cannot follow it",
+                        num(r.growth)
+                    ),
                 ));
             }
         }

@@ -2,6 +2,7 @@
 //! overrides applied to the TOML tree before typing (so they get the same validation),
 //! and semantic checks that name the offending field. SI units throughout.
 
+pub mod estimate;
 mod overrides;
 mod validate;
 
@@ -320,7 +321,7 @@ pub struct LoadedScene {
 pub fn load_scene(path: &Path, overrides: &[String]) -> Result<LoadedScene, InputError> {
     let file = path.display().to_string();
     let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::new(&file, "", format!("cannot read scene file: {e}")))?;
+        .map_err(|e| InputError::new(&file, "file", format!("cannot read the scene: {e}")))?;
     parse_scene(&file, &text, overrides)
 }
 
@@ -337,12 +338,13 @@ pub fn parse_scene(
             .map(|s| text[..s.start.min(text.len())].lines().count().max(1));
         InputError::new(
             file,
-            line.map(|l| format!("line {l}")).unwrap_or_default(),
+            line.map_or_else(|| "scene".to_string(), |l| format!("line {l}")),
             format!("invalid TOML: {msg}"),
         )
     })?;
     let mut value = toml::Value::Table(table);
     for o in overrides {
+        check_override_text(o)?;
         apply_override(&mut value, o)
             .map_err(|m| InputError::new("<command line>", format!("--set {o}"), m))?;
     }
@@ -350,7 +352,7 @@ pub fn parse_scene(
         .map_err(|e| {
             let path = e.path().to_string();
             let inner = e.into_inner().message().replace('\n', " ");
-            InputError::new(file, if path == "." { String::new() } else { path }, inner)
+            serde_error(file, &path, &inner)
         })
         .map_err(|e| blame_override(e, overrides))?;
     validate::validate_scene(file, &scene).map_err(|e| blame_override(e, overrides))?;
@@ -364,6 +366,43 @@ pub fn parse_scene(
         text,
         scene,
     })
+}
+
+/// A `--set` argument must be one line of printable text: a newline would silently cut
+/// the value (TOML stops at it) and control characters cannot be meant.
+fn check_override_text(o: &str) -> Result<(), InputError> {
+    if let Some(c) = o.chars().find(|c| c.is_control()) {
+        let path = o.split_once('=').map_or(o, |(p, _)| p);
+        let what = match c {
+            '\n' | '\r' => "a line break".to_string(),
+            '\t' => "a tab".to_string(),
+            c => format!("the control character U+{:04X}", c as u32),
+        };
+        return Err(InputError::new(
+            "<command line>",
+            format!("--set {}", crate::error::echo(path.trim())),
+            format!("the argument contains {what}; give one value on one line"),
+        ));
+    }
+    Ok(())
+}
+
+/// The one-line error for a serde failure at `path` (`.` = the top level): a missing
+/// field is named as the field itself (`simulation`, `grains[0].material`).
+fn serde_error(file: &str, path: &str, message: &str) -> InputError {
+    let parent = if path == "." { "" } else { path };
+    if let Some(rest) = message.strip_prefix("missing field `") {
+        if let Some(name) = rest.split('`').next() {
+            let item = if parent.is_empty() {
+                name.to_string()
+            } else {
+                format!("{parent}.{name}")
+            };
+            return InputError::new(file, item, "required field is missing");
+        }
+    }
+    let item = if parent.is_empty() { "scene" } else { parent };
+    InputError::new(file, item, message)
 }
 
 /// When the field an error names was set (or replaced) by a `--set`, says so: the value

@@ -648,6 +648,17 @@ impl Refiner {
                 vt[v as usize] = t as u32;
             }
         }
+        // Undirected edges, so that no re-triangulation adds an edge that already exists
+        // (a valence-4 vertex whose opposite ring vertices are already joined elsewhere):
+        // that would make the surface non-manifold.
+        let key = |a: u32, b: u32| (a.min(b), a.max(b));
+        let mut edges: std::collections::HashSet<(u32, u32)> =
+            std::collections::HashSet::with_capacity(3 * self.tris.len() / 2);
+        for tri in &self.tris {
+            for k in 0..3 {
+                edges.insert(key(tri.v[k], tri.v[(k + 1) % 3]));
+            }
+        }
         let mut dead_tri = vec![false; self.tris.len()];
         let mut locked = vec![false; np];
         let mut removed = vec![false; np];
@@ -675,6 +686,19 @@ impl Refiner {
             if fan.iter().any(|&t| dead_tri[t as usize])
                 || ring.iter().any(|&r| removed[r as usize])
             {
+                continue;
+            }
+            // Valence 4: split the quadrilateral along a diagonal that is not yet an edge;
+            // valence 3: the ring triangle must not duplicate one (closed tetrahedron).
+            if ring.len() == 4 {
+                if edges.contains(&key(ring[0], ring[2])) {
+                    if edges.contains(&key(ring[1], ring[3])) {
+                        continue;
+                    }
+                    ring.rotate_left(1);
+                }
+                edges.insert(key(ring[0], ring[2]));
+            } else if ring.len() != 3 {
                 continue;
             }
             removed[v] = true;

@@ -1,0 +1,511 @@
+//! Scale of a scene from its specs alone, before anything is meshed or allocated: elements,
+//! nodes, surface triangles, a stable time step, the step count and the memory of a run.
+//! Microseconds per distinct shape; every count is checked (no overflow, no NaN).
+//!
+//! Formulas (V(h) = h³/(6√2) the volume of a regular tet of edge h, A(h) = √3/4·h² the
+//! area of an equilateral triangle, B(r) = 4/3·πr³):
+//!
+//! - **block** nx×ny×nz: exactly 6·nx·ny·nz elements and (nx+1)(ny+1)(nz+1) nodes; the
+//!   smallest element size is min(size/divisions).
+//! - **sphere** of radius R and seeding s: B(R)/V(s) elements (graded: the band
+//!   B(R) − B(R−b) at s and the core B(R−b) at the core seeding rounded to s·2^k, as the
+//!   mesher does); 20·n² surface triangles, n = round(1.203 R/s) (the geodesic base).
+//!   Each refinement patch (seeding sᵣ, radius r, growth g) adds
+//!   ∫₀ᴰ w(d)·[1/V(H(d)) − 1/V(s)] dd elements and ∫₀ᴰ 2πd·[1/A(0.85 H(d)) − 1/A(s)] dd
+//!   surface triangles (the element integral × [`PATCH_ELEMENT_FACTOR`]), with H(d) = sᵣ + g·max(0, d − r) the size at distance d from the
+//!   patch point, D = min(r + (s − sᵣ)/g, 2R) where H reaches s (2R when g = 0), and
+//!   w(d) = 2πd²(1 − d/2R) the area of the sphere of radius d about a surface point that
+//!   lies inside the ball (the surface within chord distance d has area πd², hence 2πd).
+//!   Surface triangles are bisected until their longest edge is ≤ 1.42 H, which leaves
+//!   a mean edge ≈ 0.85 H. Nodes: elements/[`ELEMENTS_PER_NODE`] + surface triangles/2
+//!   × [`SURFACE_NODE_SHARE`] (the surface nodes carry fewer tets each). The smallest
+//!   element size is min(s, sᵣ).
+//! - **time step**: Δt ≈ dt_safety · k · h_min / c_p per grain, c_p = √((λ+2G)/ρ) the
+//!   dilatational wave speed of its material, k = [`SPHERE_DT_FACTOR`] for TetGen meshes
+//!   (their worst element is ~10× shorter in its critical mode than the seeding) and
+//!   [`BLOCK_DT_FACTOR`] for the structured blocks; the smallest over the grains. The step
+//!   used is `simulation.dt`, else `target_dt`, else this estimate; steps = ⌈duration/Δt⌉.
+//! - **memory** of a run: [`BYTES_PER_ELEMENT`] per element + [`BYTES_PER_NODE`] per node
+//!   + [`BASE_BYTES`] (measured peak RSS of `mufe run`, mesher included).
+//!
+//! Measured against the built models of every scene in `jobs/` (see docs/INPUT.md).
+
+use super::{MaterialSpec, Scene, ShapeSpec};
+use crate::error::InputError;
+use crate::mesh::SphereMeshSpec;
+use std::collections::BTreeMap;
+use std::f64::consts::{PI, SQRT_2};
+
+/// Critical-step factor of TetGen sphere meshes: Δt_crit ≈ k·h_min/c_p (measured
+/// 0.07–0.15 on the jobs).
+pub const SPHERE_DT_FACTOR: f64 = 0.1;
+/// Critical-step factor of the structured block meshes (measured 0.51 on cubes).
+pub const BLOCK_DT_FACTOR: f64 = 0.5;
+/// Elements per interior node of the meshes (measured 5.6–6.3).
+pub const ELEMENTS_PER_NODE: f64 = 6.0;
+/// Extra nodes per surface node (surface nodes have about half the tets of inner ones).
+pub const SURFACE_NODE_SHARE: f64 = 0.5;
+/// Measured peak memory of a run per element, per node, and fixed (bytes).
+pub const BYTES_PER_ELEMENT: u64 = 500;
+pub const BYTES_PER_NODE: u64 = 200;
+pub const BASE_BYTES: u64 = 32 << 20;
+/// Steps above which `check`/`run` refuse the scene unless `--force` is given.
+pub const MAX_STEPS: u64 = 1_000_000_000;
+/// Steps above which a scene is refused outright: beyond 2⁵³ steps the step count and
+/// the time t = n·Δt are no longer exact in double precision.
+pub const MAX_EXACT_STEPS: f64 = 9_007_199_254_740_992.0;
+/// Mean surface edge after bisection, in units of the requested size.
+const BISECTED_EDGE: f64 = 0.85;
+/// Refinement patches: TetGen's transition from the fine surface to the interior
+/// lattice adds elements over the size-field integral (measured 1.1–1.6× on the jobs).
+pub const PATCH_ELEMENT_FACTOR: f64 = 1.35;
+/// Quadrature intervals per patch integral.
+const QUADRATURE: usize = 256;
+
+/// Estimated mesh size of one grain shape.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShapeEstimate {
+    pub elements: u64,
+    pub nodes: u64,
+    pub surface_triangles: u64,
+    /// Smallest nominal element edge (m).
+    pub min_size: f64,
+    /// The field (below `shape.`) that drives the element count.
+    pub driver: &'static str,
+    /// Index of the refinement patch that drives the count, if one does.
+    pub driver_patch: Option<usize>,
+}
+
+/// Estimated scale of a whole scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneEstimate {
+    pub elements: u64,
+    pub nodes: u64,
+    pub surface_triangles: u64,
+    pub per_grain: Vec<ShapeEstimate>,
+    /// Estimated stable step (s), dt_safety included, and the grain that sets it.
+    pub dt_stable: f64,
+    pub critical_grain: usize,
+    /// The step that will be used (s) and the field that sets it.
+    pub dt: f64,
+    pub dt_field: &'static str,
+    /// ⌈duration/dt⌉ as a float (may exceed any integer type; checked by the caller).
+    pub steps: f64,
+    /// Peak memory of a run (bytes).
+    pub memory_bytes: u64,
+    /// `simulation.duration` (s).
+    pub duration: f64,
+}
+
+impl SceneEstimate {
+    /// The step count as an integer (saturating; the hard bound keeps it ≤ 2⁵³).
+    pub fn steps_u64(&self) -> u64 {
+        if self.steps.is_finite() && self.steps < 1.8e19 {
+            self.steps as u64
+        } else {
+            u64::MAX
+        }
+    }
+
+    /// The field that drives the element (and memory) count: the grain with most
+    /// elements when it holds at least half of them, else `grains` (their number).
+    pub fn size_driver(&self) -> String {
+        let Some((i, g)) = self
+            .per_grain
+            .iter()
+            .enumerate()
+            .max_by_key(|(_, g)| g.elements)
+        else {
+            return "grains".into();
+        };
+        if g.elements.saturating_mul(2) < self.elements {
+            return "grains".into();
+        }
+        match g.driver_patch {
+            Some(k) => format!("grains[{i}].shape.sphere.refine[{k}].{}", g.driver),
+            None => format!("grains[{i}].shape.{}", g.driver),
+        }
+    }
+
+    /// One line for `check`: the estimate made before meshing.
+    pub fn summary(&self) -> String {
+        format!(
+            "estimate before meshing: {} elements, {} nodes, {} surface triangles, Δt {:.3e} s ({}), {} steps, memory {:.1} MiB",
+            self.elements,
+            self.nodes,
+            self.surface_triangles,
+            self.dt,
+            if self.dt_field == "simulation.duration" {
+                "estimated stable step"
+            } else {
+                self.dt_field
+            },
+            self.steps_u64(),
+            self.memory_bytes as f64 / 1048576.0
+        )
+    }
+}
+
+/// The dilatational (P-) wave speed c_p = √((λ+2G)/ρ) of a material (m/s); NaN or ∞
+/// for meaningless constants.
+pub fn wave_speed(m: &MaterialSpec) -> f64 {
+    let (e, nu, rho) = (m.youngs_modulus, m.poisson_ratio, m.density);
+    let modulus = e * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu)); // λ + 2G
+    (modulus / rho).sqrt()
+}
+
+fn regular_tet_volume(h: f64) -> f64 {
+    h * h * h / (6.0 * SQRT_2)
+}
+
+fn triangle_area(h: f64) -> f64 {
+    0.25 * 3f64.sqrt() * h * h
+}
+
+fn ball(r: f64) -> f64 {
+    4.0 / 3.0 * PI * r * r * r
+}
+
+/// A non-negative finite float as a count, or `None` if it does not fit in 2⁶³.
+fn to_count(x: f64) -> Option<u64> {
+    if (0.0..9.2e18).contains(&x) {
+        Some(x.ceil() as u64)
+    } else {
+        None
+    }
+}
+
+/// Trapezoid rule of `f` over [a, b] on a grid refined towards `a` (geometric when a > 0).
+fn integrate(a: f64, b: f64, f: impl Fn(f64) -> f64) -> f64 {
+    if b.is_nan() || a.is_nan() || b <= a {
+        return 0.0;
+    }
+    let n = QUADRATURE;
+    let grid = |i: usize| {
+        let t = i as f64 / n as f64;
+        // quadratic clustering at the start, where 1/H³ is steepest
+        a + (b - a) * t * t
+    };
+    let mut sum = 0.0;
+    let (mut x0, mut f0) = (a, f(a));
+    for i in 1..=n {
+        let x1 = grid(i);
+        let f1 = f(x1);
+        sum += 0.5 * (f0 + f1) * (x1 - x0);
+        (x0, f0) = (x1, f1);
+    }
+    sum
+}
+
+/// Estimated counts of a sphere mesh (see the module documentation). `None` on overflow.
+pub fn sphere_estimate(s: &SphereMeshSpec) -> Option<ShapeEstimate> {
+    let big_r = s.radius;
+    let h = s.seeding;
+    let (mut elements, mut driver) = match &s.graded {
+        None => (ball(big_r) / regular_tet_volume(h), "sphere.seeding"),
+        Some(g) => {
+            let k = (g.core_seeding / h).log2().round().clamp(0.0, 60.0);
+            let core_h = h * 2f64.powf(k);
+            let inner = (big_r - g.band_depth).max(0.0);
+            let band = (ball(big_r) - ball(inner)) / regular_tet_volume(h);
+            let core = ball(inner) / regular_tet_volume(core_h);
+            (
+                band + core,
+                if core > band {
+                    "sphere.graded.core_seeding"
+                } else {
+                    "sphere.seeding"
+                },
+            )
+        }
+    };
+    let n = crate::mesh::surface_refine::geodesic_frequency(big_r, h) as f64;
+    let mut triangles = 20.0 * n * n;
+    let mut min_size = h;
+    let mut driver_patch = None;
+    let mut largest_patch = 0.0;
+    for (k, p) in s.refine.iter().enumerate() {
+        let (sr, r, g) = (p.seeding, p.radius, p.growth);
+        min_size = min_size.min(sr);
+        let reach = if g > 0.0 {
+            r + (h - sr) / g
+        } else {
+            f64::INFINITY
+        };
+        let d_max = reach.min(2.0 * big_r);
+        let size = |d: f64| (sr + g * (d - r).max(0.0)).min(h);
+        let shell = |d: f64| 2.0 * PI * d * d * (1.0 - d / (2.0 * big_r)).max(0.0);
+        let vol_density = |d: f64| 1.0 / regular_tet_volume(size(d)) - 1.0 / regular_tet_volume(h);
+        let area_density = |d: f64| {
+            1.0 / triangle_area(BISECTED_EDGE * size(d)) - 1.0 / triangle_area(BISECTED_EDGE * h)
+        };
+        let r_in = r.min(d_max);
+        let de = integrate(0.0, r_in, |d| shell(d) * vol_density(d))
+            + integrate(r_in, d_max, |d| shell(d) * vol_density(d));
+        let dt = integrate(0.0, r_in, |d| 2.0 * PI * d * area_density(d))
+            + integrate(r_in, d_max, |d| 2.0 * PI * d * area_density(d));
+        let de = PATCH_ELEMENT_FACTOR * de;
+        elements += de.max(0.0);
+        triangles += dt.max(0.0);
+        if de > largest_patch {
+            largest_patch = de;
+            if de > 0.5 * elements {
+                driver_patch = Some(k);
+                driver = if reach >= 2.0 * big_r {
+                    "growth"
+                } else {
+                    "seeding"
+                };
+            }
+        }
+    }
+    let nodes = elements / ELEMENTS_PER_NODE + SURFACE_NODE_SHARE * triangles / 2.0;
+    Some(ShapeEstimate {
+        elements: to_count(elements)?,
+        nodes: to_count(nodes)?,
+        surface_triangles: to_count(triangles)?,
+        min_size,
+        driver,
+        driver_patch,
+    })
+}
+
+/// Exact counts of a block mesh. `None` on overflow.
+pub fn block_estimate(size: [f64; 3], divisions: [usize; 3]) -> Option<ShapeEstimate> {
+    let d = divisions.map(|x| x as u64);
+    let cells = d[0].checked_mul(d[1])?.checked_mul(d[2])?;
+    let elements = cells.checked_mul(6)?;
+    let nodes = (d[0].checked_add(1)?)
+        .checked_mul(d[1].checked_add(1)?)?
+        .checked_mul(d[2].checked_add(1)?)?;
+    let inner = d[0].saturating_sub(1) * d[1].saturating_sub(1) * d[2].saturating_sub(1);
+    let surface_nodes = nodes - inner;
+    let min_size = (0..3)
+        .map(|k| size[k] / divisions[k].max(1) as f64)
+        .fold(f64::INFINITY, f64::min);
+    Some(ShapeEstimate {
+        elements,
+        nodes,
+        surface_triangles: surface_nodes.checked_mul(2)?,
+        min_size,
+        driver: "block.divisions",
+        driver_patch: None,
+    })
+}
+
+/// Estimate of one shape. `None` on overflow.
+pub fn shape_estimate(shape: &ShapeSpec) -> Option<ShapeEstimate> {
+    match shape {
+        ShapeSpec::Sphere(s) => sphere_estimate(s),
+        ShapeSpec::Block(b) => block_estimate(b.size, b.divisions),
+    }
+}
+
+/// Estimates a scene whose fields have passed the per-field checks (positive sizes,
+/// known materials). An overflowing count is an input error naming the grain's shape.
+pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputError> {
+    let too_big = |field: String| {
+        InputError::new(
+            file,
+            field,
+            "the mesh this asks for has more elements than can be counted (> 9e18); use a coarser mesh",
+        )
+    };
+    let mut cache: BTreeMap<String, ShapeEstimate> = BTreeMap::new();
+    let mut per_grain = Vec::with_capacity(scene.grains.len());
+    let (mut elements, mut nodes, mut triangles) = (0u64, 0u64, 0u64);
+    let sim = &scene.simulation;
+    let (mut dt_stable, mut critical_grain) = (f64::INFINITY, 0);
+    for (i, g) in scene.grains.iter().enumerate() {
+        let key = serde_json::to_string(&g.shape).unwrap_or_default();
+        let est = match cache.get(&key) {
+            Some(e) => *e,
+            None => {
+                let e = shape_estimate(&g.shape)
+                    .ok_or_else(|| too_big(format!("grains[{i}].shape")))?;
+                cache.insert(key, e);
+                e
+            }
+        };
+        let field = || format!("grains[{i}].shape");
+        elements = elements
+            .checked_add(est.elements)
+            .ok_or_else(|| too_big(field()))?;
+        nodes = nodes
+            .checked_add(est.nodes)
+            .ok_or_else(|| too_big(field()))?;
+        triangles = triangles
+            .checked_add(est.surface_triangles)
+            .ok_or_else(|| too_big(field()))?;
+        let factor = match g.shape {
+            ShapeSpec::Sphere(_) => SPHERE_DT_FACTOR,
+            ShapeSpec::Block(_) => BLOCK_DT_FACTOR,
+        };
+        let c = scene
+            .materials
+            .get(&g.material)
+            .map_or(f64::NAN, wave_speed);
+        let dt = sim.dt_safety * factor * est.min_size / c;
+        if dt < dt_stable {
+            (dt_stable, critical_grain) = (dt, i);
+        }
+        per_grain.push(est);
+    }
+    let (dt, dt_field) = match (sim.dt, sim.target_dt) {
+        (Some(d), _) => (d, "simulation.dt"),
+        (None, Some(t)) => (t, "simulation.target_dt"),
+        (None, None) => (dt_stable, "simulation.duration"),
+    };
+    let steps = (sim.duration / dt).ceil();
+    let memory_bytes = elements
+        .checked_mul(BYTES_PER_ELEMENT)
+        .and_then(|e| nodes.checked_mul(BYTES_PER_NODE)?.checked_add(e))
+        .and_then(|b| b.checked_add(BASE_BYTES))
+        .unwrap_or(u64::MAX);
+    Ok(SceneEstimate {
+        elements,
+        nodes,
+        surface_triangles: triangles,
+        per_grain,
+        dt_stable,
+        critical_grain,
+        dt,
+        dt_field,
+        steps,
+        memory_bytes,
+        duration: sim.duration,
+    })
+}
+
+/// Memory this machine can give a run (bytes): `MemAvailable` from /proc/meminfo, else
+/// `MemTotal`; `None` where there is no /proc/meminfo.
+pub fn machine_memory() -> Option<(u64, &'static str)> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let field = |name: &str| -> Option<u64> {
+        let line = text.lines().find(|l| l.starts_with(name))?;
+        let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        kb.checked_mul(1024)
+    };
+    field("MemAvailable:")
+        .map(|b| (b, "MemAvailable"))
+        .or_else(|| field("MemTotal:").map(|b| (b, "MemTotal")))
+}
+
+/// The memory a run may use: this machine's ([`machine_memory`]), lowered by the
+/// environment variable `MUFE_MEMORY_LIMIT` (bytes, or with a `K`, `M`, `G` suffix for
+/// KiB, MiB, GiB) where set — for shared nodes and CI.
+pub fn memory_limit() -> Result<Option<(u64, &'static str)>, InputError> {
+    let machine = machine_memory();
+    let Some(raw) = std::env::var_os("MUFE_MEMORY_LIMIT") else {
+        return Ok(machine);
+    };
+    let text = raw.to_string_lossy();
+    let t = text.trim();
+    let (digits, shift) = match t.char_indices().last() {
+        Some((i, 'K' | 'k')) => (&t[..i], 10),
+        Some((i, 'M' | 'm')) => (&t[..i], 20),
+        Some((i, 'G' | 'g')) => (&t[..i], 30),
+        _ => (t, 0),
+    };
+    let bytes = digits
+        .trim()
+        .parse::<u64>()
+        .ok()
+        .and_then(|n| n.checked_mul(1u64 << shift))
+        .filter(|&b| b > 0)
+        .ok_or_else(|| {
+            InputError::new(
+                "<environment>",
+                "MUFE_MEMORY_LIMIT",
+                format!(
+                    "'{}' is not a positive byte count (e.g. 512M, 2G)",
+                    crate::error::echo(t)
+                ),
+            )
+        })?;
+    Ok(Some(match machine {
+        Some((m, source)) if m < bytes => (m, source),
+        _ => (bytes, "MUFE_MEMORY_LIMIT"),
+    }))
+}
+
+/// The resource guard of `check`, `run` and `partition`: refuses (one line, exit 2) a
+/// scene whose estimated memory exceeds `memory` (bytes, and where that figure comes
+/// from) or, with `max_steps`, that needs more steps. `--force` skips it.
+pub fn guard(
+    file: &str,
+    est: &SceneEstimate,
+    memory: Option<(u64, &str)>,
+    max_steps: Option<u64>,
+) -> Result<(), InputError> {
+    if let Some((available, source)) = memory {
+        if est.memory_bytes > available {
+            return Err(InputError::new(
+                file,
+                est.size_driver(),
+                format!(
+                    "the scene would need about {:.3e} elements, {:.3e} nodes and {:.1} GiB of memory (estimate before meshing), more than the {:.1} GiB available ({source}); use a coarser mesh, or --force to try anyway",
+                    est.elements as f64,
+                    est.nodes as f64,
+                    est.memory_bytes as f64 / (1u64 << 30) as f64,
+                    available as f64 / (1u64 << 30) as f64
+                ),
+            ));
+        }
+    }
+    if let Some(limit) = max_steps {
+        if est.steps.is_nan() || est.steps > limit as f64 {
+            return Err(InputError::new(
+                file,
+                est.dt_field,
+                format!(
+                    "{:.3e} s / Δt {:.3e} s = {:.3e} steps, more than the limit of {limit:.0e}; use a shorter duration or a larger step, or --force to run anyway",
+                    est.duration,
+                    est.dt,
+                    est.steps
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uniform_sphere_matches_the_mesher_within_ten_percent() {
+        let spec = SphereMeshSpec::uniform(1.1e-3, 2.0e-4);
+        let est = sphere_estimate(&spec).unwrap();
+        let mesh = crate::mesh::mesh_sphere(&spec).unwrap();
+        let ratio = est.elements as f64 / mesh.tets.len() as f64;
+        assert!((0.9..1.1).contains(&ratio), "elements ratio {ratio}");
+        let ratio = est.nodes as f64 / mesh.nodes.len() as f64;
+        assert!((0.8..1.25).contains(&ratio), "nodes ratio {ratio}");
+    }
+
+    #[test]
+    fn block_counts_are_exact_and_checked() {
+        let e = block_estimate([1.0; 3], [4, 3, 2]).unwrap();
+        assert_eq!(e.elements, 6 * 24);
+        assert_eq!(e.nodes, 5 * 4 * 3);
+        assert!(block_estimate([1.0; 3], [usize::MAX, 2, 2]).is_none());
+        assert!(block_estimate([1.0; 3], [1 << 30, 1 << 30, 1 << 30]).is_none());
+    }
+
+    #[test]
+    fn zero_growth_spreads_the_patch_over_the_sphere() {
+        let mut spec =
+            SphereMeshSpec::uniform(1.1e-3, 1.5e-4).with_refinement([0.0, 0.0, 1.0], 1e-5, 1e-5);
+        let graded = sphere_estimate(&spec).unwrap();
+        spec.refine[0].growth = 0.0;
+        let flat = sphere_estimate(&spec).unwrap();
+        let fine = sphere_estimate(&SphereMeshSpec::uniform(1.1e-3, 1e-5)).unwrap();
+        assert!(flat.elements > 100 * graded.elements);
+        // the whole sphere at the patch seeding, with the patch transition factor
+        let ratio = flat.elements as f64 / (PATCH_ELEMENT_FACTOR * fine.elements as f64);
+        assert!((0.9..1.1).contains(&ratio), "ratio {ratio}");
+        assert_eq!(flat.driver, "growth");
+    }
+}
