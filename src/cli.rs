@@ -335,6 +335,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     threads,
                     max_steps,
                     quiet,
+                    force,
                 },
             )
             .map(|_| ())

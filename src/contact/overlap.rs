@@ -48,7 +48,8 @@ pub fn check_initial_overlap(model: &Model, file: &str) -> Result<(), InputError
         let p = lists.passes[e.pass as usize];
         let (a, b) = (p.slave as usize, p.master as usize);
         let tol = OVERLAP_TOLERANCE * cm.surfaces[a].min_edge.min(cm.surfaces[b].min_edge);
-        if r.gap > tol && worst.is_none_or(|w| r.gap > w.0) {
+        // a NaN gap (coincident nodes) counts as overlap
+        if !(r.gap <= tol) && worst.is_none_or(|w| !(r.gap <= w.0)) {
             worst = Some((r.gap, a.min(b), a.max(b)));
         }
     }

@@ -48,6 +48,8 @@ pub struct RunOptions {
     pub max_steps: Option<u64>,
     /// No progress or summary printing.
     pub quiet: bool,
+    /// Run even when the step count exceeds the scale guard's limit.
+    pub force: bool,
 }
 
 /// What a finished run reports.
@@ -93,7 +95,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         solver,
         talk: domain.is_root() && !opts.quiet,
     };
-    let total_steps = (loaded.scene.simulation.duration / run.solver.model.dt).ceil() as u64;
+    let total_steps = step_count(loaded, run.solver.model.dt, opts)?;
     let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     if run.talk {
         print_model_summary(&run.solver, loaded, total_steps);
@@ -114,6 +116,28 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         summary::print_run_summary(&summary, &run.solver);
     }
     Ok(summary)
+}
+
+/// Steps to the scene's duration at step `dt`, refused (exit 2, before any output) when
+/// it exceeds the scale guard's limit for what is actually run (`--max-steps` counts)
+/// and `--force` is not given. The estimate before meshing uses an approximate Δt; this
+/// is the exact count.
+fn step_count(loaded: &LoadedScene, dt: f64, opts: &RunOptions) -> Result<u64> {
+    let limit = crate::scene::estimate::MAX_STEPS;
+    let steps = (loaded.scene.simulation.duration / dt).ceil();
+    let run = opts.max_steps.map_or(steps, |m| steps.min(m as f64));
+    if !opts.force && !(run <= limit as f64) {
+        return Err(crate::error::InputError::new(
+            &loaded.path,
+            "simulation.duration",
+            format!(
+                "{:.3e} s at the stable step {dt:.3e} s is {steps:.3e} steps, more than the limit of {limit:.0e}; shorten the duration, raise simulation.target_dt, or pass --force",
+                loaded.scene.simulation.duration
+            ),
+        )
+        .into());
+    }
+    Ok(steps.min(u64::MAX as f64) as u64)
 }
 
 /// A run in progress on one rank.

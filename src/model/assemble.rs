@@ -89,6 +89,17 @@ pub fn build_model_with_ghosts(
             .expect("validated");
         let node_base = x0.len();
         let elem_base = tets.len();
+        // Node ids are u32 in the model (4 bytes per corner): refuse rather than wrap.
+        if u32::try_from(node_base + m.nodes.len()).is_err() {
+            return Err(InputError::new(
+                file,
+                format!("grains[{gi}]"),
+                format!(
+                    "the rank's model exceeds {} nodes; use more MPI ranks or a coarser seeding",
+                    u32::MAX
+                ),
+            ));
+        }
         let quality = mesh::quality(&m);
         let surface_local = mesh::extract_surface(&m);
         for p in &m.nodes {

@@ -303,17 +303,20 @@ impl Solver {
             e.damping_dissipation(),
             e.kinetic + e.strain,
             self.energy_floor,
+            e.contact_energy + e.friction_dissipation,
         ];
         hooks.sum(&mut global);
         state.supplied_energy = state
             .supplied_energy
             .max(global[0].abs() + global[1].abs() + global[2].abs());
         let stored = global[3];
-        if !stored.is_finite() || (stored > 10.0 * state.supplied_energy && stored > global[4]) {
+        // Written so that a NaN anywhere in the ledger fails the check (NaN compares false).
+        let finite = global.iter().all(|v| v.is_finite());
+        if !finite || !(stored <= 10.0 * state.supplied_energy || stored <= global[4]) {
             let (e, density) = super::diagnose::most_strained_element(&self.model, &state.x);
             let g = &self.model.grains[self.model.grain_of_element(e)];
             return Err(MufeError::Run(format!(
-                "blow-up at t = {:.6e} s (step {}): energy exploded (kinetic + strain = {:.3e} J, supplied {:.3e} J); most strained: element {} of grain '{}' ({:.3e} J/m³); reduce simulation.dt_safety",
+                "blow-up at t = {:.6e} s (step {}): energy exploded or is not finite (kinetic + strain = {:.3e} J, supplied {:.3e} J); most strained: element {} of grain '{}' ({:.3e} J/m³); reduce simulation.dt_safety",
                 state.time,
                 state.step,
                 stored,

@@ -58,8 +58,13 @@ pub trait Case {
 pub fn load_case_scene(name: &str, text: &str, overrides: &[String]) -> Result<LoadedScene> {
     if let Some(dir) = std::env::var_os("MUFE_VALIDATION_SCENES") {
         let path = Path::new(&dir).join(format!("{name}.toml"));
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            crate::error::InputError::new(
+                &path.display().to_string(),
+                "file",
+                format!("cannot read the case scene (MUFE_VALIDATION_SCENES): {e}"),
+            )
+        })?;
         return Ok(parse_scene(&path.display().to_string(), &text, overrides)?);
     }
     Ok(parse_scene(
