@@ -411,3 +411,41 @@ fn failed_run_after_success_keeps_results() {
     let bytes = baseline_results();
     assert!(bytes.starts_with(b"\x89HDF\r\n\x1a\n"), "not an HDF5 file");
 }
+
+/// A run that fails numerically (a head-on impact at half the wave speed inverts elements
+/// within a few steps) stops at once with exit 1 and one line naming time, step, element
+/// and grain, and leaves a readable `results.h5` whose history holds finite values up to
+/// the failure — never exit 0, never NaN in the file.
+#[test]
+fn numerical_failure_stops_with_exit_1_and_a_readable_file() {
+    let out = tmp("blow_up");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/contact_head_on.toml");
+    let o = mufe(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--set",
+        "grains[0].velocity=[2500.0, 0, 0]",
+        "--set",
+        "grains[1].velocity=[-2500.0, 0, 0]",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stderr));
+    let err = text(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    for word in ["error: blow-up at t = ", "(step ", "element ", "of grain '"] {
+        assert!(err.contains(word), "{word:?} in {err}");
+    }
+    let f = hdf5::File::open(out.join("results.h5")).expect("results.h5 readable");
+    let steps: Vec<f64> = f.dataset("history/step").unwrap().read_raw().unwrap();
+    assert!(!steps.is_empty(), "history rows up to the failure");
+    for name in ["energy_balance", "kinetic_energy", "strain_energy"] {
+        let v: Vec<f64> = f
+            .dataset(&format!("history/{name}"))
+            .unwrap()
+            .read_raw()
+            .unwrap();
+        assert!(v.iter().all(|x| x.is_finite()), "{name}: {v:?}");
+    }
+}
