@@ -713,10 +713,15 @@ fn initial_overlap_is_an_input_error() {
     let loaded = parse_scene("touch.toml", &overlap_scene(2.0e-3), &[]).unwrap();
     assert!(build_solver(&loaded).is_ok());
 
-    let loaded = parse_scene("overlap.toml", &overlap_scene(2.0e-3 - 5.0e-5), &[]).unwrap();
-    let err = build_solver(&loaded)
-        .err()
-        .expect("overlap must be rejected");
+    // Refused by the exact sphere–sphere test of scene validation (before meshing), or by
+    // the mesh-level check at set-up for shapes that test does not cover: either way one
+    // input error naming both grains.
+    let err: MufeError = match parse_scene("overlap.toml", &overlap_scene(2.0e-3 - 5.0e-5), &[]) {
+        Err(e) => e.into(),
+        Ok(loaded) => build_solver(&loaded)
+            .err()
+            .expect("overlap must be rejected"),
+    };
     assert_eq!(err.exit_code(), 2);
     let MufeError::Input(e) = &err else {
         panic!("not an input error: {err}");

@@ -49,7 +49,7 @@ pub fn check_initial_overlap(model: &Model, file: &str) -> Result<(), InputError
         let (a, b) = (p.slave as usize, p.master as usize);
         let tol = OVERLAP_TOLERANCE * cm.surfaces[a].min_edge.min(cm.surfaces[b].min_edge);
         // a NaN gap (coincident nodes) counts as overlap
-        if !(r.gap <= tol) && worst.is_none_or(|w| !(r.gap <= w.0)) {
+        if (r.gap > tol || r.gap.is_nan()) && worst.is_none_or(|w| r.gap > w.0 || r.gap.is_nan()) {
             worst = Some((r.gap, a.min(b), a.max(b)));
         }
     }
@@ -70,7 +70,7 @@ pub fn check_initial_overlap(model: &Model, file: &str) -> Result<(), InputError
         let depth = -dot(sub(x0[cm.node[k] as usize], wall.point0), wall.normal);
         let g = cm.surfaces.partition_point(|s| s.nodes.end <= k);
         let tol = OVERLAP_TOLERANCE * cm.surfaces[g].min_edge;
-        if depth > tol {
+        if depth > tol || depth.is_nan() {
             return Err(InputError::new(
                 file,
                 format!("walls[{w}] and grains[{}]", grains[g].global_id),

@@ -126,7 +126,7 @@ fn step_count(loaded: &LoadedScene, dt: f64, opts: &RunOptions) -> Result<u64> {
     let limit = crate::scene::estimate::MAX_STEPS;
     let steps = (loaded.scene.simulation.duration / dt).ceil();
     let run = opts.max_steps.map_or(steps, |m| steps.min(m as f64));
-    if !opts.force && !(run <= limit as f64) {
+    if !opts.force && (run > limit as f64 || run.is_nan()) {
         return Err(crate::error::InputError::new(
             &loaded.path,
             "simulation.duration",

@@ -60,7 +60,7 @@ pub fn load_case_scene(name: &str, text: &str, overrides: &[String]) -> Result<L
         let path = Path::new(&dir).join(format!("{name}.toml"));
         let text = std::fs::read_to_string(&path).map_err(|e| {
             crate::error::InputError::new(
-                &path.display().to_string(),
+                path.display().to_string(),
                 "file",
                 format!("cannot read the case scene (MUFE_VALIDATION_SCENES): {e}"),
             )
