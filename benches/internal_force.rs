@@ -1,16 +1,21 @@
-//! Internal-force throughput (tet updates per second) with 1 and 2 threads.
+//! Internal-force throughput (tet updates per second) of every material law, side by side
+//! in one run, with 1 and 2 threads.
 //!
 //! How to run:  cargo bench --bench internal_force
 //!   (shorter: cargo bench --bench internal_force -- --measurement-time 3 --warm-up-time 1;
-//!    one thread count: cargo bench --bench internal_force -- 2_threads)
+//!    one law or thread count: cargo bench --bench internal_force -- biot/2_threads)
 //!
 //! Model: one glass sphere, R = 1.1 mm, uniform seeding 70 µm (≈ 1.5·10⁵ tets), built
-//! through the real scene path (`parse_scene` + `build_solver`), deformed by a rigid
-//! rotation of 0.3 rad plus a 10⁻³ stretch so every element has stress. One iteration is
-//! one `compute_internal_forces_into` call (element kernel + node gather), run inside a
-//! local rayon pool of 1 or 2 threads; criterion reports elements/s = tet updates/s.
-//! Also printed: model memory per element (`estimate_memory_bytes`) and a check that 1
-//! and 2 threads give bitwise identical forces. Results: docs/BENCHMARKS.md.
+//! through the real scene path (`parse_scene` + `build_solver`). Laws: `biot` (the
+//! default), `st_venant_kirchhoff`, `corotational`, and J2 on the Biot law in its elastic
+//! branch (σy far above any stress) and its plastic branch (σy = 10 MPa, far below). One
+//! iteration is two `compute_internal_forces_into` calls (element kernel + plastic state
+//! update + node gather) at two configurations, a rigid rotation of 0.3 rad after a
+//! stretch of +10⁻³ and of −10⁻³: every element has stress, and a plastic element reverses
+//! its flow at every call, so the plastic branch is taken every time. Criterion reports
+//! elements/s = tet updates/s. Also printed: model memory per element
+//! (`estimate_memory_bytes`) and a check that 1 and 2 threads give bitwise identical
+//! forces and plastic states. Results: docs/BENCHMARKS.md.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use mufe::driver::summary::estimate_memory_bytes;
@@ -23,7 +28,16 @@ use std::time::Duration;
 const RADIUS: f64 = 1.1e-3;
 const SEEDING: f64 = 7.0e-5;
 
-fn scene_text() -> String {
+/// (name, extra material lines) of the laws compared.
+const LAWS: [(&str, &str); 5] = [
+    ("biot", ""),
+    ("st_venant_kirchhoff", "law = \"st_venant_kirchhoff\""),
+    ("corotational", "law = \"corotational\""),
+    ("j2_elastic", "yield_stress = 1e10\nhardening_modulus = 1e9"),
+    ("j2_plastic", "yield_stress = 1e7\nhardening_modulus = 1e9"),
+];
+
+fn scene_text(law_lines: &str) -> String {
     format!(
         r#"
 [simulation]
@@ -33,6 +47,7 @@ duration = 1e-6
 youngs_modulus = 63e9
 poisson_ratio = 0.22
 density = 2500.0
+{law_lines}
 
 [[grains]]
 name = "sphere"
@@ -42,8 +57,9 @@ shape = {{ sphere = {{ radius = {RADIUS:e}, seeding = {SEEDING:e} }} }}
     )
 }
 
-/// x = Q (I + ε) X: rotation 0.3 rad about (1, 1, 1)/√3 after a stretch ε = diag(1, −0.3, −0.3)·10⁻³.
-fn deformed(x0: &[[f64; 3]]) -> Vec<[f64; 3]> {
+/// x = Q (I + ε) X: rotation 0.3 rad about (1, 1, 1)/√3 after a stretch
+/// ε = sign·diag(1, −0.3, −0.3)·10⁻³.
+fn deformed(x0: &[[f64; 3]], sign: f64) -> Vec<[f64; 3]> {
     let (s, c) = 0.3f64.sin_cos();
     let u = [1.0 / 3f64.sqrt(); 3];
     let mut q = [[0.0; 3]; 3];
@@ -62,7 +78,7 @@ fn deformed(x0: &[[f64; 3]]) -> Vec<[f64; 3]> {
             *v = c * delta + s * cross + (1.0 - c) * u[i] * u[j];
         }
     }
-    let stretch = [1.0 + 1e-3, 1.0 - 3e-4, 1.0 - 3e-4];
+    let stretch = [1.0 + sign * 1e-3, 1.0 - sign * 3e-4, 1.0 - sign * 3e-4];
     x0.iter()
         .map(|p| {
             let y = [p[0] * stretch[0], p[1] * stretch[1], p[2] * stretch[2]];
@@ -72,24 +88,6 @@ fn deformed(x0: &[[f64; 3]]) -> Vec<[f64; 3]> {
 }
 
 fn internal_force(c: &mut Criterion) {
-    let loaded = parse_scene("benches/internal_force.rs", &scene_text(), &[]).expect("scene");
-    let solver = build_solver(&loaded).expect("model");
-    let model = &solver.model;
-    let (ne, nn) = (model.num_elements(), model.num_nodes());
-    assert!(ne >= 100_000, "benchmark mesh has only {ne} tets");
-    let bytes = estimate_memory_bytes(model);
-    println!(
-        "internal_force: sphere R = {RADIUS:e} m, seeding {SEEDING:e} m: {ne} tets, {nn} nodes; \
-         model memory {:.1} MiB = {:.0} bytes/element",
-        bytes as f64 / 1048576.0,
-        bytes as f64 / ne as f64
-    );
-
-    let x = deformed(&model.x0);
-    let mut scratch = ElementScratch::new(model);
-    let mut force = vec![[0.0; 3]; nn];
-
-    // 1 vs 2 threads must agree bitwise (fixed chunks + incidence gather).
     let pools: Vec<(usize, rayon::ThreadPool)> = [1, 2]
         .into_iter()
         .map(|t| {
@@ -100,36 +98,79 @@ fn internal_force(c: &mut Criterion) {
             (t, pool)
         })
         .collect();
-    let mut results = Vec::new();
-    for (_, pool) in &pools {
-        let summary =
-            pool.install(|| compute_internal_forces_into(model, &x, &mut scratch, &mut force));
-        assert!(summary.bad_element.is_none());
-        results.push((summary.strain_energy.to_bits(), force.clone()));
-    }
-    assert!(
-        results[0] == results[1],
-        "1 and 2 threads give different forces"
-    );
-    println!(
-        "internal_force: strain energy {:.6e} J, 1 and 2 threads bitwise identical",
-        f64::from_bits(results[0].0)
-    );
-
     let mut group = c.benchmark_group("internal_force");
-    group.throughput(Throughput::Elements(ne as u64));
-    for (threads, pool) in &pools {
-        group.bench_with_input(
-            BenchmarkId::new("sphere_150k_tets", format!("{threads}_threads")),
-            threads,
-            |b, _| {
-                b.iter(|| {
-                    pool.install(|| {
-                        compute_internal_forces_into(model, &x, &mut scratch, &mut force)
-                    })
-                })
-            },
+    for (law, lines) in LAWS {
+        let loaded =
+            parse_scene("benches/internal_force.rs", &scene_text(lines), &[]).expect("scene");
+        let solver = build_solver(&loaded).expect("model");
+        let model = &solver.model;
+        let (ne, nn) = (model.num_elements(), model.num_nodes());
+        assert!(ne >= 100_000, "benchmark mesh has only {ne} tets");
+        let bytes = estimate_memory_bytes(model);
+        println!(
+            "internal_force/{law}: sphere R = {RADIUS:e} m, seeding {SEEDING:e} m: {ne} tets, {nn} nodes; \
+             model memory {:.1} MiB = {:.0} bytes/element",
+            bytes as f64 / 1048576.0,
+            bytes as f64 / ne as f64
         );
+        let configurations = [deformed(&model.x0, 1.0), deformed(&model.x0, -1.0)];
+        let mut scratch = ElementScratch::new(model);
+        let mut force = vec![[0.0; 3]; nn];
+
+        // 1 vs 2 threads must agree bitwise (fixed chunks + incidence gather), plastic
+        // states included.
+        let mut results = Vec::new();
+        for (_, pool) in &pools {
+            let mut plastic = solver.state.plastic.clone();
+            let mut energies = Vec::new();
+            for x in &configurations {
+                let summary = pool.install(|| {
+                    compute_internal_forces_into(model, x, &mut plastic, &mut scratch, &mut force)
+                });
+                assert!(summary.bad_element.is_none());
+                energies.push((summary.strain_energy, summary.plastic_work));
+            }
+            results.push((energies, force.clone(), plastic));
+        }
+        assert!(
+            results[0] == results[1],
+            "{law}: 1 and 2 threads give different forces"
+        );
+        let (energies, _, plastic) = &results[0];
+        let yielded = plastic.iter().filter(|p| p.equivalent > 0.0).count();
+        println!(
+            "internal_force/{law}: strain energy {:.6e} J, plastic work {:.3e} J, {yielded} of {} plastic states yielded; 1 and 2 threads bitwise identical",
+            energies[1].0,
+            energies[0].1 + energies[1].1,
+            plastic.len()
+        );
+        if law == "j2_plastic" {
+            assert_eq!(yielded, ne, "every element must take the plastic branch");
+        }
+
+        group.throughput(Throughput::Elements(2 * ne as u64));
+        let mut plastic = solver.state.plastic.clone();
+        for (threads, pool) in &pools {
+            group.bench_with_input(
+                BenchmarkId::new(law, format!("{threads}_threads")),
+                threads,
+                |b, _| {
+                    b.iter(|| {
+                        pool.install(|| {
+                            for x in &configurations {
+                                compute_internal_forces_into(
+                                    model,
+                                    x,
+                                    &mut plastic,
+                                    &mut scratch,
+                                    &mut force,
+                                );
+                            }
+                        })
+                    })
+                },
+            );
+        }
     }
     group.finish();
 }

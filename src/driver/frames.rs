@@ -1,27 +1,45 @@
 //! Frames of `results.h5`: per-node displacement and velocity, per-element Cauchy and
-//! von Mises stress of the owned grains, gathered in global order.
+//! von Mises stress and equivalent plastic strain of the owned grains, gathered in global
+//! order.
 
 use crate::domain::Domain;
 use crate::error::Result;
 use crate::io::results::{FieldPart, ResultsWriter};
 use crate::material::{cauchy_from_first_piola, von_mises};
 use crate::model::global::GlobalMesh;
-use crate::solver::Solver;
+use crate::solver::{element_response, Solver};
 
-/// Per-element Cauchy stress (xx, yy, zz, yz, xz, xy; Pa) and von Mises stress.
-pub fn element_stresses(solver: &Solver) -> (Vec<f64>, Vec<f64>) {
+/// Per-element fields of a frame, in model element order.
+pub struct ElementFields {
+    /// Cauchy stress (xx, yy, zz, yz, xz, xy; Pa).
+    pub stress: Vec<f64>,
+    /// von Mises stress of the Cauchy stress (Pa).
+    pub von_mises: Vec<f64>,
+    /// Equivalent plastic strain α (–; 0 in elastic elements).
+    pub equivalent_plastic_strain: Vec<f64>,
+}
+
+/// Cauchy stress, von Mises stress and equivalent plastic strain of every element at the
+/// current positions, from the committed plastic state (the return mapping is evaluated,
+/// not committed, so the fields are those the next step will see).
+pub fn element_fields(solver: &Solver) -> ElementFields {
     let m = &solver.model;
-    let mut stress = Vec::with_capacity(6 * m.num_elements());
-    let mut vm = Vec::with_capacity(m.num_elements());
-    for (e, t) in m.tets.iter().enumerate() {
-        let xe = t.map(|n| solver.state.x[n as usize]);
-        let f = crate::element::deformation_gradient(&xe, &m.tet_reference[e].dm_inv);
-        let (p, _) = m.laws[m.tet_law[e] as usize].first_piola_and_energy(&f);
-        let s = cauchy_from_first_piola(&p, &f);
-        stress.extend_from_slice(&[s[0], s[4], s[8], s[5], s[2], s[1]]);
-        vm.push(von_mises(&s));
+    let ne = m.num_elements();
+    let mut out = ElementFields {
+        stress: Vec::with_capacity(6 * ne),
+        von_mises: Vec::with_capacity(ne),
+        equivalent_plastic_strain: Vec::with_capacity(ne),
+    };
+    for e in 0..ne {
+        let (f, r) = element_response(m, &solver.state.x, &solver.state.plastic, e);
+        let s = cauchy_from_first_piola(&r.first_piola, &f);
+        out.stress
+            .extend_from_slice(&[s[0], s[4], s[8], s[5], s[2], s[1]]);
+        out.von_mises.push(von_mises(&s));
+        out.equivalent_plastic_strain
+            .push(r.point.map_or(0.0, |p| p.equivalent));
     }
-    (stress, vm)
+    out
 }
 
 /// Writes one frame: every rank contributes its owned grains' rows, rank 0 gathers them in
@@ -42,14 +60,19 @@ pub fn write_frame(
         .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
         .collect();
     let vel: Vec<f64> = solver.state.v[..nn].iter().flatten().copied().collect();
-    let (stress, vm) = element_stresses(solver);
+    let fields = element_fields(solver);
     let gather = |local: &[f64], offsets: &[usize], k: usize| {
         gather_rows(domain, owner, offsets, local, k).unwrap_or_default()
     };
     let disp = gather(&disp, &global.node_offset, 3);
     let vel = gather(&vel, &global.node_offset, 3);
-    let stress = gather(&stress[..6 * ne], &global.element_offset, 6);
-    let vm = gather(&vm[..ne], &global.element_offset, 1);
+    let stress = gather(&fields.stress[..6 * ne], &global.element_offset, 6);
+    let vm = gather(&fields.von_mises[..ne], &global.element_offset, 1);
+    let eqps = gather(
+        &fields.equivalent_plastic_strain[..ne],
+        &global.element_offset,
+        1,
+    );
     let (n, e) = (global.total_nodes() as u64, global.total_elements() as u64);
     let fields = [
         FieldPart {
@@ -81,6 +104,14 @@ pub fn write_frame(
             units: "Pa",
             components: 1,
             data: &vm,
+            offset: 0,
+            total: e,
+        },
+        FieldPart {
+            name: "equivalent_plastic_strain",
+            units: "1",
+            components: 1,
+            data: &eqps,
             offset: 0,
             total: e,
         },

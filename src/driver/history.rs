@@ -20,26 +20,26 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
         HistoryColumn::new(
             "strain_energy",
             "J",
-            Some("ALLSE"),
-            "elastic strain energy Σ V0 W(F)",
+            None,
+            "whole stress work of the grains: recoverable strain energy + plastic dissipation",
         ),
         HistoryColumn::new(
             "recoverable_strain_energy",
             "J",
-            None,
-            "recoverable part of the strain energy",
+            Some("ALLSE"),
+            "elastic (recoverable) strain energy Σ V0 ψ(ε̃ᵉ)",
         ),
         HistoryColumn::new(
             "internal_energy",
             "J",
             Some("ALLIE"),
-            "strain + plastic dissipation + contact spring energy",
+            "recoverable strain energy + plastic dissipation + contact penalty energy",
         ),
         HistoryColumn::new(
             "plastic_dissipation",
             "J",
             Some("ALLPD"),
-            "energy dissipated by plastic flow",
+            "plastic work Σ V0 T̃:Δεᵖ, accumulated per element at every step",
         ),
         HistoryColumn::new(
             "friction_dissipation",
@@ -64,6 +64,18 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
             "J",
             Some("ETOTAL"),
             "ALLKE + ALLIE + ALLVD + ALLFD − ALLWK",
+        ),
+        HistoryColumn::new(
+            "plastic_index",
+            "1",
+            None,
+            "ALLPD / (ALLSE + ALLPD): share of the grains' stress work dissipated plastically",
+        ),
+        HistoryColumn::new(
+            "friction_index",
+            "1",
+            None,
+            "ALLFD / (ALLFD + ALLPD + ALLSE): share of friction in the energy taken up by grains and contacts",
         ),
     ];
     for name in &solver.model.boundary_names {
@@ -138,6 +150,7 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
 pub fn history_reductions(solver: &Solver) -> Vec<Reduce> {
     let mut k = vec![Reduce::Same, Reduce::Same];
     k.extend([Reduce::Sum; 9]);
+    k.extend([Reduce::Derived; 2]);
     k.extend(std::iter::repeat_n(
         Reduce::Sum,
         12 * solver.model.boundary_names.len(),
@@ -167,7 +180,7 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
         },
         s.step.saturating_sub(1) as f64,
         e.kinetic,
-        e.strain,
+        e.strain(),
         e.recoverable_strain,
         e.internal(),
         e.plastic_dissipation,
@@ -175,6 +188,8 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
         e.external_work(),
         e.damping_dissipation(),
         e.total(),
+        e.plastic_index(),
+        e.friction_index(),
     ]);
     // a motion lives on the rank owning its grain; other ranks report zeros (summed)
     for name in &solver.model.boundary_names {
@@ -206,6 +221,8 @@ pub enum Reduce {
     Same,
     Sum,
     Max,
+    /// A ratio of other columns, recomputed from their reduced values.
+    Derived,
 }
 
 /// Reduces a history row in place. All ranks must call.
@@ -232,9 +249,30 @@ pub fn reduce_row(domain: &Domain, kinds: &[Reduce], row: &mut [f64]) {
         match k {
             Reduce::Sum => *v = s.next().unwrap_or(*v),
             Reduce::Max => *v = m.next().unwrap_or(*v),
-            Reduce::Same => {}
+            Reduce::Same | Reduce::Derived => {}
         }
     }
+    derive_indices(row);
+}
+
+/// Positions of the energy columns the indices are made of (see [`history_columns`]).
+const RECOVERABLE: usize = 4;
+const PLASTIC: usize = 6;
+const FRICTION: usize = 7;
+const PLASTIC_INDEX: usize = 11;
+const FRICTION_INDEX: usize = 12;
+
+/// Recomputes the energy indices of a row from its (reduced) energy columns, with the
+/// formulas of [`EnergyLedger::plastic_index`] and [`EnergyLedger::friction_index`].
+fn derive_indices(row: &mut [f64]) {
+    let ledger = EnergyLedger {
+        recoverable_strain: row[RECOVERABLE],
+        plastic_dissipation: row[PLASTIC],
+        friction_dissipation: row[FRICTION],
+        ..EnergyLedger::default()
+    };
+    row[PLASTIC_INDEX] = ledger.plastic_index();
+    row[FRICTION_INDEX] = ledger.friction_index();
 }
 
 /// The energy ledger summed over ranks (each rank's ledger covers its owned grains). All
@@ -242,7 +280,6 @@ pub fn reduce_row(domain: &Domain, kinds: &[Reduce], row: &mut [f64]) {
 pub fn global_ledger(domain: &Domain, e: &EnergyLedger) -> EnergyLedger {
     let mut v = [
         e.kinetic,
-        e.strain,
         e.recoverable_strain,
         e.plastic_dissipation,
         e.friction_dissipation,
@@ -259,20 +296,19 @@ pub fn global_ledger(domain: &Domain, e: &EnergyLedger) -> EnergyLedger {
     }
     EnergyLedger {
         kinetic: v[0],
-        strain: v[1],
-        recoverable_strain: v[2],
-        plastic_dissipation: v[3],
-        friction_dissipation: v[4],
-        contact_energy: v[5],
+        recoverable_strain: v[1],
+        plastic_dissipation: v[2],
+        friction_dissipation: v[3],
+        contact_energy: v[4],
         body_force: WorkAccumulator {
-            work: v[6],
-            pending: v[7],
+            work: v[5],
+            pending: v[6],
         },
-        boundary_work: v[8],
+        boundary_work: v[7],
         damping: WorkAccumulator {
-            work: v[9],
-            pending: v[10],
+            work: v[8],
+            pending: v[9],
         },
-        initial_total: e.initial_total.map(|_| v[11]),
+        initial_total: e.initial_total.map(|_| v[10]),
     }
 }

@@ -10,8 +10,8 @@ use crate::scene::LoadedScene;
 use crate::solver::{build_solver_for, Solver};
 
 /// Serialises what travels with a grain when it changes hands: its nodes' x and v, the
-/// friction history of its surface nodes as slaves, and the state of its prescribed
-/// motions. Integers are stored as f64 (exact below 2⁵³).
+/// friction history of its surface nodes as slaves, the state of its prescribed motions
+/// and the plastic state of its elements. Integers are stored as f64 (exact below 2⁵³).
 pub fn pack_grain(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
     let m = &solver.model;
     let g = &m.grains[model_grain];
@@ -34,11 +34,16 @@ pub fn pack_grain(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
         })
         .map(|(k, _)| k)
         .collect();
+    let plastic = m
+        .plastic_range(model_grain)
+        .map(|r| &st.plastic[r])
+        .unwrap_or(&[]);
     out.extend_from_slice(&[
         g.global_id as f64,
         nodes.len() as f64,
         hist.len() as f64,
         motion_ix.len() as f64,
+        plastic.len() as f64,
     ]);
     for n in nodes.clone() {
         out.extend_from_slice(&st.x[n]);
@@ -69,6 +74,10 @@ pub fn pack_grain(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
         }
         out.extend_from_slice(&[st.motion_work[k].work, st.motion_work[k].pending]);
     }
+    for p in plastic {
+        out.extend_from_slice(&p.strain);
+        out.push(p.equivalent);
+    }
 }
 
 /// Installs packed grains (see [`pack_grain`]) into a freshly built solver. Returns the
@@ -78,17 +87,18 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
     let mut installed = Vec::new();
     let mut i = 0;
     while i < data.len() {
-        let head = data.get(i..i + 4).ok_or_else(bad)?;
-        let (gid, nn, nh, nm) = (
+        let head = data.get(i..i + 5).ok_or_else(bad)?;
+        let (gid, nn, nh, nm, np) = (
             head[0] as u32,
             head[1] as usize,
             head[2] as usize,
             head[3] as usize,
+            head[4] as usize,
         );
-        i += 4;
+        i += 5;
         let Some(mg) = solver.model.grains.iter().position(|g| g.global_id == gid) else {
             // not held here: skip the package
-            i += 6 * nn + 5 * nh + nm * (1 + 9 + 12 + 2);
+            i += 6 * nn + 5 * nh + nm * (1 + 9 + 12 + 2) + 7 * np;
             continue;
         };
         let range = solver.model.grains[mg].nodes.clone();
@@ -145,6 +155,23 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
             }
             i += 24;
         }
+        // plastic state: only an owner keeps it (ghost elements are not evaluated)
+        if let Some(range) = solver.model.plastic_range(mg) {
+            if range.len() != np {
+                return Err(MufeError::Run(format!(
+                    "migration: grain {gid} has {} plastic elements here, {np} in the package",
+                    range.len()
+                )));
+            }
+            for (k, slot) in range.enumerate() {
+                let p = data.get(i + 7 * k..i + 7 * k + 7).ok_or_else(bad)?;
+                solver.state.plastic[slot] = crate::material::PlasticPoint {
+                    strain: [p[0], p[1], p[2], p[3], p[4], p[5]],
+                    equivalent: p[6],
+                };
+            }
+        }
+        i += 7 * np;
         installed.push(gid);
     }
     solver.state.contact.history.sort_by_key(|p| p.key);

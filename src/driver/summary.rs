@@ -122,9 +122,12 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
         summary.elements as f64 * summary.steps as f64 / solver.timers.total_seconds().max(1e-9)
     );
     println!(
-        "energy: kinetic {:.4e} J, strain {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
+        "energy: kinetic {:.4e} J, strain {:.4e} J (recoverable {:.4e} J, plastic {:.4e} J), friction {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
         e.kinetic,
-        e.strain,
+        e.strain(),
+        e.recoverable_strain,
+        e.plastic_dissipation,
+        e.friction_dissipation,
         e.external_work(),
         e.damping_dissipation(),
         e.relative_balance_error()

@@ -36,11 +36,9 @@ impl WorkAccumulator {
 pub struct EnergyLedger {
     /// ALLKE: ½ v_{n−½}·M v_{n+½}.
     pub kinetic: f64,
-    /// ALLSE: elastic strain energy Σ V0·W(F).
-    pub strain: f64,
-    /// Recoverable part of the strain energy (equals `strain` for elastic grains).
+    /// ALLSE: recoverable (elastic) strain energy Σ V0·ψ, a function of the current state.
     pub recoverable_strain: f64,
-    /// ALLPD: plastic dissipation.
+    /// ALLPD: plastic work Σ V0·T̃:Δεᵖ, accumulated over the run.
     pub plastic_dissipation: f64,
     /// ALLFD: frictional dissipation Σ f_t·Δslip.
     pub friction_dissipation: f64,
@@ -58,9 +56,29 @@ pub struct EnergyLedger {
 }
 
 impl EnergyLedger {
-    /// ALLIE: internal energy = strain + plastic dissipation (+ contact spring energy).
+    /// The grains' whole stress work: ALLSE + ALLPD (equal to ALLSE for elastic grains).
+    pub fn strain(&self) -> f64 {
+        self.recoverable_strain + self.plastic_dissipation
+    }
+
+    /// ALLIE: internal energy = ALLSE + ALLPD + contact penalty energy.
     pub fn internal(&self) -> f64 {
-        self.strain + self.plastic_dissipation + self.contact_energy
+        self.strain() + self.contact_energy
+    }
+
+    /// Plastic index ALLPD / (ALLSE + ALLPD) (0 before any strain energy): the share of the
+    /// grains' stress work that plastic flow has dissipated.
+    pub fn plastic_index(&self) -> f64 {
+        ratio(self.plastic_dissipation, self.strain())
+    }
+
+    /// Friction index ALLFD / (ALLFD + ALLPD + ALLSE) (0 before any energy): the share of
+    /// friction in the energy taken up by grains and contacts.
+    pub fn friction_index(&self) -> f64 {
+        ratio(
+            self.friction_dissipation,
+            self.friction_dissipation + self.strain(),
+        )
     }
 
     /// ALLVD: energy removed by damping (J, ≥ 0 up to round-off).
@@ -98,6 +116,15 @@ impl EnergyLedger {
     }
 }
 
+/// a / b, or 0 when b is not positive.
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 {
+        a / b
+    } else {
+        0.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -114,7 +141,7 @@ mod tests {
             let f = -k * x + f_ext;
             let v_new = v + dt * f / m;
             ledger.kinetic = 0.5 * m * v * v_new;
-            ledger.strain = 0.5 * k * x * x;
+            ledger.recoverable_strain = 0.5 * k * x * x;
             ledger.body_force.record(dt, f_ext * v, f_ext * v_new);
             if ledger.initial_total.is_none() {
                 ledger.initial_total = Some(ledger.total());

@@ -1,8 +1,16 @@
 //! Grain materials: small stateless types with a `Parameters` type and the formula in the
-//! doc comment. Per-element state (plastic strain, hardening) lives beside the element
-//! data and exists only for materials that need it.
+//! doc comment ([`elastic`], [`j2`]). The only per-element state is the plastic state of
+//! elements of plastic materials ([`PlasticPoint`]); it lives in the run's `State`.
 
-use crate::math::{det3, mat_mul};
+pub mod elastic;
+pub mod j2;
+
+pub use elastic::{
+    green_lagrange_strain, polar_rotation, CorotationalLinear, SecondOrderBiot, StVenantKirchhoff,
+};
+pub use j2::{PlasticPoint, J2};
+
+use crate::math::det3;
 use serde::{Deserialize, Serialize};
 
 /// Isotropic linear elasticity parameters (SI units).
@@ -60,212 +68,119 @@ impl ElasticParameters {
     }
 }
 
-/// St Venant–Kirchhoff hyperelasticity, the large-rotation form of linear isotropic
-/// elasticity used for every elastic grain:
-///
-/// E = ½(FᵀF − I),  S = λ tr(E) I + 2μ E,  P = F S,  W = ½λ (tr E)² + μ E:E.
-///
-/// W depends on F only through FᵀF, so a rigid rotation (F = R) gives exactly zero
-/// stress and energy: the formulation is objective for arbitrarily large rotations, which
-/// rolling grains need. For the small strains of elastic grains (< 1e-2) it coincides with
-/// Hooke's law to O(ε²).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StVenantKirchhoff {
-    /// First Lamé constant λ (Pa).
-    pub lambda: f64,
-    /// Shear modulus μ (Pa).
-    pub mu: f64,
-}
-
-impl StVenantKirchhoff {
-    pub fn new(p: &ElasticParameters) -> Self {
-        let (lambda, mu) = p.lame();
-        Self { lambda, mu }
-    }
-
-    /// Returns the first Piola–Kirchhoff stress P (row-major 3×3, Pa) and the strain energy
-    /// density W (J/m³) for a deformation gradient F (row-major 3×3).
-    #[inline(always)]
-    pub fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
-        let e = green_lagrange_strain(f);
-        let s = self.second_piola(&e);
-        let tr = e[0] + e[4] + e[8];
-        let ee = e.iter().map(|v| v * v).sum::<f64>();
-        let w = 0.5 * self.lambda * tr * tr + self.mu * ee;
-        (mat_mul(f, &s), w)
-    }
-
-    /// S = λ tr(E) I + 2μ E (Pa).
-    #[inline(always)]
-    pub fn second_piola(&self, e: &[f64; 9]) -> [f64; 9] {
-        let tr = e[0] + e[4] + e[8];
-        let mut s = [0.0; 9];
-        for (si, ei) in s.iter_mut().zip(e) {
-            *si = 2.0 * self.mu * ei;
-        }
-        s[0] += self.lambda * tr;
-        s[4] += self.lambda * tr;
-        s[8] += self.lambda * tr;
-        s
-    }
-}
-
-/// Corotational linear elasticity in Biot form: F = R·U (polar decomposition),
-///
-/// ε = U − I,  T = λ tr(ε) I + 2μ ε,  P = R·T,  W = ½λ (tr ε)² + μ ε:ε.
-///
-/// Like [`StVenantKirchhoff`] it is hyperelastic and exactly objective (W depends on U only),
-/// but its stress is linear in the stretch, so it reproduces small-strain (Hooke) elasticity
-/// to second order where SVK softens in compression by O(ε) (3.7 % in the force of a 50 N
-/// glass contact). Use it to compare with linear-elastic references; it also gives the
-/// rotated frame a J2 return mapping needs. T is coaxial with U, so P = R·T is exactly
-/// ∂W/∂F.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CorotationalLinear {
-    /// First Lamé constant λ (Pa).
-    pub lambda: f64,
-    /// Shear modulus μ (Pa).
-    pub mu: f64,
-}
-
-impl CorotationalLinear {
-    pub fn new(p: &ElasticParameters) -> Self {
-        let (lambda, mu) = p.lame();
-        Self { lambda, mu }
-    }
-
-    /// P (row-major, Pa) and W (J/m³) for a deformation gradient F.
-    #[inline(always)]
-    pub fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
-        let r = polar_rotation(f);
-        // U = Rᵀ F, symmetrised against round-off
-        let mut u = [0.0; 9];
-        for i in 0..3 {
-            for j in 0..3 {
-                u[3 * i + j] = r[i] * f[j] + r[3 + i] * f[3 + j] + r[6 + i] * f[6 + j];
-            }
-        }
-        let mut eps = [0.0; 9];
-        for i in 0..3 {
-            for j in 0..3 {
-                eps[3 * i + j] =
-                    0.5 * (u[3 * i + j] + u[3 * j + i]) - if i == j { 1.0 } else { 0.0 };
-            }
-        }
-        let tr = eps[0] + eps[4] + eps[8];
-        let mut t = [0.0; 9];
-        for (ti, ei) in t.iter_mut().zip(&eps) {
-            *ti = 2.0 * self.mu * ei;
-        }
-        t[0] += self.lambda * tr;
-        t[4] += self.lambda * tr;
-        t[8] += self.lambda * tr;
-        let ee = eps.iter().map(|v| v * v).sum::<f64>();
-        (mat_mul(&r, &t), 0.5 * self.lambda * tr * tr + self.mu * ee)
-    }
-}
-
-/// Rotation R of the polar decomposition F = R U (det F > 0), by the scaled Newton
-/// iteration X ← ½(ζX + ζ⁻¹X⁻ᵀ), ζ = |det X|^(−1/3). Its convergence depends only on the
-/// stretch U (the iteration commutes with rotations): a few steps for the strains of
-/// grains, quadratic to machine precision.
-#[inline(always)]
-pub fn polar_rotation(f: &[f64; 9]) -> [f64; 9] {
-    let mut x = *f;
-    for iteration in 0..12 {
-        let det = det3(&x);
-        if !(det.is_finite() && det.abs() > 0.0) {
-            return x;
-        }
-        // scaling speeds up the first steps far from R; near R it is 1 to working precision
-        let zeta = if iteration < 2 {
-            1.0 / det.abs().cbrt()
-        } else {
-            1.0
-        };
-        // X⁻ᵀ = cof(X)/det
-        let cof = [
-            x[4] * x[8] - x[5] * x[7],
-            x[5] * x[6] - x[3] * x[8],
-            x[3] * x[7] - x[4] * x[6],
-            x[2] * x[7] - x[1] * x[8],
-            x[0] * x[8] - x[2] * x[6],
-            x[1] * x[6] - x[0] * x[7],
-            x[1] * x[5] - x[2] * x[4],
-            x[2] * x[3] - x[0] * x[5],
-            x[0] * x[4] - x[1] * x[3],
-        ];
-        let mut change: f64 = 0.0;
-        for k in 0..9 {
-            let next = 0.5 * (zeta * x[k] + cof[k] / (zeta * det));
-            change = change.max((next - x[k]).abs());
-            x[k] = next;
-        }
-        if change < 1e-14 {
-            break;
-        }
-    }
-    x
-}
-
 /// Which elastic law a material uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ElasticLawKind {
-    /// [`StVenantKirchhoff`]: S linear in the Green–Lagrange strain (default).
+    /// [`SecondOrderBiot`]: Hooke's law in the Biot strain to second order (default; the
+    /// strain measure of J2 plasticity).
     #[default]
+    Biot,
+    /// [`StVenantKirchhoff`]: S linear in the Green–Lagrange strain (softer than Hooke in
+    /// compression by 1.5ε).
     StVenantKirchhoff,
-    /// [`CorotationalLinear`]: Biot stress linear in U − I.
+    /// [`CorotationalLinear`]: Biot stress exactly linear in U − I (polar decomposition by
+    /// Newton iteration; ~4× the cost of the default).
     Corotational,
 }
 
-/// An elastic law with its constants, dispatched per element.
+/// J2 parameters of a plastic material (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ElasticLaw {
+pub struct PlasticParameters {
+    /// Initial yield stress σy (Pa).
+    pub yield_stress: f64,
+    /// Linear isotropic hardening modulus H (Pa), σ_flow = σy + H α.
+    pub hardening_modulus: f64,
+}
+
+/// A material's law with its constants, dispatched per element.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MaterialLaw {
     pub kind: ElasticLawKind,
     /// First Lamé constant λ (Pa).
     pub lambda: f64,
     /// Shear modulus μ (Pa).
     pub mu: f64,
+    /// J2 plasticity on top of the [`ElasticLawKind::Biot`] law, for plastic materials.
+    pub plastic: Option<J2>,
 }
 
-impl ElasticLaw {
-    pub fn new(p: &ElasticParameters, kind: ElasticLawKind) -> Self {
+/// Stress response of one element.
+#[derive(Debug, Clone, Copy)]
+pub struct Response {
+    /// First Piola–Kirchhoff stress P (row-major, Pa).
+    pub first_piola: [f64; 9],
+    /// Recoverable (elastic) energy density (J/m³).
+    pub stored_energy: f64,
+    /// Plastic work density of this evaluation (J/m³).
+    pub dissipation: f64,
+    /// Plastic state after the evaluation (plastic materials only).
+    pub point: Option<PlasticPoint>,
+}
+
+impl MaterialLaw {
+    /// Plasticity requires the Biot law (its strain measure); the scene checks enforce it.
+    pub fn new(
+        p: &ElasticParameters,
+        kind: ElasticLawKind,
+        plastic: Option<PlasticParameters>,
+    ) -> Self {
         let (lambda, mu) = p.lame();
-        Self { kind, lambda, mu }
+        Self {
+            kind,
+            lambda,
+            mu,
+            plastic: plastic.map(|q| J2 {
+                lambda,
+                mu,
+                yield_stress: q.yield_stress,
+                hardening_modulus: q.hardening_modulus,
+            }),
+        }
     }
 
-    /// P (row-major, Pa) and W (J/m³) for a deformation gradient F.
+    /// P (row-major, Pa) and the elastic energy density W (J/m³) of an elastic law.
     #[inline(always)]
     pub fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
+        let (lambda, mu) = (self.lambda, self.mu);
         match self.kind {
-            ElasticLawKind::StVenantKirchhoff => StVenantKirchhoff {
-                lambda: self.lambda,
-                mu: self.mu,
+            ElasticLawKind::Biot => SecondOrderBiot { lambda, mu }.first_piola_and_energy(f),
+            ElasticLawKind::StVenantKirchhoff => {
+                StVenantKirchhoff { lambda, mu }.first_piola_and_energy(f)
             }
-            .first_piola_and_energy(f),
-            ElasticLawKind::Corotational => CorotationalLinear {
-                lambda: self.lambda,
-                mu: self.mu,
+            ElasticLawKind::Corotational => {
+                CorotationalLinear { lambda, mu }.first_piola_and_energy(f)
             }
-            .first_piola_and_energy(f),
         }
     }
-}
 
-/// Green–Lagrange strain E = ½(FᵀF − I), row-major.
-#[inline(always)]
-pub fn green_lagrange_strain(f: &[f64; 9]) -> [f64; 9] {
-    let mut e = [0.0; 9];
-    for i in 0..3 {
-        for j in i..3 {
-            let c = f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j];
-            let v = 0.5 * (c - if i == j { 1.0 } else { 0.0 });
-            e[3 * i + j] = v;
-            e[3 * j + i] = v;
+    /// The response at F from the committed plastic state `point` (ignored by elastic
+    /// laws). Pure: the caller commits `Response::point`.
+    #[inline(always)]
+    pub fn respond(&self, f: &[f64; 9], point: Option<&PlasticPoint>) -> Response {
+        match (&self.plastic, point) {
+            (Some(j2), Some(old)) => {
+                let e = elastic::green_lagrange_sym(f);
+                let eps = elastic::biot_strain_from_green(&e);
+                let r = j2.return_map(&eps, old);
+                Response {
+                    first_piola: elastic::first_piola_from_biot_stress(f, &e, &r.stress),
+                    stored_energy: r.stored_energy,
+                    dissipation: r.dissipation,
+                    point: Some(r.point),
+                }
+            }
+            _ => {
+                let (first_piola, stored_energy) = self.first_piola_and_energy(f);
+                Response {
+                    first_piola,
+                    stored_energy,
+                    dissipation: 0.0,
+                    point: None,
+                }
+            }
         }
     }
-    e
 }
 
 /// Cauchy stress σ = J⁻¹ P Fᵀ (Pa), row-major, for output.
@@ -293,99 +208,4 @@ pub fn von_mises(s: &[f64; 9]) -> f64 {
         }
     }
     (1.5 * j2).sqrt()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rotation_gives_zero_stress_and_energy() {
-        let p = ElasticParameters::paper_glass();
-        let m = StVenantKirchhoff::new(&p);
-        let (c, s) = (0.3_f64.cos(), 0.3_f64.sin());
-        // rotation about an oblique axis: Rz(0.3)·Rx(1.1)
-        let rz = [c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0];
-        let (c1, s1) = (1.1_f64.cos(), 1.1_f64.sin());
-        let rx = [1.0, 0.0, 0.0, 0.0, c1, -s1, 0.0, s1, c1];
-        let r = mat_mul(&rz, &rx);
-        let (pk, w) = m.first_piola_and_energy(&r);
-        assert!(pk.iter().all(|v| v.abs() < 1e-15 * p.youngs_modulus));
-        assert!(w.abs() < 1e-20 * p.youngs_modulus);
-    }
-
-    #[test]
-    fn small_uniaxial_strain_matches_hooke() {
-        let p = ElasticParameters::paper_glass();
-        let m = StVenantKirchhoff::new(&p);
-        let eps = 1e-7;
-        let f = [1.0 + eps, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
-        let (pk, w) = m.first_piola_and_energy(&f);
-        let (lambda, mu) = p.lame();
-        let expected = (lambda + 2.0 * mu) * eps;
-        assert!((pk[0] - expected).abs() < 1e-6 * expected);
-        assert!((pk[4] - lambda * eps).abs() < 1e-6 * lambda * eps);
-        let w_ref = 0.5 * (lambda + 2.0 * mu) * eps * eps;
-        assert!((w - w_ref).abs() < 1e-6 * w_ref);
-    }
-
-    #[test]
-    fn corotational_law_is_objective_matches_hooke_and_is_the_energy_gradient() {
-        let p = ElasticParameters::paper_glass();
-        let law = CorotationalLinear::new(&p);
-        let (lambda, mu) = p.lame();
-        // rigid rotation: zero stress
-        let (c, s) = (1.3f64.cos(), 1.3f64.sin());
-        let rz = [c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0];
-        let (pk, w) = law.first_piola_and_energy(&rz);
-        assert!(
-            pk.iter().all(|v| v.abs() < 1e-6) && w.abs() < 1e-12,
-            "{pk:?}"
-        );
-        // 5 % uniaxial compression: exactly Hooke's stress (SVK would give 7 % less)
-        let f = [0.95, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
-        let (pk, _) = law.first_piola_and_energy(&f);
-        let hooke = -(lambda + 2.0 * mu) * 0.05;
-        assert!(
-            (pk[0] - hooke).abs() < 1e-9 * hooke.abs(),
-            "{} vs {hooke}",
-            pk[0]
-        );
-        // rotated stretch: P = R·T with the same T
-        let rf = mat_mul(&rz, &f);
-        let (pr, _) = law.first_piola_and_energy(&rf);
-        let expected = mat_mul(&rz, &pk);
-        for k in 0..9 {
-            assert!((pr[k] - expected[k]).abs() < 1e-6 * hooke.abs());
-        }
-        // P = ∂W/∂F at a general F
-        let f = [1.01, 0.02, -0.03, 0.015, 0.98, 0.01, -0.02, 0.025, 1.03];
-        let f = mat_mul(&rz, &f);
-        let (pk, _) = law.first_piola_and_energy(&f);
-        let h = 1e-7;
-        for k in 0..9 {
-            let (mut fp, mut fm) = (f, f);
-            fp[k] += h;
-            fm[k] -= h;
-            let dw =
-                (law.first_piola_and_energy(&fp).1 - law.first_piola_and_energy(&fm).1) / (2.0 * h);
-            assert!(
-                (pk[k] - dw).abs() < 1e-5 * p.youngs_modulus * 0.05,
-                "component {k}: {} vs {dw}",
-                pk[k]
-            );
-        }
-        // polar rotation is orthonormal with det 1
-        let r = polar_rotation(&f);
-        assert!((det3(&r) - 1.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn wave_speeds_follow_formulas() {
-        let p = ElasticParameters::paper_glass();
-        let (lambda, mu) = p.lame();
-        let cp = ((lambda + 2.0 * mu) / p.density).sqrt();
-        assert!((p.dilatational_wave_speed() - cp).abs() < 1e-9 * cp);
-        assert!((mu - p.youngs_modulus / (2.0 * (1.0 + p.poisson_ratio))).abs() < 1.0);
-    }
 }

@@ -9,7 +9,7 @@ use super::{GrainBlock, Model, NodeIncidence};
 use crate::boundary::{PrescribedMotion, Translation};
 use crate::element::TetReference;
 use crate::error::InputError;
-use crate::material::{ElasticLaw, ElasticParameters};
+use crate::material::{ElasticParameters, MaterialLaw, PlasticParameters};
 use crate::mesh::{self, SurfaceMesh, TetMesh};
 use crate::scene::{LoadedScene, NodeSelector, ShapeSpec};
 use std::collections::BTreeMap;
@@ -52,10 +52,16 @@ pub fn build_model_with_ghosts(
             density: m.density,
         })
         .collect();
-    let laws: Vec<ElasticLaw> = materials
+    let laws: Vec<MaterialLaw> = materials
         .iter()
         .zip(scene.materials.values())
-        .map(|(p, spec)| ElasticLaw::new(p, spec.law))
+        .map(|(p, spec)| {
+            let plastic = spec.yield_stress.map(|yield_stress| PlasticParameters {
+                yield_stress,
+                hardening_modulus: spec.hardening_modulus.unwrap_or(0.0),
+            });
+            MaterialLaw::new(p, spec.law, plastic)
+        })
         .collect();
 
     let mut cache: BTreeMap<String, Arc<TetMesh>> = BTreeMap::new();
@@ -156,6 +162,8 @@ pub fn build_model_with_ghosts(
     if ghosts.is_empty() {
         (owned_nodes, owned_elements) = (x0.len(), tets.len());
     }
+
+    let plastic_slot = plastic_slots(&laws, &tet_law[..owned_elements]);
 
     let mut tet_reference = Vec::with_capacity(tets.len());
     for (e, t) in tets.iter().enumerate() {
@@ -321,6 +329,7 @@ pub fn build_model_with_ghosts(
             tets,
             tet_reference,
             tet_law,
+            plastic_slot,
             mass: physical_mass.clone(),
             physical_mass,
             incidence: NodeIncidence {
@@ -349,4 +358,24 @@ pub fn build_model_with_ghosts(
 
 fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// Index of each owned element's plastic state (`NONE` for elastic elements), in element
+/// order; empty when no owned element is plastic, so elastic runs carry nothing.
+fn plastic_slots(laws: &[MaterialLaw], tet_law: &[u16]) -> Vec<u32> {
+    if !tet_law.iter().any(|&l| laws[l as usize].plastic.is_some()) {
+        return Vec::new();
+    }
+    let mut next = 0u32;
+    tet_law
+        .iter()
+        .map(|&l| {
+            if laws[l as usize].plastic.is_some() {
+                next += 1;
+                next - 1
+            } else {
+                super::NONE
+            }
+        })
+        .collect()
 }

@@ -17,11 +17,11 @@ pub mod decomposition;
 pub mod global;
 
 pub use assemble::{build_model, build_model_with_ghosts, mesh_shape};
-pub use contact_layout::ContactModel;
+pub use contact_layout::{ContactModel, NONE};
 pub use global::GlobalMesh;
 
 use crate::element::TetReference;
-use crate::material::{ElasticLaw, ElasticParameters};
+use crate::material::{ElasticParameters, MaterialLaw};
 use crate::mesh::{self, SurfaceMesh};
 use std::ops::Range;
 
@@ -59,13 +59,17 @@ pub struct NodeIncidence {
 pub struct Model {
     pub grains: Vec<GrainBlock>,
     pub materials: Vec<ElasticParameters>,
-    pub laws: Vec<ElasticLaw>,
+    pub laws: Vec<MaterialLaw>,
     /// Reference node positions (m).
     pub x0: Vec<[f64; 3]>,
     pub tets: Vec<[u32; 4]>,
     pub tet_reference: Vec<TetReference>,
     /// Material law index per element.
     pub tet_law: Vec<u16>,
+    /// Index into `State::plastic` of each owned element of a plastic material, [`NONE`]
+    /// for elastic ones; empty when this rank owns no plastic element. Slots follow element
+    /// order, so a grain's plastic states are contiguous.
+    pub plastic_slot: Vec<u32>,
     /// Lumped nodal mass after mass scaling (kg).
     pub mass: Vec<f64>,
     /// Physical lumped mass before scaling (kg).
@@ -114,6 +118,13 @@ impl Model {
     /// Total physical mass (kg).
     pub fn total_physical_mass(&self) -> f64 {
         self.physical_mass.iter().sum()
+    }
+    /// Range of `State::plastic` holding the plastic state of an owned grain's elements
+    /// (`None` for elastic grains and ghosts).
+    pub fn plastic_range(&self, grain: usize) -> Option<Range<usize>> {
+        let e = self.grains.get(grain)?.elements.clone();
+        let first = *self.plastic_slot.get(e.start)?;
+        (first != NONE).then(|| first as usize..first as usize + e.len())
     }
     /// Grain owning a model element.
     pub fn grain_of_element(&self, e: usize) -> usize {

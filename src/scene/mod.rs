@@ -103,7 +103,8 @@ fn default_dt_safety() -> f64 {
     0.9
 }
 
-/// Grain material. Elastic for now; plasticity parameters will join here.
+/// Grain material: elastic, or elastic–plastic (J2, linear isotropic hardening) when
+/// `yield_stress` is given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MaterialSpec {
@@ -113,10 +114,17 @@ pub struct MaterialSpec {
     pub poisson_ratio: f64,
     /// Density ρ (kg/m³).
     pub density: f64,
-    /// Elastic law: `st_venant_kirchhoff` (default) or `corotational` (Biot stress linear in
-    /// the stretch; matches small-strain references to second order).
+    /// Elastic law: `biot` (default; Hooke's law in the Biot strain to second order),
+    /// `st_venant_kirchhoff` or `corotational` (exact polar decomposition; slower).
     #[serde(default)]
     pub law: crate::material::ElasticLawKind,
+    /// Initial von Mises yield stress σy (Pa); makes the material elastic–plastic.
+    #[serde(default)]
+    pub yield_stress: Option<f64>,
+    /// Linear isotropic hardening modulus H (Pa): flow stress σy + H·α, α the equivalent
+    /// plastic strain (default 0: perfectly plastic).
+    #[serde(default)]
+    pub hardening_modulus: Option<f64>,
 }
 
 /// One grain: a material, a shape to mesh, and its initial placement and motion.

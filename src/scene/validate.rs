@@ -151,6 +151,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
                 format!("must be in (−1, 0.5), got {}", num(m.poisson_ratio)),
             ));
         }
+        plastic_parameters(&c, &f, m)?;
     }
 
     if scene.grains.is_empty() {
@@ -263,6 +264,54 @@ pub const MAX_MASS_SCALING_STEP_RATIO: f64 = 1e3;
 /// Mass-proportional damping α may remove at most this fraction of the velocity per step
 /// (α·Δt); beyond ~2 the explicit update itself is unstable.
 pub const MAX_DAMPING_PER_STEP: f64 = 0.5;
+
+/// J2 parameters: σy in (0, E] (a yield strain above 1 is no metal or rock), H in [0, E]
+/// (hardening stiffer than the elastic modulus would make the plastic tangent stiffer than
+/// the elastic one), and only on top of the Biot law, whose strain measure J2 splits.
+fn plastic_parameters(
+    c: &Checker,
+    f: &dyn Fn(&str) -> String,
+    m: &crate::scene::MaterialSpec,
+) -> Result<(), InputError> {
+    let Some(sy) = m.yield_stress else {
+        if m.hardening_modulus.is_some() {
+            return Err(c.err(
+                f("hardening_modulus"),
+                "is given without yield_stress; set yield_stress (Pa) to make the material plastic",
+            ));
+        }
+        return Ok(());
+    };
+    c.positive(&f("yield_stress"), sy)?;
+    if sy > m.youngs_modulus {
+        return Err(c.err(
+            f("yield_stress"),
+            format!(
+                "must not exceed youngs_modulus ({:e} Pa): a yield strain above 1, got {sy:e} Pa",
+                m.youngs_modulus
+            ),
+        ));
+    }
+    if let Some(h) = m.hardening_modulus {
+        c.finite(&f("hardening_modulus"), h)?;
+        if !(0.0..=m.youngs_modulus).contains(&h) {
+            return Err(c.err(
+                f("hardening_modulus"),
+                format!(
+                    "must be in [0, youngs_modulus = {:e}] Pa, got {h:e} Pa",
+                    m.youngs_modulus
+                ),
+            ));
+        }
+    }
+    if m.law != crate::material::ElasticLawKind::Biot {
+        return Err(c.err(
+            f("law"),
+            "plasticity (yield_stress) works in the strain of law = \"biot\" (the default); remove law or set it to \"biot\"",
+        ));
+    }
+    Ok(())
+}
 
 /// Magnitudes that are finite but meaningless: they would give infinite or NaN wave
 /// speeds, steps, added masses, stresses or energies in the solver.

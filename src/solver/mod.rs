@@ -21,6 +21,7 @@ pub mod state;
 pub mod step;
 pub mod timing;
 
+pub use forces::element_response;
 pub use setup::{build_solver, build_solver_for, initial_velocities};
 pub use state::{Reaction, State};
 pub use step::{Scratch, Serial, Solver, StepHooks};

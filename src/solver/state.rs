@@ -4,6 +4,7 @@
 
 use crate::contact::ContactState;
 use crate::energy::{EnergyLedger, WorkAccumulator};
+use crate::material::PlasticPoint;
 use crate::model::decomposition::Partition;
 use serde::{Deserialize, Serialize};
 
@@ -21,8 +22,6 @@ pub struct Reaction {
 }
 
 /// Everything that evolves during a run on one rank (a checkpoint is this plus the scene).
-/// Per-element material state joins here when a law needs one (none of today's elastic
-/// laws does: both are functions of the current deformation gradient alone).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct State {
     /// t_n (s).
@@ -34,6 +33,10 @@ pub struct State {
     /// v_{n−½} (m/s).
     pub v: Vec<[f64; 3]>,
     pub energy: EnergyLedger,
+    /// Plastic state of every owned element of a plastic material, committed at x_{n−1}
+    /// (the last internal-force evaluation), indexed by `Model::plastic_slot`; empty for
+    /// elastic runs (elastic laws are functions of F alone).
+    pub plastic: Vec<PlasticPoint>,
     /// Rotation of each prescribed motion at t_n.
     pub motion_rotation: Vec<[f64; 9]>,
     pub reactions: Vec<Reaction>,

@@ -97,6 +97,14 @@ impl Solver {
             x: model.x0.clone(),
             v: v0,
             energy: EnergyLedger::default(),
+            plastic: vec![
+                crate::material::PlasticPoint::default();
+                model
+                    .plastic_slot
+                    .iter()
+                    .filter(|&&s| s != crate::model::NONE)
+                    .count()
+            ],
             motion_rotation: motions.iter().map(|m| m.rotation).collect(),
             reactions: vec![Reaction::default(); motions.len()],
             motion_work: vec![WorkAccumulator::default(); motions.len()],
@@ -136,6 +144,7 @@ impl Solver {
             && state.reactions.len() == self.motions.len()
             && state.motion_rotation.len() == self.motions.len()
             && state.motion_work.len() == self.motions.len()
+            && state.plastic.len() == self.state.plastic.len()
             && state.contact.walls.len() == m.contact.walls.len()
             && state.partition.owner.len() == self.state.partition.owner.len();
         if !fits {
@@ -172,7 +181,13 @@ impl Solver {
         // Internal forces first: they need only owned data, so they overlap the halo
         // exchange begun at the end of the previous step.
         let summary = timers.time(Stage::InternalForces, || {
-            compute_internal_forces_into(model, &state.x, &mut scratch.elements, &mut scratch.force)
+            compute_internal_forces_into(
+                model,
+                &state.x,
+                &mut state.plastic,
+                &mut scratch.elements,
+                &mut scratch.force,
+            )
         });
         timers.time(Stage::Halo, || hooks.ghosts_in(&mut state.x, &mut state.v))?;
         timers.time(Stage::Contact, || {
@@ -205,16 +220,15 @@ impl Solver {
                 &mut scratch.force,
             )
         });
-        if let Some((e, jac)) = summary.bad_element {
-            let g = &model.grains[model.grain_of_element(e)];
+        if let Some(bad) = summary.bad_element {
+            let g = &model.grains[model.grain_of_element(bad.element)];
             return Err(MufeError::Run(format!(
-                "blow-up at t = {:.6e} s (step {}): element {} of grain '{}' {} (det F = {:.3e}); reduce simulation.dt_safety or check the loading",
+                "blow-up at t = {:.6e} s (step {}): element {} of grain '{}' {}; reduce simulation.dt_safety or check the loading",
                 state.time,
                 state.step,
-                e - g.elements.start,
+                bad.element - g.elements.start,
                 g.name,
-                if jac <= 0.0 { "inverted" } else { "has a non-finite force" },
-                jac
+                bad.describe()
             )));
         }
 
@@ -273,8 +287,8 @@ impl Solver {
         timers.time(Stage::Energy, || {
             let e = &mut state.energy;
             e.kinetic = partials.kinetic;
-            e.strain = summary.strain_energy;
             e.recoverable_strain = summary.strain_energy;
+            e.plastic_dissipation += summary.plastic_work;
             e.body_force
                 .record(dt, partials.gravity_before, partials.gravity_after);
             e.damping.record(
@@ -301,7 +315,7 @@ impl Solver {
             e.external_work(),
             e.initial_total.unwrap_or(0.0),
             e.damping_dissipation(),
-            e.kinetic + e.strain,
+            e.kinetic + e.strain(),
             self.energy_floor,
             e.contact_energy + e.friction_dissipation,
         ];
@@ -313,7 +327,8 @@ impl Solver {
         // Written so that a NaN anywhere in the ledger fails the check (NaN compares false).
         let finite = global.iter().all(|v| v.is_finite());
         if !finite || !(stored <= 10.0 * state.supplied_energy || stored <= global[4]) {
-            let (e, density) = super::diagnose::most_strained_element(&self.model, &state.x);
+            let (e, density) =
+                super::diagnose::most_strained_element(&self.model, &state.x, &state.plastic);
             let g = &self.model.grains[self.model.grain_of_element(e)];
             return Err(MufeError::Run(format!(
                 "blow-up at t = {:.6e} s (step {}): energy exploded or is not finite (kinetic + strain = {:.3e} J, supplied {:.3e} J); most strained: element {} of grain '{}' ({:.3e} J/m³); reduce simulation.dt_safety",

@@ -1,0 +1,183 @@
+//! Von Mises (J2) plasticity with linear isotropic hardening, in the strain measure of the
+//! default elastic law.
+//!
+//! Strain and stress: ε̃ = E − ½E² (E = ½(FᵀF − I); ε̃ is the Biot strain U − I to second
+//! order) and its work-conjugate stress T̃ (see [`super::elastic::SecondOrderBiot`]). Both
+//! live in the reference (unrotated) frame, so everything below is a function of FᵀF and
+//! the stored plastic strain: the law is exactly objective — a grain turned rigidly by any
+//! angle, in any number of increments, keeps T̃ and εᵖ to round-off, and its Cauchy stress
+//! turns with it. No rotation is extracted or stored.
+//!
+//! Additive split ε̃ = ε̃ᵉ + εᵖ, T̃ = λ tr(ε̃ᵉ) I + 2μ ε̃ᵉ, yield function
+//! f = q − (σy + H α) with q = √(3/2 s:s), s = dev T̃, α the equivalent plastic strain.
+//! Return mapping (radial return, exact for linear hardening):
+//!
+//! Δα = ⟨f_trial⟩ / (3μ + H),  εᵖ += Δα · (3/2) s_trial / q_trial,
+//! s = s_trial (1 − 3μ Δα / q_trial),  dissipation += T̃ : Δεᵖ = (σy + H α_{n+1}) Δα.
+//!
+//! Stored energy is ψ = ½λ (tr ε̃ᵉ)² + μ ε̃ᵉ:ε̃ᵉ (ALLSE); the plastic work T̃ : Δεᵖ is ALLPD
+//! (as in the reference solver it includes the part locked in by hardening).
+
+use super::elastic::{hooke, Sym};
+use serde::{Deserialize, Serialize};
+
+/// Plastic state of one element (the only per-element material state in mufe).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct PlasticPoint {
+    /// Plastic strain εᵖ in the ε̃ measure (xx, yy, zz, yz, xz, xy; tensor components).
+    pub strain: Sym,
+    /// Equivalent plastic strain α = Σ Δα (–).
+    pub equivalent: f64,
+}
+
+/// J2 parameters with the elastic constants they return against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct J2 {
+    /// First Lamé constant λ (Pa).
+    pub lambda: f64,
+    /// Shear modulus μ (Pa).
+    pub mu: f64,
+    /// Initial yield stress σy (Pa).
+    pub yield_stress: f64,
+    /// Linear isotropic hardening modulus H = dσy/dα (Pa).
+    pub hardening_modulus: f64,
+}
+
+/// Outcome of one return mapping.
+#[derive(Debug, Clone, Copy)]
+pub struct Return {
+    /// T̃ after the return (Pa).
+    pub stress: Sym,
+    /// Elastic energy density ψ(ε̃ᵉ) (J/m³).
+    pub stored_energy: f64,
+    /// Plastic work density of this increment, T̃ : Δεᵖ (J/m³).
+    pub dissipation: f64,
+    /// The state after the increment.
+    pub point: PlasticPoint,
+}
+
+impl J2 {
+    /// Current yield stress σy + H α (Pa).
+    pub fn flow_stress(&self, equivalent: f64) -> f64 {
+        self.yield_stress + self.hardening_modulus * equivalent
+    }
+
+    /// Returns the stress at total strain `eps` (ε̃) from the state `old`, without changing
+    /// it: the new state is in the result. A pure function, so output and diagnostics can
+    /// call it with the committed state and get what the step computed.
+    #[inline(always)]
+    pub fn return_map(&self, eps: &Sym, old: &PlasticPoint) -> Return {
+        let mut elastic = [0.0; 6];
+        for k in 0..6 {
+            elastic[k] = eps[k] - old.strain[k];
+        }
+        let (trial, trial_energy) = hooke(self.lambda, self.mu, &elastic);
+        let mean = (trial[0] + trial[1] + trial[2]) / 3.0;
+        let dev = [
+            trial[0] - mean,
+            trial[1] - mean,
+            trial[2] - mean,
+            trial[3],
+            trial[4],
+            trial[5],
+        ];
+        let ss = dev[0] * dev[0]
+            + dev[1] * dev[1]
+            + dev[2] * dev[2]
+            + 2.0 * (dev[3] * dev[3] + dev[4] * dev[4] + dev[5] * dev[5]);
+        let q = (1.5 * ss).sqrt();
+        let excess = q - self.flow_stress(old.equivalent);
+        if excess <= 0.0 || q == 0.0 {
+            return Return {
+                stress: trial,
+                stored_energy: trial_energy,
+                dissipation: 0.0,
+                point: *old,
+            };
+        }
+        let d_alpha = excess / (3.0 * self.mu + self.hardening_modulus);
+        let flow = 1.5 * d_alpha / q;
+        let shrink = 1.0 - 3.0 * self.mu * d_alpha / q;
+        let mut point = *old;
+        let mut stress = [0.0; 6];
+        for k in 0..6 {
+            point.strain[k] += flow * dev[k];
+            elastic[k] -= flow * dev[k];
+            stress[k] = shrink * dev[k];
+        }
+        for v in stress.iter_mut().take(3) {
+            *v += mean;
+        }
+        point.equivalent += d_alpha;
+        // ψ of the returned elastic strain: the volumetric part is unchanged
+        let (_, stored_energy) = hooke(self.lambda, self.mu, &elastic);
+        Return {
+            stress,
+            stored_energy,
+            dissipation: self.flow_stress(point.equivalent) * d_alpha,
+            point,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::elastic::sym_contract;
+    use crate::material::ElasticParameters;
+
+    fn steel_like() -> J2 {
+        let p = ElasticParameters {
+            youngs_modulus: 2.1e11,
+            poisson_ratio: 0.3,
+            density: 7850.0,
+        };
+        let (lambda, mu) = p.lame();
+        J2 {
+            lambda,
+            mu,
+            yield_stress: 2.5e8,
+            hardening_modulus: 2.0e9,
+        }
+    }
+
+    fn von_mises(t: &Sym) -> f64 {
+        let m = (t[0] + t[1] + t[2]) / 3.0;
+        let d = [t[0] - m, t[1] - m, t[2] - m, t[3], t[4], t[5]];
+        (1.5 * sym_contract(&d, &d)).sqrt()
+    }
+
+    #[test]
+    fn returned_stress_is_on_the_hardened_yield_surface_and_dissipation_is_t_dot_depsp() {
+        let law = steel_like();
+        let eps = [3e-3, -1e-3, 0.5e-3, 1e-3, -2e-3, 0.7e-3];
+        let r = law.return_map(&eps, &PlasticPoint::default());
+        assert!(r.point.equivalent > 0.0);
+        let q = von_mises(&r.stress);
+        let flow = law.flow_stress(r.point.equivalent);
+        assert!((q - flow).abs() < 1e-12 * flow, "{q} vs {flow}");
+        // plastic flow is deviatoric and T̃ : Δεᵖ is the recorded dissipation
+        let dp = r.point.strain;
+        assert!((dp[0] + dp[1] + dp[2]).abs() < 1e-18);
+        let work = sym_contract(&r.stress, &dp);
+        assert!((work - r.dissipation).abs() < 1e-9 * r.dissipation);
+        // Δα = √(2/3 Δεᵖ:Δεᵖ)
+        let alpha = (2.0 / 3.0 * sym_contract(&dp, &dp)).sqrt();
+        assert!((alpha - r.point.equivalent).abs() < 1e-12 * alpha);
+        // returning again from the new state at the same strain changes nothing
+        let again = law.return_map(&eps, &r.point);
+        assert!(again.dissipation <= 1e-12 * r.dissipation);
+        assert!((again.point.equivalent - r.point.equivalent).abs() < 1e-15);
+    }
+
+    #[test]
+    fn below_yield_the_law_is_hooke() {
+        let law = steel_like();
+        let eps = [1e-4, -2e-5, 0.0, 1e-5, 0.0, 0.0];
+        let r = law.return_map(&eps, &PlasticPoint::default());
+        let (t, w) = hooke(law.lambda, law.mu, &eps);
+        assert_eq!(r.stress, t);
+        assert_eq!(r.stored_energy, w);
+        assert_eq!(r.dissipation, 0.0);
+    }
+}
