@@ -387,7 +387,7 @@ def read_shipped():
 
 
 def cmd_converge(args):
-    deltas = [10 ** x for x in LOG_DELTAS[::5]] + [10 ** LOG_DELTAS[-1]]
+    deltas = [10 ** x for x in LOG_DELTAS[::5]]
     res = {}
     for lev in args.levels:
         m, out = run_model(lev, args.nu, deltas)

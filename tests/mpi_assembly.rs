@@ -1,7 +1,8 @@
 //! The golden multi-rank check: `jobs/tests/assembly.toml` (27 contacting spheres, contacts
 //! straddling the partitions, a moving wall) run for 300 steps under 1, 2 and 3 ranks with
-//! 1 and 2 threads gives the same `/history` to 1e-10 relative; an error on one rank ends
-//! the job with a non-zero exit instead of a hang.
+//! 1 and 2 threads gives the same `/history` to 1e-10 relative, elastic and elastic–plastic,
+//! with and without grain migration; an error on one rank ends the job with a non-zero
+//! exit instead of a hang.
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
@@ -94,29 +95,74 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
     // rows are labelled with t_n, the start of the step they describe: the last is step 299
     assert_eq!(get("step").last(), Some(&299.0));
 
-    // the last configuration also re-partitions at steps 100 and 200 (threshold 0), so
-    // grains migrate with their full state in the middle of the run
+    compare_configurations(
+        &golden,
+        &[
+            (1, 2, false),
+            (2, 1, false),
+            (2, 2, false),
+            (3, 1, false),
+            (3, 1, true),
+        ],
+        &[],
+        "elastic",
+    );
+}
+
+/// The elastic–plastic golden check: the same assembly with σy = 100 MPa (grains yield at
+/// their contacts); the plastic state migrates with its grain.
+#[test]
+fn elastic_plastic_history_is_the_same_on_1_2_3_ranks_and_after_migration() {
+    let plastic = [
+        "--set",
+        "materials.glass.yield_stress=1e8",
+        "--set",
+        "materials.glass.hardening_modulus=1e9",
+    ];
+    let (golden_path, out) = run(1, 1, "p_r1t1", &plastic);
+    mpi_launch::assert_success(&out);
+    let golden = history(&golden_path);
+    let last = |name: &str| {
+        golden
+            .iter()
+            .find(|(n, _)| n == name)
+            .and_then(|(_, v)| v.last().copied())
+            .unwrap()
+    };
+    assert!(last("plastic_dissipation") > 0.0, "grains yield");
+    assert!(last("plastic_index") > 0.0 && last("plastic_index") < 1.0);
+    compare_configurations(&golden, &[(2, 2, false), (3, 1, true)], &plastic, "plastic");
+}
+
+/// Runs each (ranks, threads, migrate) configuration with the scene settings `sets` and
+/// compares its `/history` with `golden` (1e-10 relative to each series' largest value).
+/// Migration re-partitions at steps 100 and 200 (threshold 0), so grains change hands
+/// with their full state in the middle of the run.
+fn compare_configurations(
+    golden: &[(String, Vec<f64>)],
+    configurations: &[(usize, usize, bool)],
+    sets: &[&str],
+    label: &str,
+) {
     let migrate = [
         "--set",
         "parallel.imbalance_threshold=0.0",
         "--set",
         "parallel.check_interval=100",
     ];
-    for (ranks, threads, extra) in [
-        (1, 2, &[][..]),
-        (2, 1, &[][..]),
-        (2, 2, &[][..]),
-        (3, 1, &[][..]),
-        (3, 1, &migrate[..]),
-    ] {
+    for &(ranks, threads, migrates) in configurations {
+        let mut extra: Vec<&str> = sets.to_vec();
+        if migrates {
+            extra.extend_from_slice(&migrate);
+        }
         let (path, out) = run(
             ranks,
             threads,
-            &format!("r{ranks}t{threads}_{}", extra.len()),
-            extra,
+            &format!("{label}_r{ranks}t{threads}_{migrates}"),
+            &extra,
         );
         mpi_launch::assert_success(&out);
-        if !extra.is_empty() {
+        if migrates {
             let stdout = String::from_utf8_lossy(&out.stdout);
             assert!(
                 stdout.contains("re-partitioned at step 100"),
@@ -132,7 +178,7 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
             for (i, (x, y)) in a.iter().zip(b).enumerate() {
                 assert!(
                     (x - y).abs() <= 1e-10 * scale.max(1e-300),
-                    "{ranks} ranks × {threads} threads: /history/{name}[{i}] = {y:e}, serial {x:e}"
+                    "{label}, {ranks} ranks × {threads} threads: /history/{name}[{i}] = {y:e}, serial {x:e}"
                 );
             }
         }

@@ -44,7 +44,7 @@ pub struct BadElement {
 impl BadElement {
     /// What went wrong, for the error line.
     pub fn describe(&self) -> String {
-        if !(self.jacobian > 0.0) {
+        if self.jacobian.is_nan() || self.jacobian <= 0.0 {
             format!("inverted (det F = {:.3e})", self.jacobian)
         } else if self.plastic_increment > MAX_PLASTIC_INCREMENT {
             format!(
