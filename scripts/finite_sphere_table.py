@@ -428,7 +428,7 @@ def cmd_compare(args):
 
 def cmd_table(args):
     deltas = [10 ** x for x in LOG_DELTAS]
-    lines = []
+    lines, conv = [], []
     t0 = time.time()
     info = None
     for nu in args.nus:
@@ -436,25 +436,41 @@ def cmd_table(args):
         info = m
         for dl, F, a in out:
             lines.append(f"{nu:.2f},{dl:.7e},{F:.9e},{a:.7e}")
+        if args.check_level:
+            _, chk = run_model(args.check_level, nu, deltas)
+            dF = max(abs(c[1] / o[1] - 1) for o, c in zip(out, chk))
+            da = max(abs(c[2] / o[2] - 1) for o, c in zip(out, chk))
+            conv.append(f"{nu:.2f}: {100 * dF:.4f}/{100 * da:.3f}")
+            log(f"nu={nu}: max |F_{args.check_level}/F_{args.level} - 1| = {100 * dF:.4f} %, a: {100 * da:.3f} %")
     el = time.time() - t0
     p = LEVELS[args.level]
+    cmd = "scripts/finite_sphere_table.py table --level %s" % args.level
+    if args.check_level:
+        cmd += " --check-level %s" % args.check_level
     hdr = [
         "# Linear elastic sphere (radius R, Young's modulus E, Poisson ratio nu) squeezed between two rigid",
-        "# frictionless flat plates; delta = approach of EACH plate to the centre plane; F = plate force;",
-        "# E* = E/(1-nu^2). Half-space Hertz: F_H/(E* R^2) = (4/3) (delta/R)^(3/2).",
-        "# Method: axisymmetric FE independent of mufe (scripts/finite_sphere_table.py, docs/FINITE_SPHERE.md):",
-        "#   hemisphere, u_z = 0 on the equator, u_r = 0 on the axis; Taylor-Hood P2/P1 u-p triangles, curved",
-        "#   boundary edges; exact nodal frictionless unilateral contact with the flat (flexibility matrix of all",
-        "#   surface nodes with r <= %.3f R, active-set solution checked against KKT)." % R_CAND,
-        "# Mesh '%s': %d P2 triangles, %d dofs; ring ratio q = %.3f about the pole (element size at the contact"
+        "# frictionless flat plates; delta = approach of EACH plate to the centre plane; F = force on a plate;",
+        "# E* = E/(1-nu^2). Half-space Hertz: F_H/(E* R^2) = (4/3) (delta/R)^(3/2), a_H/R = (delta/R)^(1/2).",
+        "# Method (independent of mufe; scripts/finite_sphere_table.py, docs/FINITE_SPHERE.md): axisymmetric FE of",
+        "#   the hemisphere, u_z = 0 on the equator, u_r = 0 on the axis; Taylor-Hood P2/P1 (u-p) triangles with",
+        "#   curved boundary edges; exact nodal frictionless unilateral contact with the flat, solved on the",
+        "#   flexibility matrix of all surface nodes with r <= %.3f R (active set, KKT checked)." % R_CAND,
+        "# Mesh '%s': %d P2 triangles, %d dofs; rings about the pole with ratio q = %.3f (element size at the"
         % (args.level, info.nel, info.ndof, p["q"]),
-        "#   edge ~ %.1f %% of a, uniform rings below %.0e R), angular growth %.2f towards the axis." % (100 * (p["q"] - 1), RHO_1, p["ang"]),
-        "# Convergence (nu = 0.22, F relative to the 'xfine' mesh q = 1.006): see docs/FINITE_SPHERE.md.",
-        "# a_over_R: contact radius between the outermost contact node and the first free node, from the",
-        "#   gaps of the first two free nodes fitted to w ~ (r - a)^(3/2) (node spacing ~ %.1f %% of a)." % (50 * (p["q"] - 1)),
+        "#   contact edge = %.0f %% of a at every load; uniform below %.0e R), angular growth %.2f to the axis."
+        % (100 * (p["q"] - 1), RHO_1, p["ang"]),
+    ]
+    if conv:
+        q2 = LEVELS[args.check_level]["q"]
+        hdr += ["# Convergence: max |relative difference| F/a in %% between this mesh and mesh '%s' (q = %.3f)," % (args.check_level, q2),
+                "#   per nu: " + "; ".join(conv[:6])]
+        if conv[6:]:
+            hdr.append("#   " + "; ".join(conv[6:]))
+    hdr += [
+        "# a_over_R: contact radius between the outermost node in contact and the first free node, from a",
+        "#   least-squares fit of the gaps of the free nodes within 1.15 a to w = (r-a)^1.5 (c0 + c1 (r-a)/a).",
         "# Interpolate linearly in nu and log-log in delta_over_R (error estimates in docs/FINITE_SPHERE.md).",
-        "# Date: 2026-11-22. Made by: OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice -n 10 python3 "
-        "scripts/finite_sphere_table.py table --level %s  (%.0f s)" % (args.level, el),
+        "# Date: 2026-11-22. Made by: OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice -n 10 python3 %s (%.0f s)" % (cmd, el),
         "nu,delta_over_R,F_over_EstarR2,a_over_R",
     ]
     out = pathlib.Path(args.out)
@@ -468,13 +484,21 @@ def load_table(path):
     return rows
 
 
-def interp_table(tab, nu, dl):
-    """Linear in nu, log-log (piecewise linear in log F vs log delta) in delta."""
+def interp_table(tab, nu, dl, ratio=False):
+    """Linear in nu; in delta piecewise linear in log F vs log delta (log-log), or, with
+    ratio=True, piecewise linear in F/F_H vs log delta."""
     nus = np.unique(tab[:, 0])
+
     def at_nu(n):
         t = tab[tab[:, 0] == n]
-        return math.exp(np.interp(math.log(dl), np.log(t[:, 1]), np.log(t[:, 2])))
-    j = np.clip(np.searchsorted(nus, nu) - 1, 0, len(nus) - 2)
+        x = np.log(t[:, 1])
+        if ratio:
+            fh = 4.0 / 3.0 * t[:, 1] ** 1.5
+            return np.interp(math.log(dl), x, t[:, 2] / fh) * 4.0 / 3.0 * dl ** 1.5
+        return math.exp(np.interp(math.log(dl), x, np.log(t[:, 2])))
+    if np.isclose(nus, nu).any():
+        return at_nu(nus[np.isclose(nus, nu)][0])
+    j = int(np.clip(np.searchsorted(nus, nu) - 1, 0, len(nus) - 2))
     n0, n1 = nus[j], nus[j + 1]
     s = (nu - n0) / (n1 - n0)
     return (1 - s) * at_nu(n0) + s * at_nu(n1)
@@ -483,29 +507,30 @@ def interp_table(tab, nu, dl):
 def cmd_loo(args):
     tab = load_table(args.table)
     nus = np.unique(tab[:, 0])
-    # leave out one nu (interior), interpolate linearly from its neighbours
-    print("# leave-one-out in nu (linear in nu from the neighbours), max |rel err| over delta")
-    worst_nu = 0
-    for n in nus[1:-1]:
-        sub = tab[tab[:, 0] != n]
-        t = tab[tab[:, 0] == n]
-        e = [abs(interp_table(sub, n, d) / F - 1) for d, F in t[:, 1:3]]
-        worst_nu = max(worst_nu, max(e))
-        print(f"nu = {n:.2f}: max {100 * max(e):.4f} %")
-    # leave out one delta (interior), log-log from its neighbours
-    print("# leave-one-out in delta (log-log from the neighbours), per nu: max |rel err|")
-    worst_d = 0
-    for n in nus:
-        t = tab[tab[:, 0] == n]
-        e = []
-        for k in range(1, len(t) - 1):
-            sub = np.delete(t, k, axis=0)
-            e.append(abs(interp_table(sub, n, t[k, 1]) / t[k, 2] - 1))
-        worst_d = max(worst_d, max(e))
-        print(f"nu = {n:.2f}: max {100 * max(e):.4f} %  (typ {100 * np.median(e):.4f} %)")
-    # F/F_H interpolation (suggested alternative): same test on the ratio
-    print(f"# worst: leave-one-nu-out {100 * worst_nu:.4f} %, leave-one-delta-out {100 * worst_d:.4f} %")
-    print("# midpoint error estimate at full grid resolution ~ 1/4 of the leave-one-delta-out error")
+    for ratio in (False, True):
+        name = "F/F_H linear in log(delta)" if ratio else "log F linear in log(delta)"
+        print(f"## in delta: {name}; in nu: linear")
+        print("# leave one nu out (interior), interpolate from its neighbours: max |rel err| over delta")
+        worst_nu = 0.0
+        for n in nus[1:-1]:
+            sub = tab[tab[:, 0] != n]
+            t = tab[tab[:, 0] == n]
+            e = [abs(interp_table(sub, n, d, ratio) / F - 1) for d, F in t[:, 1:3]]
+            worst_nu = max(worst_nu, max(e))
+            print(f"  nu = {n:.2f} (gap {sub[:, 0][sub[:, 0] > n].min() - sub[:, 0][sub[:, 0] < n].max():.2f}): {100 * max(e):.4f} %")
+        print("# leave one delta out (interior), interpolate from its neighbours (0.2 decade apart)")
+        worst_d, med = 0.0, []
+        for n in nus:
+            t = tab[tab[:, 0] == n]
+            e = []
+            for k in range(1, len(t) - 1):
+                sub = np.delete(t, k, axis=0)
+                e.append(abs(interp_table(sub, n, t[k, 1], ratio) / t[k, 2] - 1))
+            worst_d = max(worst_d, max(e))
+            med.append(np.median(e))
+            print(f"  nu = {n:.2f}: max {100 * max(e):.4f} %, median {100 * np.median(e):.4f} %")
+        print(f"# worst: leave-one-nu-out {100 * worst_nu:.4f} %, leave-one-delta-out {100 * worst_d:.4f} % "
+              f"(median {100 * np.median(med):.4f} %)")
 
 
 def main():
@@ -514,6 +539,7 @@ def main():
     a = sub.add_parser("table", help="write the CSV table")
     a.add_argument("--level", default="fine", choices=LEVELS)
     a.add_argument("--nus", type=float, nargs="+", default=NUS)
+    a.add_argument("--check-level", default="medium", help="second mesh for the convergence note ('' = none)")
     a.add_argument("--out", default=str(TABLE))
     a = sub.add_parser("converge", help="mesh convergence study")
     a.add_argument("--nu", type=float, default=0.22)

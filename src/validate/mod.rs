@@ -4,6 +4,7 @@
 //! whole loading range.
 
 pub mod hertz;
+pub mod plastic_cube;
 pub mod reference;
 pub mod runner;
 pub mod two_sphere;
@@ -16,7 +17,7 @@ use runner::{Case, CaseOutcome};
 pub const QUICK_TOLERANCE_FACTOR: f64 = 1.5;
 
 /// All cases, in the order they run.
-pub const CASE_NAMES: [&str; 4] = ["hertz", "mindlin", "torsion", "rolling"];
+pub const CASE_NAMES: [&str; 5] = ["hertz", "mindlin", "torsion", "rolling", "plastic_cube"];
 
 /// Resolves case names (empty: all) to case objects.
 pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> {
@@ -39,6 +40,7 @@ pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> 
                 "rolling" => Ok(Box::new(two_sphere::TwoSphereCase {
                     kind: two_sphere::Kind::Rolling,
                 })),
+                "plastic_cube" => Ok(Box::new(plastic_cube::PlasticCubeCase)),
                 other => Err(InputError::new(
                     "<command line>",
                     "CASE",

@@ -135,14 +135,14 @@ pub fn run_cases(
             let mut o = case.run(mr, quick, overrides)?;
             o.wall_s = t0.elapsed().as_secs_f64();
             println!(
-                "{:<9} {:>8.4} {:>9} {:>8} {:>9.1} {:>8.2}% {:>7.1}% {:>5}",
+                "{:<9} {:>8.4} {:>9} {:>8} {:>9.1} {:>9} {:>8} {:>5}",
                 o.case,
                 o.mr,
                 o.elements,
                 o.steps,
                 o.wall_s,
-                100.0 * o.error,
-                100.0 * o.target,
+                percent(o.error),
+                percent(o.target),
                 if o.pass { "yes" } else { "NO" }
             );
             outcomes.push(o);
@@ -194,6 +194,16 @@ pub fn run_cases(
         out.join("speed_vs_error.png").display()
     );
     Ok(all)
+}
+
+/// A fraction as a percentage, in scientific notation below 0.01 %.
+fn percent(fraction: f64) -> String {
+    let p = 100.0 * fraction;
+    if p != 0.0 && p.abs() < 0.01 {
+        format!("{p:.1e}%")
+    } else {
+        format!("{p:.2}%")
+    }
 }
 
 fn write_json(path: &PathBuf, outcomes: &[CaseOutcome]) -> Result<()> {
