@@ -523,3 +523,73 @@ fn estimator_tracks_the_jobs() {
         );
     }
 }
+
+// J2 parameters (issue 10): each bad value is one line naming its field.
+
+fn check_sets(scene: &str, sets: &[&str]) -> (Output, Duration) {
+    let mut args = vec!["check".to_string(), root(scene)];
+    for s in sets {
+        args.push("--set".into());
+        args.push(s.to_string());
+    }
+    let args: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    mufe(&args)
+}
+
+#[test]
+fn hardening_without_yield_stress_is_refused() {
+    refused(
+        &check_set(SMALL, "materials.glass.hardening_modulus=1e9"),
+        5,
+        &["materials.glass.hardening_modulus", "yield_stress"],
+    );
+}
+
+#[test]
+fn yield_stress_above_youngs_modulus_is_refused() {
+    refused(
+        &check_set(SMALL, "materials.glass.yield_stress=1e12"),
+        5,
+        &["materials.glass.yield_stress", "youngs_modulus"],
+    );
+}
+
+#[test]
+fn negative_or_nan_plastic_parameters_are_refused() {
+    refused(
+        &check_set(SMALL, "materials.glass.yield_stress=-1e8"),
+        5,
+        &["materials.glass.yield_stress"],
+    );
+    refused(
+        &check_set(SMALL, "materials.glass.yield_stress=nan"),
+        5,
+        &["materials.glass.yield_stress"],
+    );
+    refused(
+        &check_sets(
+            SMALL,
+            &[
+                "materials.glass.yield_stress=1e8",
+                "materials.glass.hardening_modulus=-5.0",
+            ],
+        ),
+        5,
+        &["materials.glass.hardening_modulus", "[0, youngs_modulus"],
+    );
+}
+
+#[test]
+fn plasticity_on_another_elastic_law_is_refused() {
+    refused(
+        &check_sets(
+            SMALL,
+            &[
+                "materials.glass.yield_stress=1e8",
+                "materials.glass.law=\"st_venant_kirchhoff\"",
+            ],
+        ),
+        5,
+        &["materials.glass.law", "biot"],
+    );
+}
