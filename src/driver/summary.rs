@@ -107,7 +107,18 @@ pub fn estimate_memory_bytes(m: &Model) -> usize {
     let nn = m.num_nodes();
     let per_element = 16 /* tets */ + 80 /* reference */ + 2 /* law */ + 96 /* corner forces */ + 16 /* incidence */;
     let per_node = 24 * 5 /* x0, x, v, v_next, force */ + 16 /* masses */ + 1 + 4;
-    ne * per_element + nn * per_node
+    let plastic = if m.plastic_slot.is_empty() {
+        0
+    } else {
+        // slot table over owned elements, and the state of each plastic element
+        4 * m.plastic_slot.len()
+            + std::mem::size_of::<crate::material::PlasticPoint>()
+                * m.plastic_slot
+                    .iter()
+                    .filter(|&&s| s != crate::model::NONE)
+                    .count()
+    };
+    ne * per_element + nn * per_node + plastic
 }
 
 /// The closing lines of `mufe run`: stage table, throughput, energy balance, contact.

@@ -26,7 +26,8 @@
 //!   [`BLOCK_DT_FACTOR`] for the structured blocks; the smallest over the grains. The step
 //!   used is `simulation.dt`, else `target_dt`, else this estimate; steps = ⌈duration/Δt⌉.
 //! - **memory** of a run: [`BYTES_PER_ELEMENT`] per element + [`BYTES_PER_NODE`] per node
-//!   + [`BASE_BYTES`] (measured peak RSS of `mufe run`, mesher included).
+//!   + [`BASE_BYTES`] (measured peak RSS of `mufe run`, mesher included), plus
+//!   [`PLASTIC_BYTES_PER_ELEMENT`] per element of a plastic material.
 //!
 //! Measured against the built models of every scene in `jobs/` (see docs/INPUT.md).
 
@@ -49,6 +50,8 @@ pub const SURFACE_NODE_SHARE: f64 = 0.5;
 pub const BYTES_PER_ELEMENT: u64 = 500;
 pub const BYTES_PER_NODE: u64 = 200;
 pub const BASE_BYTES: u64 = 32 << 20;
+/// Extra per element of a plastic material: its plastic state (εᵖ, α) and slot index.
+pub const PLASTIC_BYTES_PER_ELEMENT: u64 = 60;
 /// Steps above which `check`/`run` refuse the scene unless `--force` is given.
 pub const MAX_STEPS: u64 = 1_000_000_000;
 /// Steps above which a scene is refused outright: beyond 2⁵³ steps the step count and
@@ -314,6 +317,7 @@ pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputE
     let mut cache: BTreeMap<String, ShapeEstimate> = BTreeMap::new();
     let mut per_grain = Vec::with_capacity(scene.grains.len());
     let (mut elements, mut nodes, mut triangles) = (0u64, 0u64, 0u64);
+    let mut plastic_elements = 0u64;
     let sim = &scene.simulation;
     let (mut dt_stable, mut critical_grain) = (f64::INFINITY, 0);
     for (i, g) in scene.grains.iter().enumerate() {
@@ -345,6 +349,13 @@ pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputE
             .materials
             .get(&g.material)
             .map_or(f64::NAN, wave_speed);
+        if scene
+            .materials
+            .get(&g.material)
+            .is_some_and(|m| m.yield_stress.is_some())
+        {
+            plastic_elements = plastic_elements.saturating_add(est.elements);
+        }
         let dt = sim.dt_safety * factor * est.min_size / c;
         if dt < dt_stable {
             (dt_stable, critical_grain) = (dt, i);
@@ -360,6 +371,7 @@ pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputE
     let memory_bytes = elements
         .checked_mul(BYTES_PER_ELEMENT)
         .and_then(|e| nodes.checked_mul(BYTES_PER_NODE)?.checked_add(e))
+        .and_then(|b| b.checked_add(plastic_elements.checked_mul(PLASTIC_BYTES_PER_ELEMENT)?))
         .and_then(|b| b.checked_add(BASE_BYTES))
         .unwrap_or(u64::MAX);
     Ok(SceneEstimate {
