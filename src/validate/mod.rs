@@ -6,6 +6,7 @@
 pub mod hertz;
 pub mod reference;
 pub mod runner;
+pub mod scenes;
 pub mod two_sphere;
 
 use crate::error::InputError;
