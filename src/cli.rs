@@ -400,8 +400,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     .build_global()
                     .map_err(|e| MufeError::Run(format!("cannot start {t} threads: {e}")))?;
             }
-            let outcomes =
-                crate::validate::runner::run_cases(
+            let outcomes = crate::validate::runner::run_cases(
                 &selected,
                 mrs.as_deref(),
                 quick,

@@ -13,7 +13,8 @@
 
 use super::reference::{FiniteSphereReference, FiniteSphereTable, Hertz, FINITE_SPHERE_TABLE_PATH};
 use super::runner::{
-    case_inputs, case_solver, generated_case_scene, outcome_scene, scene_details, Case, CaseOutcome, Probe,
+    case_inputs, case_solver, generated_case_scene, outcome_scene, scene_details, Case,
+    CaseOutcome, Probe,
 };
 use super::scenes::{with_override_note, Params, SceneInputs};
 use crate::error::{num, InputError, MufeError, Result};
@@ -52,7 +53,7 @@ pub fn finite_sphere_reference(
                 &inputs.file,
                 &field,
                 format!(
-                    "ν = {} is outside the range of the finite-sphere Hertz reference,                      ν = {} … {} ({FINITE_SPHERE_TABLE_PATH})",
+                    "ν = {} is outside the range of the finite-sphere Hertz reference, ν = {} … {} ({FINITE_SPHERE_TABLE_PATH})",
                     num(nu),
                     num(lo),
                     num(hi)
@@ -70,7 +71,7 @@ pub fn finite_sphere_reference(
                 &inputs.file,
                 &field,
                 format!(
-                    "at ν = {} the finite-sphere Hertz reference ({FINITE_SPHERE_TABLE_PATH})                      covers F/(E*R²) = {} … {}, not the error window a/R = {w0} … {w1}                      (F/(E*R²) = {} … {})",
+                    "at ν = {} the finite-sphere Hertz reference ({FINITE_SPHERE_TABLE_PATH}) covers F/(E*R²) = {} … {}, not the error window a/R = {w0} … {w1} (F/(E*R²) = {} … {})",
                     num(nu),
                     num(f0),
                     num(f1),

@@ -112,7 +112,11 @@ impl FiniteSphereTable {
         curves.sort_by(|a, b| a.0.total_cmp(&b.0));
         for (nu, rows) in &mut curves {
             rows.sort_by(|a, b| a.0.total_cmp(&b.0));
-            if rows.len() < 2 || rows.windows(2).any(|w| w[1].0 <= w[0].0 || w[1].1 <= w[0].1) {
+            if rows.len() < 2
+                || rows
+                    .windows(2)
+                    .any(|w| w[1].0 <= w[0].0 || w[1].1 <= w[0].1)
+            {
                 return Err(format!(
                     "ν = {nu}: needs ≥ 2 rows with δ/R and F strictly increasing"
                 ));
@@ -189,7 +193,9 @@ impl FiniteSphereReference {
     /// Range of F/(E*R²) the curve covers (both bracketing curves defined).
     pub fn dimensionless_force_range(&self) -> (f64, f64) {
         let x0 = self.lo[0].0.max(self.hi[0].0);
-        let x1 = self.lo[self.lo.len() - 1].0.min(self.hi[self.hi.len() - 1].0);
+        let x1 = self.lo[self.lo.len() - 1]
+            .0
+            .min(self.hi[self.hi.len() - 1].0);
         (
             self.dimensionless_force(x0.exp()).unwrap_or(f64::NAN),
             self.dimensionless_force(x1.exp()).unwrap_or(f64::NAN),

@@ -1,9 +1,9 @@
 //! Running validation cases over meshing ratios: table, `validation.json`, PNG plots.
 
+use super::scenes::{case_scene, Params, SceneInputs};
 use crate::driver::{history_columns, history_row};
 use crate::error::{InputError, MufeError, Result};
 use crate::io::plot::{self, Plot, Scale, Series};
-use super::scenes::{case_scene, Params, SceneInputs};
 use crate::scene::{parse_scene, LoadedScene};
 use crate::solver::build_solver;
 use crate::solver::Solver;
@@ -47,8 +47,13 @@ pub trait Case {
     fn target(&self, quick: bool) -> f64;
     /// Runs at one meshing ratio: the case scene (after `overrides`) gives the material,
     /// radius and friction, the scene run is generated from them with `params`.
-    fn run(&self, mr: f64, quick: bool, overrides: &[String], params: &Params)
-        -> Result<CaseOutcome>;
+    fn run(
+        &self,
+        mr: f64,
+        quick: bool,
+        overrides: &[String],
+        params: &Params,
+    ) -> Result<CaseOutcome>;
     /// Label and scale of the x axis of the error plot.
     fn error_axis(&self) -> (&'static str, Scale) {
         ("load", Scale::Linear)

@@ -210,10 +210,7 @@ impl SceneInputs {
             .map(|t| {
                 t.iter()
                     .filter(|(k, _)| {
-                        !matches!(
-                            k.as_str(),
-                            "youngs_modulus" | "poisson_ratio" | "density"
-                        )
+                        !matches!(k.as_str(), "youngs_modulus" | "poisson_ratio" | "density")
                     })
                     .map(|(k, v)| (k.clone(), v.clone()))
                     .collect()
@@ -710,7 +707,10 @@ pub fn hertz(inputs: &SceneInputs, p: &HertzParams) -> Result<String, InputError
             ramp * 1e6
         )
     } else {
-        format!("constant {v_plate:.4} m/s = {:.3e} c_p from t = 0", p.v_plate)
+        format!(
+            "constant {v_plate:.4} m/s = {:.3e} c_p from t = 0",
+            p.v_plate
+        )
     };
     let damping = if p.damping > 0.0 {
         format!(
@@ -1076,13 +1076,17 @@ mod tests {
             let t_end = *h.times.last().unwrap();
             (travel(&h, 2) + v_end * (s.simulation.duration - t_end)) / r
         };
-        let (dg, ds) = (delta_over_r(&hg, glass.radius), delta_over_r(&hs, steel.radius));
+        let (dg, ds) = (
+            delta_over_r(&hg, glass.radius),
+            delta_over_r(&hs, steel.radius),
+        );
         assert!((dg / ds - 1.0).abs() < 1e-6, "{dg} vs {ds}");
         // the plates travel to the Hertz contact radius a_end: δ = a²/R
         assert!((dg / params.hertz.a_end.powi(2) - 1.0).abs() < 1e-6);
         let t_ratio = |s: &crate::scene::Scene, u: &Units| s.simulation.duration / u.time;
         assert!((t_ratio(&hg, &ug) / t_ratio(&hs, &us) - 1.0).abs() < 1e-6);
-        let dt_ratio = |s: &crate::scene::Scene, u: &Units| s.simulation.target_dt.unwrap() / u.time;
+        let dt_ratio =
+            |s: &crate::scene::Scene, u: &Units| s.simulation.target_dt.unwrap() / u.time;
         assert!((dt_ratio(&hg, &ug) / dt_ratio(&hs, &us) - 1.0).abs() < 1e-3);
         let shape = |s: &crate::scene::Scene| match &s.grains[0].shape {
             ShapeSpec::Sphere(sp) => (sp.radius, sp.seeding, sp.refine[0].radius),
@@ -1112,20 +1116,25 @@ mod tests {
             let dtmax = inputs.units().slip_displacement(inputs.friction, a);
             assert!((peak / (1.2 * dtmax) - 1.0).abs() < 1e-3, "{peak} {dtmax}");
             assert_eq!(scene.contact.friction, inputs.friction);
-            assert_eq!(scene.materials["glass"].youngs_modulus, inputs.material.youngs_modulus);
+            assert_eq!(
+                scene.materials["glass"].youngs_modulus,
+                inputs.material.youngs_modulus
+            );
         }
         assert!((t_ratio(&mg, &ug) / t_ratio(&ms, &us) - 1.0).abs() < 1e-6);
         // the normal force of the drive follows E*R²: the same a/R
-        assert!(
-            (us.a_over_r(us.force_at(a)) - a).abs() < 1e-12 && us.force_at(a) > ug.force_at(a)
-        );
+        assert!((us.a_over_r(us.force_at(a)) - a).abs() < 1e-12 && us.force_at(a) > ug.force_at(a));
 
         // torsion and rolling: final twist and angle in their natural units
         for (name, axis) in [("torsion", 2), ("rolling", 0)] {
             let s = parse(name, &steel);
             let w = s.boundaries[1].angular_velocity.clone().unwrap();
             let angle = travel(&w, axis);
-            let p = if name == "torsion" { &params.torsion } else { &params.rolling };
+            let p = if name == "torsion" {
+                &params.torsion
+            } else {
+                &params.rolling
+            };
             let a = p.a_over_r;
             let expect = if name == "torsion" {
                 2.0 * p.twist_param * steel.friction * us.force_at(a)
@@ -1133,7 +1142,10 @@ mod tests {
             } else {
                 p.amplitude * us.slip_displacement(steel.friction, a) / steel.radius
             };
-            assert!((angle / expect - 1.0).abs() < 1e-3, "{name}: {angle} vs {expect}");
+            assert!(
+                (angle / expect - 1.0).abs() < 1e-3,
+                "{name}: {angle} vs {expect}"
+            );
         }
     }
 
@@ -1161,7 +1173,13 @@ mod tests {
         assert_eq!(p.hertz.v_plate, 2e-4);
         p.set("rolling.clamp = 1").unwrap();
         assert_eq!(p.rolling.clamp, 1.0);
-        for bad in ["hertz.nope=1", "nocase.v=1", "hertz.v_plate", "hertz.ramp=abc", "x=1"] {
+        for bad in [
+            "hertz.nope=1",
+            "nocase.v=1",
+            "hertz.v_plate",
+            "hertz.ramp=abc",
+            "x=1",
+        ] {
             let e = p.set(bad).unwrap_err();
             assert_eq!(e.file, "<command line>", "{bad}");
         }

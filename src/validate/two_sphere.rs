@@ -471,10 +471,11 @@ impl Case for TwoSphereCase {
             Kind::Torsion => {
                 // Lubkin's curve is universal in these coordinates: evaluate it for any N
                 let inputs = SceneInputs::paper();
-                let (material, radius, mu) = outcomes
-                    .iter()
-                    .find_map(outcome_scene)
-                    .unwrap_or((inputs.material, inputs.radius, inputs.friction));
+                let (material, radius, mu) = outcomes.iter().find_map(outcome_scene).unwrap_or((
+                    inputs.material,
+                    inputs.radius,
+                    inputs.friction,
+                ));
                 let s = Setup {
                     material,
                     radius,
