@@ -54,9 +54,12 @@ impl Hertz {
 /// interpolated linearly in ν; along each ν it is interpolated log–log in δ/R.
 #[derive(Debug, Clone)]
 pub struct FiniteSphereTable {
-    /// Per ν (ascending): (ln δ/R, ln F/(E*R²), a/R) rows, ascending in δ/R.
-    curves: Vec<(f64, Vec<(f64, f64, f64)>)>,
+    /// Per ν (ascending): the curve's rows, ascending in δ/R.
+    curves: Vec<(f64, Vec<Row>)>,
 }
+
+/// One tabulated point: (ln δ/R, ln F/(E*R²), a/R).
+type Row = (f64, f64, f64);
 
 /// Path of the table, as named in error messages.
 pub const FINITE_SPHERE_TABLE_PATH: &str = "jobs/validation/hertz_finite_sphere_table.csv";
@@ -74,7 +77,7 @@ impl FiniteSphereTable {
     /// Parses `#` comment lines, the header `nu,delta_over_R,F_over_EstarR2,a_over_R`, then
     /// rows. Errors name the line.
     pub fn parse(text: &str) -> std::result::Result<Self, String> {
-        let mut curves: Vec<(f64, Vec<(f64, f64, f64)>)> = Vec::new();
+        let mut curves: Vec<(f64, Vec<Row>)> = Vec::new();
         let mut header = false;
         for (i, line) in text.lines().enumerate() {
             let line = line.trim();
@@ -162,13 +165,13 @@ impl FiniteSphereTable {
 #[derive(Debug, Clone)]
 pub struct FiniteSphereReference {
     /// The two bracketing tabulated curves and the weight of `hi` (0 on a tabulated ν).
-    lo: Vec<(f64, f64, f64)>,
-    hi: Vec<(f64, f64, f64)>,
+    lo: Vec<Row>,
+    hi: Vec<Row>,
     weight: f64,
 }
 
 /// Log–log interpolation of F/(E*R²) at ln(δ/R) = x along one tabulated curve.
-fn log_log(rows: &[(f64, f64, f64)], x: f64) -> Option<f64> {
+fn log_log(rows: &[Row], x: f64) -> Option<f64> {
     if x < rows[0].0 || x > rows[rows.len() - 1].0 {
         return None;
     }
@@ -181,7 +184,7 @@ fn log_log(rows: &[(f64, f64, f64)], x: f64) -> Option<f64> {
 impl FiniteSphereReference {
     /// F/(E*R²) at δ/R; `None` outside the tabulated δ/R range.
     pub fn dimensionless_force(&self, delta_over_r: f64) -> Option<f64> {
-        if !(delta_over_r > 0.0) {
+        if delta_over_r.is_nan() || delta_over_r <= 0.0 {
             return None;
         }
         let x = delta_over_r.ln();
