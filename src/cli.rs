@@ -95,9 +95,18 @@ pub enum Command {
         /// Threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
-        /// Override a field of every case scene.
+        /// Override a field of every case scene (material, radius and friction also set
+        /// the generated drive, loads and meshes).
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
+        /// Set a dimensionless scene-generator parameter, e.g. `hertz.v_plate=1e-4`
+        /// (units and defaults: src/validate/scenes.rs).
+        #[arg(long = "param", value_name = "CASE.KEY=VALUE")]
+        param: Vec<String>,
+        /// Write the generated scenes of the cases to DIR (for the material, radius and
+        /// friction after --set) and exit without running them.
+        #[arg(long, value_name = "DIR")]
+        write_scenes: Option<PathBuf>,
     },
 }
 
@@ -347,6 +356,8 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             quick,
             threads,
             set,
+            param,
+            write_scenes,
         } => {
             if let Some(dir) = std::env::var_os("MUFE_VALIDATION_SCENES") {
                 if !std::path::Path::new(&dir).is_dir() {
@@ -366,6 +377,18 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                 .map(crate::validate::runner::parse_mr_list)
                 .transpose()?;
             let selected = crate::validate::select_cases(&cases)?;
+            let mut params = crate::validate::scenes::Params::default();
+            for p in &param {
+                params.set(p)?;
+            }
+            if let Some(dir) = write_scenes {
+                let written =
+                    crate::validate::runner::write_scenes(&selected, &dir, &set, &params)?;
+                for p in written {
+                    println!("wrote {}", p.display());
+                }
+                return Ok(());
+            }
             if let Some(t) = threads {
                 if t == 0 {
                     return Err(
@@ -377,8 +400,14 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     .build_global()
                     .map_err(|e| MufeError::Run(format!("cannot start {t} threads: {e}")))?;
             }
-            let outcomes =
-                crate::validate::runner::run_cases(&selected, mrs.as_deref(), quick, &out, &set)?;
+            let outcomes = crate::validate::runner::run_cases(
+                &selected,
+                mrs.as_deref(),
+                quick,
+                &out,
+                &set,
+                &params,
+            )?;
             let failed: Vec<String> = outcomes
                 .iter()
                 .filter(|o| !o.pass)

@@ -15,7 +15,7 @@ fn run_quick(name: &str) {
     for mr in case.default_mrs(true) {
         let t0 = std::time::Instant::now();
         let o = case
-            .run(mr, true, &[])
+            .run(mr, true, &[], &mufe::validate::scenes::Params::default())
             .unwrap_or_else(|e| panic!("{name} at MR {mr}: {e}"));
         println!(
             "{name}: MR {mr}, {} elements, {} steps, {:.1} s, error {:.2}% (quick target {:.1}%), details {}",

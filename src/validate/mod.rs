@@ -7,6 +7,7 @@ pub mod hertz;
 pub mod plastic_cube;
 pub mod reference;
 pub mod runner;
+pub mod scenes;
 pub mod two_sphere;
 
 use crate::error::InputError;

@@ -47,52 +47,168 @@ impl Hertz {
     }
 }
 
-/// The converged finite-sphere reference (THEORY.md §1): F_ref(δ) for a sphere between two
-/// rigid frictionless plates, tabulated for the paper's material and R = 1.1 mm, rescaled
-/// to other materials/radii by the exact similarity of linear elasticity: F/(E*R²) is a
-/// function of δ/R only.
+/// The converged finite-sphere reference (THEORY.md §1): a sphere between two rigid
+/// frictionless plates, tabulated dimensionlessly (F/(E*R²) against δ/R, E* = E/(1−ν²),
+/// exact similarity of linear elasticity) for a set of Poisson ratios in
+/// `jobs/validation/hertz_finite_sphere_table.csv`. Between two tabulated ν the curve is
+/// interpolated linearly in ν; along each ν it is interpolated log–log in δ/R.
 #[derive(Debug, Clone)]
-pub struct FiniteSphereReference {
-    /// (δ/R, F/(E* R²)) pairs, ascending.
-    points: Vec<(f64, f64)>,
+pub struct FiniteSphereTable {
+    /// Per ν (ascending): the curve's rows, ascending in δ/R.
+    curves: Vec<(f64, Vec<Row>)>,
 }
 
-/// The table as shipped (converged axisymmetric FE; see the CSV header).
+/// One tabulated point: (ln δ/R, ln F/(E*R²), a/R).
+type Row = (f64, f64, f64);
+
+/// Path of the table, as named in error messages.
+pub const FINITE_SPHERE_TABLE_PATH: &str = "jobs/validation/hertz_finite_sphere_table.csv";
+
+/// The table as shipped (converged axisymmetric FE; see its comment lines).
+pub const FINITE_SPHERE_TABLE_CSV: &str =
+    include_str!("../../jobs/validation/hertz_finite_sphere_table.csv");
+
+/// The original single-ν table (R = 1.1 mm, E = 63 GPa, ν = 0.22, dimensional), kept as
+/// the check of the ν = 0.22 rows of [`FINITE_SPHERE_TABLE_CSV`].
 pub const FINITE_SPHERE_CSV: &str =
     include_str!("../../jobs/validation/hertz_finite_sphere_reference.csv");
 
-impl FiniteSphereReference {
-    /// Parses the CSV (R = 1.1 mm, E = 63 GPa, ν = 0.22 in the table).
-    pub fn load() -> Self {
-        let table = ElasticParameters::paper_glass();
-        let (r, e_star) = (1.1e-3, table.plane_strain_modulus());
-        let mut points = Vec::new();
-        for line in FINITE_SPHERE_CSV.lines() {
-            let cols: Vec<&str> = line.split(',').collect();
-            if let (Some(d), Some(f)) = (
-                cols.first().and_then(|s| s.trim().parse::<f64>().ok()),
-                cols.get(1).and_then(|s| s.trim().parse::<f64>().ok()),
-            ) {
-                points.push((d * 1e-6 / r, f / (e_star * r * r)));
+impl FiniteSphereTable {
+    /// Parses `#` comment lines, the header `nu,delta_over_R,F_over_EstarR2,a_over_R`, then
+    /// rows. Errors name the line.
+    pub fn parse(text: &str) -> std::result::Result<Self, String> {
+        let mut curves: Vec<(f64, Vec<Row>)> = Vec::new();
+        let mut header = false;
+        for (i, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            if !header {
+                if line.replace(' ', "") != "nu,delta_over_R,F_over_EstarR2,a_over_R" {
+                    return Err(format!(
+                        "line {}: expected the header nu,delta_over_R,F_over_EstarR2,a_over_R",
+                        i + 1
+                    ));
+                }
+                header = true;
+                continue;
+            }
+            let cols: std::result::Result<Vec<f64>, _> =
+                line.split(',').map(|c| c.trim().parse::<f64>()).collect();
+            let cols = match cols {
+                Ok(c) if c.len() == 4 && c.iter().all(|v| v.is_finite()) => c,
+                _ => return Err(format!("line {}: expected four finite numbers", i + 1)),
+            };
+            let (nu, d, f, a) = (cols[0], cols[1], cols[2], cols[3]);
+            if !(d > 0.0 && f > 0.0) {
+                return Err(format!("line {}: δ/R and F/(E*R²) must be > 0", i + 1));
+            }
+            match curves.iter_mut().find(|c| c.0 == nu) {
+                Some(c) => c.1.push((d.ln(), f.ln(), a)),
+                None => curves.push((nu, vec![(d.ln(), f.ln(), a)])),
             }
         }
-        Self { points }
+        if curves.is_empty() {
+            return Err("no rows".into());
+        }
+        curves.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (nu, rows) in &mut curves {
+            rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if rows.len() < 2
+                || rows
+                    .windows(2)
+                    .any(|w| w[1].0 <= w[0].0 || w[1].1 <= w[0].1)
+            {
+                return Err(format!(
+                    "ν = {nu}: needs ≥ 2 rows with δ/R and F strictly increasing"
+                ));
+            }
+        }
+        Ok(Self { curves })
     }
 
-    /// F_ref(δ) (N) for a sphere of `radius` and `material`, log–log interpolated; `None`
-    /// outside the table.
-    pub fn force(&self, material: &ElasticParameters, radius: f64, delta: f64) -> Option<f64> {
-        let x = delta / radius;
-        let p = &self.points;
-        if p.is_empty() || x < p[0].0 || x > p[p.len() - 1].0 {
+    /// The shipped table.
+    pub fn load() -> Self {
+        Self::parse(FINITE_SPHERE_TABLE_CSV)
+            .unwrap_or_else(|e| panic!("{FINITE_SPHERE_TABLE_PATH}: {e}"))
+    }
+
+    /// Smallest and largest tabulated ν.
+    pub fn nu_range(&self) -> (f64, f64) {
+        (self.curves[0].0, self.curves[self.curves.len() - 1].0)
+    }
+
+    /// The reference curve at Poisson ratio ν, `None` outside [`Self::nu_range`].
+    pub fn at_poisson_ratio(&self, nu: f64) -> Option<FiniteSphereReference> {
+        let c = &self.curves;
+        let k = c.iter().position(|q| q.0 >= nu)?;
+        if c[k].0 == nu {
+            return Some(FiniteSphereReference {
+                lo: c[k].1.clone(),
+                hi: c[k].1.clone(),
+                weight: 0.0,
+            });
+        }
+        if k == 0 {
             return None;
         }
-        let k = p.partition_point(|q| q.0 <= x).min(p.len() - 1).max(1);
-        let (x0, y0) = p[k - 1];
-        let (x1, y1) = p[k];
-        let s = (x.ln() - x0.ln()) / (x1.ln() - x0.ln());
-        let y = (y0.ln() + s * (y1.ln() - y0.ln())).exp();
-        Some(y * material.plane_strain_modulus() * radius * radius)
+        Some(FiniteSphereReference {
+            lo: c[k - 1].1.clone(),
+            hi: c[k].1.clone(),
+            weight: (nu - c[k - 1].0) / (c[k].0 - c[k - 1].0),
+        })
+    }
+}
+
+/// The finite-sphere reference at one ν (see [`FiniteSphereTable`]).
+#[derive(Debug, Clone)]
+pub struct FiniteSphereReference {
+    /// The two bracketing tabulated curves and the weight of `hi` (0 on a tabulated ν).
+    lo: Vec<Row>,
+    hi: Vec<Row>,
+    weight: f64,
+}
+
+/// Log–log interpolation of F/(E*R²) at ln(δ/R) = x along one tabulated curve.
+fn log_log(rows: &[Row], x: f64) -> Option<f64> {
+    if x < rows[0].0 || x > rows[rows.len() - 1].0 {
+        return None;
+    }
+    let k = rows.partition_point(|q| q.0 <= x).clamp(1, rows.len() - 1);
+    let (x0, y0, _) = rows[k - 1];
+    let (x1, y1, _) = rows[k];
+    Some((y0 + (x - x0) / (x1 - x0) * (y1 - y0)).exp())
+}
+
+impl FiniteSphereReference {
+    /// F/(E*R²) at δ/R; `None` outside the tabulated δ/R range.
+    pub fn dimensionless_force(&self, delta_over_r: f64) -> Option<f64> {
+        if delta_over_r.is_nan() || delta_over_r <= 0.0 {
+            return None;
+        }
+        let x = delta_over_r.ln();
+        let lo = log_log(&self.lo, x)?;
+        let hi = log_log(&self.hi, x)?;
+        Some(lo + self.weight * (hi - lo))
+    }
+
+    /// Range of F/(E*R²) the curve covers (both bracketing curves defined).
+    pub fn dimensionless_force_range(&self) -> (f64, f64) {
+        let x0 = self.lo[0].0.max(self.hi[0].0);
+        let x1 = self.lo[self.lo.len() - 1]
+            .0
+            .min(self.hi[self.hi.len() - 1].0);
+        (
+            self.dimensionless_force(x0.exp()).unwrap_or(f64::NAN),
+            self.dimensionless_force(x1.exp()).unwrap_or(f64::NAN),
+        )
+    }
+
+    /// F_ref(δ) (N) for a sphere of `radius` and `material`; `None` outside the table.
+    pub fn force(&self, material: &ElasticParameters, radius: f64, delta: f64) -> Option<f64> {
+        self.dimensionless_force(delta / radius)
+            .map(|f| f * material.plane_strain_modulus() * radius * radius)
     }
 }
 
@@ -259,15 +375,75 @@ mod tests {
         assert!((pair.contact_radius(pair.force(5e-6)) - 52.44e-6).abs() < 0.02e-6);
     }
 
-    #[test]
-    fn finite_sphere_reference_reproduces_its_table_and_exceeds_hertz() {
+    /// Parses the original dimensional table (R = 1.1 mm, E = 63 GPa, ν = 0.22):
+    /// (δ/R, F/(E*R²)).
+    fn original_table() -> Vec<(f64, f64)> {
         let m = ElasticParameters::paper_glass();
-        let r = FiniteSphereReference::load();
-        assert!((r.force(&m, 1.1e-3, 5e-6).unwrap() - 33.7846).abs() < 1e-6 * 33.8);
+        let (r, e_star) = (1.1e-3, m.plane_strain_modulus());
+        FINITE_SPHERE_CSV
+            .lines()
+            .filter_map(|line| {
+                let cols: Vec<&str> = line.split(',').collect();
+                let d = cols.first()?.trim().parse::<f64>().ok()?;
+                let f = cols.get(1)?.trim().parse::<f64>().ok()?;
+                Some((d * 1e-6 / r, f / (e_star * r * r)))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn table_at_nu_022_matches_the_original_reference() {
+        let table = FiniteSphereTable::load();
+        let r = table.at_poisson_ratio(0.22).expect("ν = 0.22 in the table");
+        let rows = original_table();
+        assert!(rows.len() >= 15);
+        for (d, f) in rows {
+            let g = r
+                .dimensionless_force(d)
+                .unwrap_or_else(|| panic!("δ/R = {d} outside the table"));
+            assert!((g / f - 1.0).abs() < 1e-3, "δ/R = {d}: {g} vs {f}");
+        }
+    }
+
+    #[test]
+    fn finite_sphere_reference_scales_and_exceeds_hertz() {
+        let m = ElasticParameters::paper_glass();
+        let r = FiniteSphereTable::load().at_poisson_ratio(0.22).unwrap();
+        assert!((r.force(&m, 1.1e-3, 5e-6).unwrap() / 33.7846 - 1.0).abs() < 1e-3);
         let flat = Hertz::sphere_on_flat(&m, 1.1e-3);
         let ratio = r.force(&m, 1.1e-3, 2e-6).unwrap() / flat.force(2e-6);
         assert!(ratio > 1.0 && ratio < 1.03);
         assert!(r.force(&m, 1.1e-3, 1e-3).is_none());
+        // similarity: twice the radius, twice E → F × 8 at twice δ
+        let m2 = ElasticParameters {
+            youngs_modulus: 2.0 * m.youngs_modulus,
+            ..m
+        };
+        let f1 = r.force(&m, 1.1e-3, 3e-6).unwrap();
+        let f2 = r.force(&m2, 2.2e-3, 6e-6).unwrap();
+        assert!((f2 / (8.0 * f1) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn table_interpolates_linearly_in_nu_and_refuses_outside() {
+        let text = "# test\nnu,delta_over_R,F_over_EstarR2,a_over_R\n\
+                    0.2,1e-4,1e-6,0.01\n0.2,1e-2,1e-3,0.1\n\
+                    0.3,1e-4,2e-6,0.01\n0.3,1e-2,2e-3,0.1\n";
+        let t = FiniteSphereTable::parse(text).unwrap();
+        assert_eq!(t.nu_range(), (0.2, 0.3));
+        let r = t.at_poisson_ratio(0.25).unwrap();
+        // log–log along δ/R: the midpoint in ln δ is the geometric mean in F
+        let mid = r.dimensionless_force(1e-3).unwrap();
+        let expect = 0.5 * (1e-6f64 * 1e-3).sqrt() + 0.5 * (2e-6f64 * 2e-3).sqrt();
+        assert!((mid / expect - 1.0).abs() < 1e-12, "{mid} {expect}");
+        assert!(t.at_poisson_ratio(0.35).is_none());
+        assert!(t.at_poisson_ratio(0.1).is_none());
+        assert!(r.dimensionless_force(2e-2).is_none());
+        assert!(FiniteSphereTable::parse("nu,x\n").is_err());
+        assert!(FiniteSphereTable::parse(
+            "nu,delta_over_R,F_over_EstarR2,a_over_R\n0.2,1e-4,1e-6,0.01\n"
+        )
+        .is_err());
     }
 
     #[test]

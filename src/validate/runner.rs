@@ -1,5 +1,6 @@
 //! Running validation cases over meshing ratios: table, `validation.json`, PNG plots.
 
+use super::scenes::{case_scene, Params, SceneInputs};
 use crate::driver::{history_columns, history_row};
 use crate::error::{InputError, MufeError, Result};
 use crate::io::plot::{self, Plot, Scale, Series};
@@ -38,12 +39,21 @@ pub struct CaseOutcome {
 /// A validation case.
 pub trait Case {
     fn name(&self) -> &'static str;
+    /// The shipped scene text (`jobs/validation/<case>.toml`).
+    fn shipped_scene(&self) -> &'static str;
     /// Default meshing ratios at the contact (full sweep, or quick).
     fn default_mrs(&self, quick: bool) -> Vec<f64>;
     /// Accuracy target (fraction) at the finest meshing ratio.
     fn target(&self, quick: bool) -> f64;
-    /// Runs at one meshing ratio.
-    fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome>;
+    /// Runs at one meshing ratio: the case scene (after `overrides`) gives the material,
+    /// radius and friction, the scene run is generated from them with `params`.
+    fn run(
+        &self,
+        mr: f64,
+        quick: bool,
+        overrides: &[String],
+        params: &Params,
+    ) -> Result<CaseOutcome>;
     /// Label and scale of the x axis of the error plot.
     fn error_axis(&self) -> (&'static str, Scale) {
         ("load", Scale::Linear)
@@ -54,7 +64,8 @@ pub trait Case {
 
 /// Loads a case scene (embedded copy of `jobs/validation/<case>.toml`) with overrides.
 /// With the environment variable `MUFE_VALIDATION_SCENES=DIR` set, `DIR/<case>.toml` is
-/// read instead (for trying scene variants without rebuilding).
+/// read instead. Only its material, radius and friction matter to `mufe validate`: the
+/// scene run is generated from them ([`generated_case_scene`]).
 pub fn load_case_scene(name: &str, text: &str, overrides: &[String]) -> Result<LoadedScene> {
     if let Some(dir) = std::env::var_os("MUFE_VALIDATION_SCENES") {
         let path = Path::new(&dir).join(format!("{name}.toml"));
@@ -72,6 +83,86 @@ pub fn load_case_scene(name: &str, text: &str, overrides: &[String]) -> Result<L
         text,
         overrides,
     )?)
+}
+
+/// Material, radius and friction of a case scene after `overrides` (see
+/// [`load_case_scene`]).
+pub fn case_inputs(name: &str, shipped: &str, overrides: &[String]) -> Result<SceneInputs> {
+    let base = load_case_scene(name, shipped, overrides)?;
+    Ok(SceneInputs::from_scene(name, &base, overrides)?)
+}
+
+/// The scene a case runs: the case scene is loaded with `overrides` (see
+/// [`load_case_scene`]), its material, radius and friction are read, the full scene is
+/// generated from them ([`super::scenes`]) and parsed with `sets` (the meshing ratio's
+/// seedings) and then `overrides` applied again (so an override of any generated field
+/// still wins). Returns the scene and the inputs it was generated from.
+pub fn generated_case_scene(
+    name: &str,
+    shipped: &str,
+    overrides: &[String],
+    params: &Params,
+    sets: &[String],
+) -> Result<(LoadedScene, SceneInputs)> {
+    let inputs = case_inputs(name, shipped, overrides)?;
+    let text = case_scene(name, &inputs, params)?;
+    let mut all = sets.to_vec();
+    all.extend_from_slice(overrides);
+    let loaded = parse_scene(&format!("{} (as generated)", inputs.file), &text, &all)?;
+    Ok((loaded, inputs))
+}
+
+/// The generation inputs of a run, for `validation.json` (`details.scene`).
+pub fn scene_details(inputs: &SceneInputs) -> serde_json::Value {
+    let m = &inputs.material;
+    serde_json::json!({
+        "file": inputs.file,
+        "youngs_modulus_pa": m.youngs_modulus,
+        "poisson_ratio": m.poisson_ratio,
+        "density_kg_m3": m.density,
+        "radius_m": inputs.radius,
+        "friction": inputs.friction,
+    })
+}
+
+/// Material, radius and friction of an outcome (from [`scene_details`]).
+pub fn outcome_scene(o: &CaseOutcome) -> Option<(crate::material::ElasticParameters, f64, f64)> {
+    let s = o.details.get("scene")?;
+    let f = |k: &str| s.get(k).and_then(|v| v.as_f64());
+    Some((
+        crate::material::ElasticParameters {
+            youngs_modulus: f("youngs_modulus_pa")?,
+            poisson_ratio: f("poisson_ratio")?,
+            density: f("density_kg_m3")?,
+        },
+        f("radius_m")?,
+        f("friction")?,
+    ))
+}
+
+/// Writes the generated scenes of `cases` for the material, radius and friction of the
+/// case scenes after `overrides` (the shipped files with no overrides) to `dir`.
+pub fn write_scenes(
+    cases: &[Box<dyn Case>],
+    dir: &Path,
+    overrides: &[String],
+    params: &Params,
+) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| MufeError::Io(format!("{}: cannot create directory: {e}", dir.display())))?;
+    let mut written = Vec::new();
+    for case in cases {
+        let name = case.name();
+        let inputs = case_inputs(name, case.shipped_scene(), overrides)?;
+        let text = case_scene(name, &inputs, params)?;
+        // the written file must parse as it stands
+        parse_scene(name, &text, &[])?;
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text)
+            .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
+        written.push(path);
+    }
+    Ok(written)
 }
 
 /// Reads named history columns from a solver while it runs.
@@ -117,6 +208,7 @@ pub fn run_cases(
     quick: bool,
     out: &Path,
     overrides: &[String],
+    params: &Params,
 ) -> Result<Vec<CaseOutcome>> {
     std::fs::create_dir_all(out)
         .map_err(|e| MufeError::Io(format!("{}: cannot create directory: {e}", out.display())))?;
@@ -132,7 +224,7 @@ pub fn run_cases(
         let mut outcomes = Vec::new();
         for mr in list {
             let t0 = Instant::now();
-            let mut o = case.run(mr, quick, overrides)?;
+            let mut o = case.run(mr, quick, overrides, params)?;
             o.wall_s = t0.elapsed().as_secs_f64();
             println!(
                 "{:<9} {:>8.4} {:>9} {:>8} {:>9.1} {:>9} {:>8} {:>5}",

@@ -2,8 +2,10 @@
 //! plane below the contact (boundary `base`), the upper one is moved rigidly beyond a plane
 //! above it (boundary `drive`) — first down to the normal force N, then tangentially
 //! (Mindlin), twisted about the normal (torsion) or rotated about its own centre (rolling).
-//! The planes are at ∓R/2 from the contact in the shipped scenes (`clamp` in
-//! `scripts/gen_validation_scenes.py`; docs/BENCHMARKS.md shows the far hemispheres too).
+//! The planes are at ∓R/2 from the contact in the shipped scenes (`clamp` of
+//! [`super::scenes::TwoSphereParams`]; docs/BENCHMARKS.md shows the far hemispheres too).
+//! The scene run is generated from the material, radius and friction of the case scene
+//! (after `--set`), so the loads, drives and meshes follow them ([`super::scenes`]).
 //!
 //! What is measured: the force and moment the contact transmits to the lower sphere, i.e.
 //! the base reaction plus the rate of change of the lower sphere's linear and angular
@@ -21,12 +23,13 @@
 
 use super::reference::{Lubkin, Mindlin, Rolling};
 use super::runner::{
-    case_solver, deformation_kinetic_energy, load_case_scene, Case, CaseOutcome, Probe,
+    case_inputs, case_solver, deformation_kinetic_energy, generated_case_scene, outcome_scene,
+    scene_details, Case, CaseOutcome, Probe,
 };
-use crate::error::{MufeError, Result};
+use super::scenes::{Params, SceneInputs};
+use crate::error::Result;
 use crate::io::plot::{Plot, Scale, Series};
 use crate::material::ElasticParameters;
-use crate::scene::ShapeSpec;
 use serde_json::json;
 
 /// Which tangential law a case checks.
@@ -99,25 +102,13 @@ impl TwoSphereCase {
         }
     }
 
-    fn setup(&self, scene: &crate::scene::Scene) -> Result<Setup> {
-        let g = &scene.grains[0];
-        let m = &scene.materials[&g.material];
-        let ShapeSpec::Sphere(s) = &g.shape else {
-            return Err(MufeError::Run(format!(
-                "{}: grains must be spheres",
-                self.name()
-            )));
-        };
-        Ok(Setup {
-            material: ElasticParameters {
-                youngs_modulus: m.youngs_modulus,
-                poisson_ratio: m.poisson_ratio,
-                density: m.density,
-            },
-            radius: s.radius,
-            mu: scene.contact.friction,
-            lever: s.radius,
-        })
+    fn setup(inputs: &SceneInputs) -> Setup {
+        Setup {
+            material: inputs.material,
+            radius: inputs.radius,
+            mu: inputs.friction,
+            lever: inputs.radius,
+        }
     }
 
     /// (x, y, N) at the current sample: the drive's tangential displacement or angle, and
@@ -218,6 +209,10 @@ impl Case for TwoSphereCase {
         }
     }
 
+    fn shipped_scene(&self) -> &'static str {
+        self.scene_text()
+    }
+
     fn default_mrs(&self, quick: bool) -> Vec<f64> {
         if quick {
             // coarsest meshing ratio that meets the full target (docs/BENCHMARKS.md)
@@ -243,17 +238,22 @@ impl Case for TwoSphereCase {
         }
     }
 
-    fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome> {
+    fn run(
+        &self,
+        mr: f64,
+        quick: bool,
+        overrides: &[String],
+        params: &Params,
+    ) -> Result<CaseOutcome> {
         let name = self.name();
-        let base = load_case_scene(name, self.scene_text(), &[])?;
-        let setup = self.setup(&base.scene)?;
+        let inputs = case_inputs(name, self.scene_text(), overrides)?;
+        let setup = Self::setup(&inputs);
         let s = mr * 2.0 * setup.radius;
-        let mut sets = vec![
+        let sets = vec![
             format!("grains[0].shape.sphere.refine[0].seeding={s:e}"),
             format!("grains[1].shape.sphere.refine[0].seeding={s:e}"),
         ];
-        sets.extend_from_slice(overrides);
-        let loaded = load_case_scene(name, self.scene_text(), &sets)?;
+        let (loaded, _) = generated_case_scene(name, self.scene_text(), overrides, params, &sets)?;
         let mut solver = case_solver(&loaded)?;
         let mut probe = Probe::new(&solver);
         let sample_every =
@@ -403,6 +403,7 @@ impl Case for TwoSphereCase {
             json!(ke_def_ie),
         );
         details.insert("seeding_at_contact_m".into(), json!(s));
+        details.insert("scene".into(), scene_details(&inputs));
         details.insert(
             "friction_dissipation_j".into(),
             json!(solver.state.energy.friction_dissipation),
@@ -469,8 +470,19 @@ impl Case for TwoSphereCase {
             }
             Kind::Torsion => {
                 // Lubkin's curve is universal in these coordinates: evaluate it for any N
-                let base = load_case_scene(self.name(), self.scene_text(), &[]).ok();
-                if let Some(s) = base.and_then(|b| self.setup(&b.scene).ok()) {
+                let inputs = SceneInputs::paper();
+                let (material, radius, mu) = outcomes.iter().find_map(outcome_scene).unwrap_or((
+                    inputs.material,
+                    inputs.radius,
+                    inputs.friction,
+                ));
+                let s = Setup {
+                    material,
+                    radius,
+                    mu,
+                    lever: radius,
+                };
+                {
                     let l = Lubkin::identical_spheres(&s.material, s.radius, s.mu, 1.0);
                     let scale = self.x_scale(&s, 1.0);
                     let pts = xs(0.0, x_max)
