@@ -45,7 +45,12 @@ fn run_quick(name: &str) {
         for mr in case.default_mrs(true) {
             let o = pool
                 .install(|| {
-                    select_cases(&[name.to_string()]).expect("known case")[0].run(mr, true, &sets)
+                    select_cases(&[name.to_string()]).expect("known case")[0].run(
+                        mr,
+                        true,
+                        &sets,
+                        &Default::default(),
+                    )
                 })
                 .unwrap_or_else(|e| panic!("{name}, {label}, MR {mr}: {e}"));
             println!(

@@ -19,6 +19,7 @@
 //! (L/c_p)²/T² effect.
 
 use super::runner::{load_case_scene, Case, CaseOutcome, Probe};
+use super::scenes::Params;
 use crate::error::{MufeError, Result};
 use crate::io::plot::{Plot, Scale, Series};
 use crate::scene::{parse_scene, ShapeSpec};
@@ -216,6 +217,17 @@ impl Case for PlasticCubeCase {
         "plastic_cube"
     }
 
+    fn shipped_scene(&self) -> &'static str {
+        SCENE
+    }
+
+    /// The scene at the default meshing ratio (the mesh does not change the answer).
+    fn generated_scene(&self, overrides: &[String], _params: &Params) -> Result<String> {
+        let base = load_case_scene("plastic_cube", SCENE, overrides)?;
+        let setup = Self::setup(&base.scene)?;
+        Ok(Self::scene_text(&setup, 2).0)
+    }
+
     /// MR = cell edge / cube edge.
     fn default_mrs(&self, quick: bool) -> Vec<f64> {
         if quick {
@@ -233,7 +245,13 @@ impl Case for PlasticCubeCase {
         }
     }
 
-    fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome> {
+    fn run(
+        &self,
+        mr: f64,
+        quick: bool,
+        overrides: &[String],
+        _params: &Params,
+    ) -> Result<CaseOutcome> {
         let base = load_case_scene("plastic_cube", SCENE, overrides)?;
         let setup = Self::setup(&base.scene)?;
         let divisions = (1.0 / mr).round().max(1.0) as usize;

@@ -54,6 +54,12 @@ pub trait Case {
         overrides: &[String],
         params: &Params,
     ) -> Result<CaseOutcome>;
+    /// The scene a run of this case uses (`mufe validate --write-scenes`), generated from
+    /// the case scene after `overrides`.
+    fn generated_scene(&self, overrides: &[String], params: &Params) -> Result<String> {
+        let inputs = case_inputs(self.name(), self.shipped_scene(), overrides)?;
+        Ok(case_scene(self.name(), &inputs, params)?)
+    }
     /// Label and scale of the x axis of the error plot.
     fn error_axis(&self) -> (&'static str, Scale) {
         ("load", Scale::Linear)
@@ -153,8 +159,7 @@ pub fn write_scenes(
     let mut written = Vec::new();
     for case in cases {
         let name = case.name();
-        let inputs = case_inputs(name, case.shipped_scene(), overrides)?;
-        let text = case_scene(name, &inputs, params)?;
+        let text = case.generated_scene(overrides, params)?;
         // the written file must parse as it stands
         parse_scene(name, &text, &[])?;
         let path = dir.join(format!("{name}.toml"));
