@@ -396,11 +396,13 @@ mod tests {
         let table = FiniteSphereTable::load();
         let r = table.at_poisson_ratio(0.22).expect("ν = 0.22 in the table");
         let rows = original_table();
-        assert!(rows.len() >= 15);
-        for (d, f) in rows {
-            let g = r
-                .dimensionless_force(d)
-                .unwrap_or_else(|| panic!("δ/R = {d} outside the table"));
+        // every original row inside the new table's δ/R range is compared
+        let compared: Vec<(f64, f64, f64)> = rows
+            .iter()
+            .filter_map(|&(d, f)| r.dimensionless_force(d).map(|g| (d, f, g)))
+            .collect();
+        assert!(compared.len() >= 15, "{} rows compared", compared.len());
+        for (d, f, g) in compared {
             assert!((g / f - 1.0).abs() < 1e-3, "δ/R = {d}: {g} vs {f}");
         }
     }
