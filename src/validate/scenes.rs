@@ -271,6 +271,13 @@ pub struct HertzParams {
     pub v_plate: f64,
     /// Raised-cosine ramp of the plate speed (R/c_p; 0: constant speed from t = 0).
     pub ramp: f64,
+    /// Exponential drive when > 0 (then `v_plate` and `ramp` are unused): each plate's
+    /// travel from first touch is δ(t) = δ0 (e^{t/τ} − 1), so its speed (δ + δ0)/τ and
+    /// acceleration (δ + δ0)/τ² grow with δ and the relative inertia of the contact zone,
+    /// ∝ (v²/δ + a)/δ, is uniform over the load range (τ in R/c_p).
+    pub tau: f64,
+    /// δ0 of the exponential drive (R): the speed at first touch is δ0/τ.
+    pub delta0: f64,
     /// Initial gap between each plate and its pole (R).
     pub gap: f64,
     /// Plate travel covered by the duration, as the Hertz contact radius √(δR) it gives (R).
@@ -300,6 +307,8 @@ impl Default for HertzParams {
         Self {
             v_plate: 0.6 / u.speed,
             ramp: 6.0e-6 / u.time,
+            tau: 0.0,
+            delta0: 0.0,
             gap: 0.0,
             a_end: (7.2e-6 / u.length).sqrt(),
             target_dt: 3.0e-9 / u.time,
@@ -445,6 +454,8 @@ impl HertzParams {
         vec![
             ("v_plate", &mut self.v_plate),
             ("ramp", &mut self.ramp),
+            ("tau", &mut self.tau),
+            ("delta0", &mut self.delta0),
             ("gap", &mut self.gap),
             ("a_end", &mut self.a_end),
             ("target_dt", &mut self.target_dt),
@@ -658,22 +669,16 @@ fn invalid(inputs: &SceneInputs, case: &str, message: String) -> InputError {
     )
 }
 
-/// The Hertz scene for the given material and radius.
-pub fn hertz(inputs: &SceneInputs, p: &HertzParams) -> Result<String, InputError> {
-    let u = inputs.units();
-    let r = inputs.radius;
-    let v_plate = p.v_plate * u.speed;
-    let ramp = p.ramp * u.time;
-    let gap = p.gap.max(0.0) * r;
-    let delta_end = p.a_end * p.a_end * r;
-    if !(v_plate > 0.0 && ramp >= 0.0 && delta_end > 0.0) {
-        return Err(invalid(
-            inputs,
-            "hertz",
-            "v_plate and a_end must be > 0 and ramp ≥ 0".into(),
-        ));
-    }
-    // the plates start `gap` away from the poles
+/// Plate speed: raised-cosine ramp to `v_plate`, then constant; the plates start `gap`
+/// away from the poles. Returns (velocity points, duration, description).
+fn plate_ramp(
+    inputs: &SceneInputs,
+    p: &HertzParams,
+    v_plate: f64,
+    ramp: f64,
+    gap: f64,
+    delta_end: f64,
+) -> Result<(Points, f64, String), InputError> {
     let (up, travel_ramp): (Points, f64) = if ramp > 0.0 {
         let n = RAMP_POINTS as f64;
         (
@@ -711,6 +716,68 @@ pub fn hertz(inputs: &SceneInputs, p: &HertzParams) -> Result<String, InputError
             "constant {v_plate:.4} m/s = {:.3e} c_p from t = 0",
             p.v_plate
         )
+    };
+    Ok((up, duration, motion))
+}
+
+/// Points of the exponential plate speed.
+const EXPONENTIAL_POINTS: usize = 48;
+
+/// Exponential drive: δ(t) = δ0 (e^{t/τ} − 1) from first touch at t = 0 (no gap), speed
+/// sampled piecewise linearly. Returns (velocity points, duration, description).
+fn plate_exponential(
+    inputs: &SceneInputs,
+    p: &HertzParams,
+    delta_end: f64,
+) -> Result<(Points, f64, String), InputError> {
+    let u = inputs.units();
+    let (tau, delta0) = (p.tau * u.time, p.delta0 * u.length);
+    if !(delta0 > 0.0 && delta0 < delta_end && p.gap == 0.0) {
+        return Err(invalid(
+            inputs,
+            "hertz",
+            "the exponential drive needs 0 < delta0 < a_end² and gap = 0".into(),
+        ));
+    }
+    let duration = tau * (1.0 + delta_end / delta0).ln();
+    let n = EXPONENTIAL_POINTS as f64;
+    let up: Points = (0..=EXPONENTIAL_POINTS)
+        .map(|k| {
+            let t = duration * k as f64 / n;
+            (t, delta0 / tau * (t / tau).exp())
+        })
+        .collect();
+    let motion = format!(
+        "exponential: δ = δ0 (e^(t/τ) − 1), τ = {:.4} µs = {:.4} R/c_p, δ0 = {:.4} µm, \
+         from {:.3e} to {:.4} m/s",
+        tau * 1e6,
+        p.tau,
+        delta0 * 1e6,
+        delta0 / tau,
+        (delta_end + delta0) / tau
+    );
+    Ok((up, duration, motion))
+}
+
+/// The Hertz scene for the given material and radius.
+pub fn hertz(inputs: &SceneInputs, p: &HertzParams) -> Result<String, InputError> {
+    let u = inputs.units();
+    let r = inputs.radius;
+    let v_plate = p.v_plate * u.speed;
+    let ramp = p.ramp * u.time;
+    let gap = p.gap.max(0.0) * r;
+    let delta_end = p.a_end * p.a_end * r;
+    if !(v_plate > 0.0 && ramp >= 0.0 && delta_end > 0.0) {
+        return Err(invalid(
+            inputs,
+            "hertz",
+            "v_plate and a_end must be > 0 and ramp ≥ 0".into(),
+        ));
+    }
+    let (up, duration, motion) = if p.tau > 0.0 {
+        plate_exponential(inputs, p, delta_end)?
+    } else {
+        plate_ramp(inputs, p, v_plate, ramp, gap, delta_end)?
     };
     let damping = if p.damping > 0.0 {
         format!(
