@@ -395,16 +395,16 @@ mod tests {
     fn table_at_nu_022_matches_the_original_reference() {
         let table = FiniteSphereTable::load();
         let r = table.at_poisson_ratio(0.22).expect("ν = 0.22 in the table");
-        let rows = original_table();
-        // every original row inside the new table's δ/R range is compared
-        let compared: Vec<(f64, f64, f64)> = rows
-            .iter()
-            .filter_map(|&(d, f)| r.dimensionless_force(d).map(|g| (d, f, g)))
-            .collect();
-        assert!(compared.len() >= 15, "{} rows compared", compared.len());
-        for (d, f, g) in compared {
-            assert!((g / f - 1.0).abs() < 1e-3, "δ/R = {d}: {g} vs {f}");
+        // every original row inside the table's δ/R range (the original starts a little
+        // lower, at δ = 0.05 µm), which covers the validation window
+        let mut compared = 0;
+        for (d, f) in original_table() {
+            if let Some(g) = r.dimensionless_force(d) {
+                assert!((g / f - 1.0).abs() < 1e-3, "δ/R = {d}: {g} vs {f}");
+                compared += 1;
+            }
         }
+        assert!(compared >= 18, "{compared} rows compared");
     }
 
     #[test]
