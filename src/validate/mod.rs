@@ -5,6 +5,7 @@
 
 pub mod hertz;
 pub mod plastic_cube;
+pub mod plastic_spheres;
 pub mod reference;
 pub mod runner;
 pub mod scenes;
@@ -18,7 +19,14 @@ use runner::{Case, CaseOutcome};
 pub const QUICK_TOLERANCE_FACTOR: f64 = 1.5;
 
 /// All cases, in the order they run.
-pub const CASE_NAMES: [&str; 5] = ["hertz", "mindlin", "torsion", "rolling", "plastic_cube"];
+pub const CASE_NAMES: [&str; 6] = [
+    "hertz",
+    "mindlin",
+    "torsion",
+    "rolling",
+    "plastic_cube",
+    "plastic_spheres",
+];
 
 /// Resolves case names (empty: all) to case objects.
 pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> {
@@ -42,6 +50,7 @@ pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> 
                     kind: two_sphere::Kind::Rolling,
                 })),
                 "plastic_cube" => Ok(Box::new(plastic_cube::PlasticCubeCase)),
+                "plastic_spheres" => Ok(Box::new(plastic_spheres::PlasticSpheresCase)),
                 other => Err(InputError::new(
                     "<command line>",
                     "CASE",
