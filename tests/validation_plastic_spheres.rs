@@ -23,7 +23,7 @@ fn run_quick(label: &str, sets: &[String]) {
     for mr in case.default_mrs(true) {
         let t0 = std::time::Instant::now();
         let o = case
-            .run(mr, true, sets)
+            .run(mr, true, sets, &Default::default())
             .unwrap_or_else(|e| panic!("{label}, MR {mr}: {e}"));
         let d = &o.details;
         let get = |k: &str| d[k].as_f64().unwrap_or(f64::NAN);

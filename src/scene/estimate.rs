@@ -25,8 +25,8 @@
 //!   (their worst element is ~10× shorter in its critical mode than the seeding) and
 //!   [`BLOCK_DT_FACTOR`] for the structured blocks; the smallest over the grains. The step
 //!   used is `simulation.dt`, else `target_dt`, else this estimate; steps = ⌈duration/Δt⌉.
-//! - **memory** of a run: [`BYTES_PER_ELEMENT`] per element + [`BYTES_PER_NODE`] per node
-//!   + [`BASE_BYTES`] (measured peak RSS of `mufe run`, mesher included), plus
+//! - **memory** of a run: [`BYTES_PER_ELEMENT`] per element, [`BYTES_PER_NODE`] per node,
+//!   [`BASE_BYTES`] (measured peak RSS of `mufe run`, mesher included), and
 //!   [`PLASTIC_BYTES_PER_ELEMENT`] per element of a plastic material.
 //!
 //! Measured against the built models of every scene in `jobs/` (see docs/INPUT.md).

@@ -517,6 +517,22 @@ impl Case for PlasticSpheresCase {
         "plastic_spheres"
     }
 
+    fn shipped_scene(&self) -> &'static str {
+        SCENE
+    }
+
+    /// The scene at the quick meshing ratio.
+    fn generated_scene(
+        &self,
+        overrides: &[String],
+        _params: &super::scenes::Params,
+    ) -> Result<String> {
+        let base = load_case_scene("plastic_spheres", SCENE, overrides)?;
+        let setup = Self::setup(&base.scene)?;
+        let params = Params::from_env()?;
+        Ok(Self::scene_text(&setup, &params, self.default_mrs(true)[0]).0)
+    }
+
     /// MR = seeding at the poles / ac.
     fn default_mrs(&self, quick: bool) -> Vec<f64> {
         if quick {
@@ -534,7 +550,13 @@ impl Case for PlasticSpheresCase {
         }
     }
 
-    fn run(&self, mr: f64, quick: bool, overrides: &[String]) -> Result<CaseOutcome> {
+    fn run(
+        &self,
+        mr: f64,
+        quick: bool,
+        overrides: &[String],
+        _scene_params: &super::scenes::Params,
+    ) -> Result<CaseOutcome> {
         let base = load_case_scene("plastic_spheres", SCENE, overrides)?;
         let setup = Self::setup(&base.scene)?;
         let params = Params::from_env()?;
