@@ -395,8 +395,8 @@ mod tests {
     fn table_at_nu_022_matches_the_original_reference() {
         let table = FiniteSphereTable::load();
         let r = table.at_poisson_ratio(0.22).expect("ν = 0.22 in the table");
-        // every original row inside the table's δ/R range (the original starts a little
-        // lower, at δ = 0.05 µm), which covers the validation window
+        // every original row inside the table's δ/R range (which covers the validation
+        // window)
         let mut compared = 0;
         for (d, f) in original_table() {
             if let Some(g) = r.dimensionless_force(d) {
