@@ -16,11 +16,11 @@
 //! R/c_p. Meshing ratio of this case: **MR = s/ac**, s the seeding of the patch at each pole
 //! (constant within chord distance ac of the pole, then growing by [`GROWTH`] per unit
 //! distance). The sphere's own seeding is ≈ R/4, rounded to s × a power of two so that
-//! the mesher's nested interior lattices have a level at exactly s. Drive: a sin² velocity
-//! pulse of [`LOAD_TRANSITS`] R/c_p to Δ = 2 × [`PEAK`] δc, a second one of
-//! [`UNLOAD_TRANSITS`] R/c_p back by [`UNLOAD_OVERSHOOT`] × the elastic recovery the
-//! Jackson–Green peak point implies (the spheres separate well before its end), then
-//! [`REST_TRANSITS`] R/c_p at rest. Mass scaling to R/(c_p [`STEPS_PER_TRANSIT`]). No
+//! the mesher's nested interior lattices have a level at exactly s. Drive (sin² velocity
+//! pulses, each starting and ending at rest): to δ* = [`KNEE`] in [`KNEE_TRANSITS`] R/c_p,
+//! on to δ* = [`PEAK`] in [`LOAD_TRANSITS`], back by [`UNLOAD_OVERSHOOT`] × the elastic
+//! recovery the Jackson–Green peak point implies in [`UNLOAD_TRANSITS`] (the spheres
+//! separate well before its end), then [`REST_TRANSITS`] at rest. Mass scaling to R/(c_p [`STEPS_PER_TRANSIT`]). No
 //! deformation damping: with the mass-scaled contact zone nearly at rest while each sphere
 //! moves, it pushed the spheres together (+3–5 % on F at δ* ≈ 1–4, measured).
 //!
@@ -39,10 +39,10 @@
 //! residual interference with its elastic-unloading estimate from the FE's own peak force
 //! and contact radius, the contact radius at the peak against Jackson–Green's, KE/IE.
 //!
-//! Development knob (not used by tests): `MUFE_PLASTIC_SPHERES_TUNE="load=120,unload=80"`
-//! overrides the drive and mesh constants (keys: load, unload, rest, steps_per_transit,
-//! damping, growth, patch_radius, coarse, peak, penalty, stop — all in the units above;
-//! `stop` ends the run after that many R/c_p, for first-yield checks).
+//! Development knob (not used by tests): `MUFE_PLASTIC_SPHERES_TUNE="load=80,unload=80"`
+//! overrides the drive and mesh constants (keys: knee, knee_transits, load, unload, rest,
+//! steps_per_transit, damping, growth, patch_radius, coarse, peak, penalty, stop — in the
+//! units above; `stop` ends the run after that many R/c_p, for first-yield checks).
 
 use super::runner::{deformation_kinetic_energy, load_case_scene, Case, CaseOutcome};
 use crate::error::{InputError, MufeError, Result};
@@ -70,8 +70,12 @@ pub const GROWTH: f64 = 0.3;
 pub const PATCH_RADIUS: f64 = 1.0;
 /// Seeding of the rest of each sphere (× R), before rounding.
 pub const COARSE_SEEDING: f64 = 0.25;
-/// Loading leg, unloading leg and final rest (× R/c_p).
-pub const LOAD_TRANSITS: f64 = 60.0;
+/// The loading is two sin² pulses: to δ* = [`KNEE`] in [`KNEE_TRANSITS`] R/c_p (slowly
+/// through first yield: a single pulse lagged the static force by ≈ 4 % at δ* ≈ 1), then
+/// to [`PEAK`] in [`LOAD_TRANSITS`]; then the unloading leg and a rest (× R/c_p).
+pub const KNEE: f64 = 4.0;
+pub const KNEE_TRANSITS: f64 = 30.0;
+pub const LOAD_TRANSITS: f64 = 40.0;
 pub const UNLOAD_TRANSITS: f64 = 40.0;
 pub const REST_TRANSITS: f64 = 5.0;
 /// Mass-scaling target step: R/c_p divided by this.
@@ -109,6 +113,9 @@ struct Params {
     penalty: f64,
     /// End the run after this many R/c_p (0: at the end of the drive).
     stop: f64,
+    /// First loading pulse: to δ* = knee (0: one pulse) in knee_transits R/c_p.
+    knee: f64,
+    knee_transits: f64,
 }
 
 const DEFAULT: Params = Params {
@@ -123,6 +130,8 @@ const DEFAULT: Params = Params {
     peak: PEAK,
     penalty: 0.0,
     stop: 0.0,
+    knee: KNEE,
+    knee_transits: KNEE_TRANSITS,
 };
 
 impl Params {
@@ -155,6 +164,8 @@ impl Params {
                 "peak" => &mut p.peak,
                 "penalty" => &mut p.penalty,
                 "stop" => &mut p.stop,
+                "knee" => &mut p.knee,
+                "knee_transits" => &mut p.knee_transits,
                 other => return Err(bad(format!("unknown key '{other}'"))),
             };
             *slot = v;
@@ -400,11 +411,21 @@ impl PlasticSpheresCase {
         let jg = s.jg();
         let r = s.radius;
         let t0 = s.transit();
-        let (t_load, t_unload, t_rest) = (p.load * t0, p.unload * t0, p.rest * t0);
+        let t_knee = if p.knee > 0.0 {
+            p.knee_transits * t0
+        } else {
+            0.0
+        };
+        let t_load = t_knee + p.load * t0;
+        let (t_unload, t_rest) = (p.unload * t0, p.rest * t0);
         // approach of the centres at the peak: 2 × PEAK δc
         let peak = 2.0 * p.peak * jg.delta_c;
         let (mut times, mut vz) = (vec![0.0], vec![0.0]);
-        pulse(&mut times, &mut vz, 0.0, t_load, -peak);
+        let knee = 2.0 * p.knee.min(p.peak) * jg.delta_c;
+        if t_knee > 0.0 {
+            pulse(&mut times, &mut vz, 0.0, t_knee, -knee);
+        }
+        pulse(&mut times, &mut vz, t_knee, t_load - t_knee, -(peak - knee));
         // unloading: back by UNLOAD_OVERSHOOT × the elastic recovery the JG peak point
         // implies (THEORY §6), enough to separate, without driving on after separation
         let recovery = 2.0 * jg.elastic_recovery(p.peak * jg.delta_c);
@@ -498,13 +519,17 @@ impl PlasticSpheresCase {
                 points: curve(&|d| jg.force(d)),
                 theory: true,
             },
+            // grey like Hertz: drawn only over its fit (ω* ≥ 1), where it leaves Hertz
             Series {
-                label: "Kogut–Etsion 2002".into(),
-                points: curve(&|d| ke.force(d)),
+                label: "Kogut–Etsion 2002 (grey, from ω* = 1)".into(),
+                points: curve(&|d| ke.force(d))
+                    .into_iter()
+                    .filter(|p| p.0 * jg.delta_c >= ke.omega_c)
+                    .collect(),
                 theory: true,
             },
             Series {
-                label: "Hertz (elastic)".into(),
+                label: "Hertz, elastic (grey, the upper one)".into(),
                 points: curve(&|d| jg.hertz(d)),
                 theory: true,
             },
@@ -822,6 +847,63 @@ mod tests {
         // the jump of the fit at δ* = 1.9
         assert!((jg.force_ratio(1.9) - 2.619).abs() < 1e-3);
         assert!((jg.force_ratio(1.900_001) - 2.676).abs() < 1e-3);
+    }
+
+    /// The generated scene, for the shipped glass and a steel-like grain: the drive
+    /// reaches the knee and the peak in δc of the material as run and comes back by the
+    /// overshoot × the JG elastic recovery; the patch is MR × ac and the sphere's seeding
+    /// a power-of-two multiple of it.
+    #[test]
+    fn generated_scene_follows_the_material_as_run() {
+        let steel = [
+            "materials.glass.youngs_modulus=2.1e11".to_string(),
+            "materials.glass.poisson_ratio=0.3".to_string(),
+            "materials.glass.density=7850.0".to_string(),
+            "materials.glass.yield_stress=2.5e8".to_string(),
+        ];
+        for sets in [&[][..], &steel[..]] {
+            let base = crate::scene::parse_scene("base", SCENE, sets).unwrap();
+            let setup = PlasticSpheresCase::setup(&base.scene).unwrap();
+            let jg = setup.jg();
+            let mr = 0.1;
+            let (text, t_load, duration) = PlasticSpheresCase::scene_text(&setup, &DEFAULT, mr);
+            let run = crate::scene::parse_scene("run", &text, &[]).unwrap().scene;
+            let t0 = setup.transit();
+            assert!((t_load / t0 - KNEE_TRANSITS - LOAD_TRANSITS).abs() < 1e-9);
+            assert!(
+                (duration / t0 - KNEE_TRANSITS - LOAD_TRANSITS - UNLOAD_TRANSITS - REST_TRANSITS)
+                    .abs()
+                    < 1e-9
+            );
+            assert_eq!(run.simulation.target_dt, Some(t0 / STEPS_PER_TRANSIT));
+            let drive = run.boundaries.iter().find(|b| b.name == "drive").unwrap();
+            let h = drive.velocity.as_ref().unwrap();
+            let (mut z, mut lowest, mut at_knee) = (0.0, 0.0f64, f64::NAN);
+            for i in 1..h.times.len() {
+                z += 0.5 * (h.values[i][2] + h.values[i - 1][2]) * (h.times[i] - h.times[i - 1]);
+                lowest = lowest.min(z);
+                if (h.times[i] - KNEE_TRANSITS * t0).abs() < 1e-6 * t0 {
+                    at_knee = z;
+                }
+            }
+            let dc = jg.delta_c;
+            assert!((at_knee / (-2.0 * KNEE * dc) - 1.0).abs() < 1e-9);
+            assert!((lowest / (-2.0 * PEAK * dc) - 1.0).abs() < 1e-9);
+            let back = UNLOAD_OVERSHOOT * 2.0 * jg.elastic_recovery(PEAK * dc);
+            assert!(((z - lowest) / back - 1.0).abs() < 1e-9);
+            assert!(back < 2.0 * PEAK * dc);
+            for g in &run.grains {
+                let ShapeSpec::Sphere(sp) = &g.shape else {
+                    panic!("sphere")
+                };
+                let patch = &sp.refine[0];
+                assert!((patch.seeding / (mr * jg.a_c) - 1.0).abs() < 1e-9);
+                assert!((patch.radius / (PATCH_RADIUS * jg.a_c) - 1.0).abs() < 1e-9);
+                let levels = (sp.seeding / patch.seeding).log2();
+                assert!((levels - levels.round()).abs() < 1e-9);
+                assert!((sp.seeding / (COARSE_SEEDING * setup.radius)).log2().abs() <= 0.5);
+            }
+        }
     }
 
     #[test]
