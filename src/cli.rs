@@ -1,4 +1,4 @@
-//! Command-line interface (DESIGN.md §1). `main` only parses and dispatches here; every
+//! Command-line interface (README, docs/INPUT.md). `main` only parses and dispatches here; every
 //! error becomes one line on stderr and an exit code (2 for bad input).
 
 use crate::domain::Domain;
@@ -78,8 +78,9 @@ pub enum Command {
         #[arg(long)]
         force: bool,
     },
-    /// Run analytic validation cases (hertz, mindlin, torsion, rolling) over meshing ratios;
-    /// print a table, write DIR/validation.json and one PNG per case.
+    /// Run analytic validation cases (hertz, mindlin, mindlin_cyclic, torsion, rolling,
+    /// plastic_cube, plastic_spheres) over meshing ratios; print a table, write
+    /// DIR/validation.json, one PNG per case and each run's results.h5 + energy.png.
     Validate {
         /// Cases to run (default: all).
         cases: Vec<String>,
@@ -400,6 +401,8 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     .build_global()
                     .map_err(|e| MufeError::Run(format!("cannot start {t} threads: {e}")))?;
             }
+            // the runs write their results.h5 through the same (MPI-IO) output as `mufe run`
+            let domain = Domain::init();
             let outcomes = crate::validate::runner::run_cases(
                 &selected,
                 mrs.as_deref(),
@@ -407,6 +410,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                 &out,
                 &set,
                 &params,
+                &domain,
             )?;
             let failed: Vec<String> = outcomes
                 .iter()

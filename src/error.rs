@@ -178,7 +178,7 @@ impl From<InputError> for MufeError {
 }
 
 impl MufeError {
-    /// Process exit code for this error (DESIGN.md §1: bad input → 2).
+    /// Process exit code for this error (docs/INPUT.md: bad input → 2).
     pub fn exit_code(&self) -> i32 {
         match self {
             MufeError::Input(_) => 2,

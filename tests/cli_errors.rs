@@ -1,4 +1,4 @@
-//! Bad input on the command line (DESIGN.md §1): every case must end with exit code 2 and
+//! Bad input on the command line (docs/INPUT.md): every case must end with exit code 2 and
 //! exactly one line on stderr that names the file (or `<command line>`) and the field or
 //! item, with no panic — and a failed `mufe run` must leave an existing output directory
 //! exactly as it was. Also: `mufe check` on a valid scene reports the model.
@@ -89,7 +89,7 @@ fn baseline_results() -> &'static [u8] {
     })
 }
 
-/// Asserts the DESIGN.md §1 contract for a failed command: exit code 2, one stderr line
+/// Asserts the docs/INPUT.md contract for a failed command: exit code 2, one stderr line
 /// containing every `needles` entry, no panic text. Returns the line.
 fn assert_one_line_error(o: &Output, needles: &[&str]) -> String {
     let err = text(&o.stderr);

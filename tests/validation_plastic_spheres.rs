@@ -14,36 +14,13 @@
 //! `cargo test --release --test validation_plastic_spheres`.
 
 use mufe::validate::plastic_spheres::{first_yield_tolerance, LOOP_TOLERANCE};
-use mufe::validate::select_cases;
+#[path = "common/quick_case.rs"]
+mod quick_case;
 
 fn run_quick(label: &str, sets: &[String]) {
-    let cases = select_cases(&["plastic_spheres".to_string()]).expect("known case");
-    let case = &cases[0];
-    let target = case.target(true);
-    for mr in case.default_mrs(true) {
-        let t0 = std::time::Instant::now();
-        let o = case
-            .run(mr, true, sets, &Default::default())
-            .unwrap_or_else(|e| panic!("{label}, MR {mr}: {e}"));
-        let d = &o.details;
+    for o in quick_case::run_quick("plastic_spheres", label, sets) {
+        let (d, mr) = (&o.details, o.mr);
         let get = |k: &str| d[k].as_f64().unwrap_or(f64::NAN);
-        println!(
-            "plastic_spheres, {label}: MR {mr}, {} elements, {} steps, {:.1} s, e_JG {:.2}% (quick target {:.1}%), first yield F/Pc {:.3}, loop {:.3}%, details {}",
-            o.elements,
-            o.steps,
-            t0.elapsed().as_secs_f64(),
-            100.0 * o.error,
-            100.0 * target,
-            get("first_yield_force_over_pc"),
-            100.0 * get("loop_balance_error"),
-            serde_json::Value::Object(d.clone())
-        );
-        assert!(
-            o.error.is_finite() && o.error <= target,
-            "{label}, MR {mr}: e_JG {:.2}% above the quick target {:.1}%",
-            100.0 * o.error,
-            100.0 * target
-        );
         let yield_error = get("first_yield_error");
         assert!(
             yield_error <= first_yield_tolerance(true),
@@ -63,7 +40,6 @@ fn run_quick(label: &str, sets: &[String]) {
             get("residual_interference_m") > 0.0,
             "{label}, MR {mr}: the spheres did not separate on unloading"
         );
-        assert!(o.pass, "{label}, MR {mr}: the case reports a failure");
     }
 }
 

@@ -6,34 +6,11 @@
 //! Run time: about a minute per case in release on 2 cores (`cargo test --release --test
 //! validation_quick`); the dev profile (opt-level 1) is slower.
 
-use mufe::validate::select_cases;
+#[path = "common/quick_case.rs"]
+mod quick_case;
 
 fn run_quick(name: &str) {
-    let cases = select_cases(&[name.to_string()]).expect("known case");
-    let case = &cases[0];
-    let target = case.target(true);
-    for mr in case.default_mrs(true) {
-        let t0 = std::time::Instant::now();
-        let o = case
-            .run(mr, true, &[], &mufe::validate::scenes::Params::default())
-            .unwrap_or_else(|e| panic!("{name} at MR {mr}: {e}"));
-        println!(
-            "{name}: MR {mr}, {} elements, {} steps, {:.1} s, error {:.2}% (quick target {:.1}%), details {}",
-            o.elements,
-            o.steps,
-            t0.elapsed().as_secs_f64(),
-            100.0 * o.error,
-            100.0 * target,
-            serde_json::Value::Object(o.details.clone())
-        );
-        assert!(
-            o.error.is_finite() && o.error <= target,
-            "{name} at MR {mr}: error {:.2}% above the quick target {:.1}%",
-            100.0 * o.error,
-            100.0 * target
-        );
-        assert!(o.curve.len() > 20, "{name}: too few samples on the curve");
-    }
+    quick_case::run_quick(name, "shipped glass", &[]);
 }
 
 #[test]
@@ -54,4 +31,17 @@ fn torsion_quick() {
 #[test]
 fn rolling_quick() {
     run_quick("rolling");
+}
+
+/// The full tangential cycle: Masing branches and the loop area against the ledger.
+#[test]
+fn mindlin_cyclic_quick() {
+    for o in quick_case::run_quick("mindlin_cyclic", "shipped glass", &[]) {
+        let loop_error = o.details["loop_balance_error"].as_f64().unwrap();
+        assert!(
+            loop_error <= mufe::validate::mindlin_cyclic::LOOP_TOLERANCE,
+            "loop area vs ΔALLFD + ΔALLVD: {:.2}%",
+            100.0 * loop_error
+        );
+    }
 }

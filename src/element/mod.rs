@@ -236,7 +236,7 @@ mod tests {
 
     #[test]
     fn regular_tet_stable_step_matches_theory() {
-        // THEORY.md §7: regular tet, lumped mass: Δt_crit = 0.565 h / c_p (for ν = 0.22).
+        // docs/THEORY.md §8: regular tet, lumped mass: Δt_crit = 0.565 h / c_p (for ν = 0.22).
         let p = ElasticParameters::paper_glass();
         let (lambda, mu) = p.lame();
         let h = 1e-5;

@@ -1,5 +1,5 @@
 //! The energy ledger. Every joule is accounted for with the names of the reference
-//! explicit solver (THEORY.md §8):
+//! explicit solver (docs/THEORY.md §9):
 //! ETOTAL = ALLKE + ALLIE + ALLVD + ALLFD − ALLWK, constant up to the balance error.
 //!
 //! Consistency with central differences: with x_n, v_{n±½} and M(v_{n+½}−v_{n−½})/Δt = f_n,

@@ -1,5 +1,6 @@
 //! PNG line plots (plotters): FE curves over theory curves, speed against error.
 
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -8,7 +9,9 @@ use std::path::Path;
 pub struct Series {
     pub label: String,
     pub points: Vec<(f64, f64)>,
-    /// Theory curves are drawn as thick black lines, FE curves as coloured markers+lines.
+    /// Theory curves are drawn as thick lines (black, then greys told apart by dashes; an
+    /// empty label continues the previous theory curve's style and has no legend entry),
+    /// FE curves as coloured markers + lines.
     pub theory: bool,
 }
 
@@ -29,6 +32,14 @@ pub struct Plot<'a> {
     pub y_scale: Scale,
     pub series: Vec<Series>,
 }
+
+/// Styles of successive labelled theory curves: colour and (dash, gap) in pixels.
+const THEORY_STYLES: [(RGBColor, Option<(u32, u32)>); 4] = [
+    (BLACK, None),
+    (RGBColor(150, 150, 150), None),
+    (RGBColor(90, 90, 90), Some((12, 8))),
+    (RGBColor(160, 120, 70), Some((4, 6))),
+];
 
 const PALETTE: [RGBColor; 6] = [
     RGBColor(31, 119, 180),
@@ -100,20 +111,26 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
                     })
                     .collect();
                 if s.theory {
-                    // first theory curve black, further ones grey
-                    let c = if theory_count == 0 {
-                        BLACK
-                    } else {
-                        RGBColor(150, 150, 150)
-                    };
-                    theory_count += 1;
-                    chart
-                        .draw_series(LineSeries::new(pts, c.stroke_width(3)))
-                        .map_err(|e| e.to_string())?
-                        .label(s.label.clone())
-                        .legend(move |(x, y)| {
-                            PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(3))
+                    // theory curves in greys, told apart by dashes; an unlabelled curve
+                    // continues the previous one (e.g. the second branch of a loop)
+                    if !s.label.is_empty() || theory_count == 0 {
+                        theory_count += 1;
+                    }
+                    let (c, dash) = THEORY_STYLES[(theory_count - 1) % THEORY_STYLES.len()];
+                    let style = c.stroke_width(3);
+                    let drawn = match dash {
+                        None => chart.draw_series(LineSeries::new(pts, style)),
+                        Some((on, off)) => {
+                            chart.draw_series(DashedLineSeries::new(pts, on, off, style))
+                        }
+                    }
+                    .map_err(|e| e.to_string())?;
+                    if !s.label.is_empty() {
+                        drawn.label(s.label.clone()).legend(move |(x, y)| {
+                            let (on, off) = dash.unwrap_or((24, 1));
+                            DashedPathElement::new(vec![(x, y), (x + 24, y)], on, off, style)
                         });
+                    }
                 } else {
                     let c = PALETTE[colour % PALETTE.len()];
                     colour += 1;

@@ -26,7 +26,7 @@ pub struct ElasticParameters {
 }
 
 impl ElasticParameters {
-    /// The glass of the source paper (PAPER.md Table 1): E = 63 GPa, ν = 0.22,
+    /// The glass of the source paper (docs/THEORY.md, Conventions): E = 63 GPa, ν = 0.22,
     /// ρ = 2500 kg/m³ — the material of the validation references and the tests.
     pub const fn paper_glass() -> Self {
         Self {

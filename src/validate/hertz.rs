@@ -3,7 +3,7 @@
 //! Error metric: max |F − F_ref|/F_ref over the samples whose reference force has a Hertz
 //! contact radius a_ref/R = (3F_ref/(4E*R²))^{1/3} in [`A_OVER_R_WINDOW`] (0.5 N … 50 N on
 //! the paper's glass), where F_ref(δ) is the converged finite-sphere reference at the
-//! scene's ν (THEORY.md §1, [`FiniteSphereTable`]); the distance from half-space Hertz,
+//! scene's ν (docs/THEORY.md §1, [`FiniteSphereTable`]); the distance from half-space Hertz,
 //! max |F − F_H|/F_H over the same samples, is reported beside it.
 //!
 //! The reference is linear elastic; the solver's St Venant–Kirchhoff law is softer in
@@ -11,6 +11,7 @@
 //! window once the mesh is converged), so the finest meshes do not converge to zero error:
 //! see docs/BENCHMARKS.md (Validation).
 
+use super::record::{recorded_mesh, CaseOutput, Recorder};
 use super::reference::{FiniteSphereReference, FiniteSphereTable, Hertz, FINITE_SPHERE_TABLE_PATH};
 use super::runner::{
     case_inputs, case_solver, generated_case_scene, outcome_scene, scene_details, Case,
@@ -118,6 +119,7 @@ impl Case for HertzCase {
         quick: bool,
         overrides: &[String],
         params: &Params,
+        record: Option<&Recorder>,
     ) -> Result<CaseOutcome> {
         // the radius (for the seeding) and the reference come from the scene as run
         let inputs = case_inputs("hertz", SCENE, overrides)?;
@@ -130,6 +132,8 @@ impl Case for HertzCase {
         ];
         let (loaded, _) = generated_case_scene("hertz", SCENE, overrides, params, &sets)?;
         let mut solver = case_solver(&loaded)?;
+        let mesh = recorded_mesh(record, &loaded)?;
+        let mut output = CaseOutput::open(record, "hertz", mr, &loaded, mesh.as_ref(), &solver)?;
         let hertz = Hertz::sphere_on_flat(&material, radius);
         let e_star_r2 = hertz.e_star * radius * radius;
         let a_over_r = |f: f64| (3.0 * f / (4.0 * e_star_r2)).cbrt();
@@ -174,6 +178,7 @@ impl Case for HertzCase {
         let mut samples: Vec<Sample> = Vec::new();
         while solver.state.step < max_steps {
             solver.step()?;
+            output.after_step(&solver, solver.state.step == max_steps)?;
             if solver.state.step % sample_every != 0 {
                 continue;
             }
@@ -237,6 +242,7 @@ impl Case for HertzCase {
             "added_mass_fraction".into(),
             json!(solver.model.added_mass / solver.model.total_physical_mass()),
         );
+        output.finish(&solver, &mut details)?;
         Ok(CaseOutcome {
             case: "hertz".into(),
             mr,

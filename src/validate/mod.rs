@@ -1,11 +1,13 @@
-//! Analytic validation cases (`mufe validate`): the contact laws of THEORY.md must emerge
+//! Analytic validation cases (`mufe validate`): the contact laws of docs/THEORY.md must emerge
 //! from the mesh. Each case is a scene in `jobs/validation/`, run at a list of meshing
 //! ratios; the documented error metric compares the FE curve with the reference over the
 //! whole loading range.
 
 pub mod hertz;
+pub mod mindlin_cyclic;
 pub mod plastic_cube;
 pub mod plastic_spheres;
+pub mod record;
 pub mod reference;
 pub mod runner;
 pub mod scenes;
@@ -19,9 +21,10 @@ use runner::{Case, CaseOutcome};
 pub const QUICK_TOLERANCE_FACTOR: f64 = 1.5;
 
 /// All cases, in the order they run.
-pub const CASE_NAMES: [&str; 6] = [
+pub const CASE_NAMES: [&str; 7] = [
     "hertz",
     "mindlin",
+    "mindlin_cyclic",
     "torsion",
     "rolling",
     "plastic_cube",
@@ -42,6 +45,9 @@ pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> 
                 "hertz" => Ok(Box::new(hertz::HertzCase)),
                 "mindlin" => Ok(Box::new(two_sphere::TwoSphereCase {
                     kind: two_sphere::Kind::Mindlin,
+                })),
+                "mindlin_cyclic" => Ok(Box::new(two_sphere::TwoSphereCase {
+                    kind: two_sphere::Kind::MindlinCyclic,
                 })),
                 "torsion" => Ok(Box::new(two_sphere::TwoSphereCase {
                     kind: two_sphere::Kind::Torsion,

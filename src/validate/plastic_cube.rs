@@ -18,6 +18,7 @@
 //! at yield) and the cube does not ring; the inertia of a leg of duration T is a relative
 //! (L/c_p)²/T² effect.
 
+use super::record::{recorded_mesh, CaseOutput, Recorder};
 use super::runner::{load_case_scene, Case, CaseOutcome, Probe};
 use super::scenes::Params;
 use crate::error::{MufeError, Result};
@@ -251,6 +252,7 @@ impl Case for PlasticCubeCase {
         quick: bool,
         overrides: &[String],
         _params: &Params,
+        record: Option<&Recorder>,
     ) -> Result<CaseOutcome> {
         let base = load_case_scene("plastic_cube", SCENE, overrides)?;
         let setup = Self::setup(&base.scene)?;
@@ -258,6 +260,9 @@ impl Case for PlasticCubeCase {
         let (text, duration) = Self::scene_text(&setup, divisions);
         let loaded = parse_scene("<plastic_cube drive>", &text, &[])?;
         let mut solver = build_solver(&loaded)?;
+        let mesh = recorded_mesh(record, &loaded)?;
+        let mut output =
+            CaseOutput::open(record, self.name(), mr, &loaded, mesh.as_ref(), &solver)?;
         let mut probe = Probe::new(&solver);
         let steps = (duration / solver.model.dt).ceil() as u64;
         let law = setup.law;
@@ -268,6 +273,7 @@ impl Case for PlasticCubeCase {
         let plot_every = (steps / 2000).max(1);
         while solver.state.step < steps {
             solver.step()?;
+            output.after_step(&solver, solver.state.step == steps)?;
             probe.sample(&solver);
             let (strain, stress) = measures(
                 probe.get("top_displacement_z")?,
@@ -294,8 +300,8 @@ impl Case for PlasticCubeCase {
             "exact_plastic_work_J".into(),
             json!(volume * exact.plastic_work),
         );
-        details.insert("balance_error".into(), json!(e.relative_balance_error()));
         details.insert("peak_stress_Pa".into(), json!(scale));
+        output.finish(&solver, &mut details)?;
         Ok(CaseOutcome {
             case: self.name().into(),
             mr,

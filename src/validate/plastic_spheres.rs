@@ -44,6 +44,7 @@
 //! steps_per_transit, damping, growth, patch_radius, coarse, peak, penalty, stop — in the
 //! units above; `stop` ends the run after that many R/c_p, for first-yield checks).
 
+use super::record::{recorded_mesh, CaseOutput, Recorder};
 use super::runner::{deformation_kinetic_energy, load_case_scene, Case, CaseOutcome};
 use crate::error::{InputError, MufeError, Result};
 use crate::io::plot::{Plot, Scale, Series};
@@ -581,6 +582,7 @@ impl Case for PlasticSpheresCase {
         quick: bool,
         overrides: &[String],
         _scene_params: &super::scenes::Params,
+        record: Option<&Recorder>,
     ) -> Result<CaseOutcome> {
         let base = load_case_scene("plastic_spheres", SCENE, overrides)?;
         let setup = Self::setup(&base.scene)?;
@@ -588,6 +590,9 @@ impl Case for PlasticSpheresCase {
         let (text, t_load, duration) = Self::scene_text(&setup, &params, mr);
         let loaded = parse_scene("<plastic_spheres drive>", &text, &[])?;
         let mut solver = build_solver(&loaded)?;
+        let mesh = recorded_mesh(record, &loaded)?;
+        let mut output =
+            CaseOutput::open(record, self.name(), mr, &loaded, mesh.as_ref(), &solver)?;
         let jg = setup.jg();
         let ke = setup.ke();
         let mut steps = (duration / solver.model.dt).ceil() as u64;
@@ -627,6 +632,7 @@ impl Case for PlasticSpheresCase {
         while solver.state.step < steps {
             let loading = solver.state.time < t_load;
             solver.step()?;
+            output.after_step(&solver, solver.state.step == steps)?;
             // contact force and approach at x_n, the configuration the step evaluated
             let gf = &solver.state.contact.stats.grain_force;
             let force = 0.5 * (gf[upper][2] - gf[lower][2]);
@@ -747,7 +753,6 @@ impl Case for PlasticSpheresCase {
         );
         put("damping_dissipation_j", json!(e.damping_dissipation()));
         put("final_kinetic_energy_j", json!(e.kinetic));
-        put("energy_balance_error", json!(e.relative_balance_error()));
         // ALLKE includes the rigid translation of the driven sphere; the vibration part
         // (relative to each sphere's rigid motion) is the quasi-static measure
         put("max_kinetic_over_internal", json!(ke_ie));
@@ -757,6 +762,7 @@ impl Case for PlasticSpheresCase {
             "added_mass_fraction",
             json!(solver.model.added_mass / solver.model.total_physical_mass()),
         );
+        output.finish(&solver, &mut details)?;
         let pass = e_jg <= target
             && yield_error <= first_yield_tolerance(quick)
             && loop_error <= LOOP_TOLERANCE
@@ -803,7 +809,7 @@ impl Case for PlasticSpheresCase {
 mod tests {
     use super::*;
 
-    /// THEORY.md §6: glass with σy = 100 MPa, per sphere.
+    /// docs/THEORY.md §6: glass with σy = 100 MPa, per sphere.
     #[test]
     fn critical_values_for_glass() {
         let jg = JacksonGreen::new(63e9, 0.22, 1e8, 1.1e-3);
@@ -816,7 +822,7 @@ mod tests {
         assert!((jg.contact_radius(jg.delta_c) / jg.a_c - 1.0).abs() < 1e-12);
     }
 
-    /// The table of THEORY.md §6 (ν = 0.22, σy/E' = 1.5e-3).
+    /// The table of docs/THEORY.md §6 (ν = 0.22, σy/E' = 1.5e-3).
     #[test]
     fn jackson_green_and_kogut_etsion_reproduce_the_theory_table() {
         let e_prime = 1.0e11;

@@ -1,4 +1,4 @@
-//! Analytic reference solutions (THEORY.md), for any material: every number a validation
+//! Analytic reference solutions (docs/THEORY.md), for any material: every number a validation
 //! compares against is computed here from its formula.
 
 use crate::material::ElasticParameters;
@@ -47,7 +47,7 @@ impl Hertz {
     }
 }
 
-/// The converged finite-sphere reference (THEORY.md §1): a sphere between two rigid
+/// The converged finite-sphere reference (docs/THEORY.md §1): a sphere between two rigid
 /// frictionless plates, tabulated dimensionlessly (F/(E*R²) against δ/R, E* = E/(1−ν²),
 /// exact similarity of linear elasticity) for a set of Poisson ratios in
 /// `jobs/validation/hertz_finite_sphere_table.csv`. Between two tabulated ν the curve is
@@ -242,9 +242,12 @@ impl Mindlin {
         let x = (dt.abs() / self.slip_displacement).min(1.0);
         dt.signum() * self.mu * self.normal_force * (1.0 - (1.0 - x).powf(1.5))
     }
-    /// Masing unloading from a reversal at (δ*, Q*): Q = Q* − 2 Q_load((δ* − δ)/2).
+    /// Masing branch from a reversal at (δ*, Q*): Q = Q* − 2 Q_load((δ* − δ)/2), ending in
+    /// gross sliding (|Q| ≤ μN; from Q* < μN the branch reaches ∓μN before its argument
+    /// reaches δt,max). Serves unloading and reloading alike (the sign follows δ* − δ).
     pub fn unloading(&self, reversal_dt: f64, reversal_q: f64, dt: f64) -> f64 {
-        reversal_q - 2.0 * self.loading(0.5 * (reversal_dt - dt))
+        let mu_n = self.mu * self.normal_force;
+        (reversal_q - 2.0 * self.loading(0.5 * (reversal_dt - dt))).clamp(-mu_n, mu_n)
     }
 }
 
@@ -343,7 +346,7 @@ impl Lubkin {
     }
 }
 
-/// Rolling about a fixed centre under constant N (THEORY.md §4): δt = Rθ at the contact, so
+/// Rolling about a fixed centre under constant N (docs/THEORY.md §4): δt = Rθ at the contact, so
 /// M(θ) = R μN[1 − (1 − Rθ/δt,max)^{3/2}], M_max = μNR.
 #[derive(Debug, Clone, Copy)]
 pub struct Rolling {
@@ -366,7 +369,7 @@ mod tests {
 
     #[test]
     fn hertz_matches_theory_table_for_paper_material() {
-        // THEORY.md §1 table: the formulas, evaluated, agree with the printed values.
+        // docs/THEORY.md §1 table: the formulas, evaluated, agree with the printed values.
         let m = ElasticParameters::paper_glass();
         let pair = Hertz::identical_spheres(&m, 1.1e-3);
         let flat = Hertz::sphere_on_flat(&m, 1.1e-3);
@@ -463,7 +466,7 @@ mod tests {
 
     #[test]
     fn lubkin_reproduces_theory_table() {
-        // THEORY.md §3: c/a = 0.6 → M/(μNa) = 0.481, G a² β/(μN) = 0.1716
+        // docs/THEORY.md §3: c/a = 0.6 → M/(μNa) = 0.481, G a² β/(μN) = 0.1716
         let m = ElasticParameters::paper_glass();
         let l = Lubkin::identical_spheres(&m, 1.1e-3, 0.22, 70.0);
         let (beta, moment) = l.point(0.6 * l.a);

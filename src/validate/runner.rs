@@ -1,6 +1,8 @@
 //! Running validation cases over meshing ratios: table, `validation.json`, PNG plots.
 
+use super::record::{Recorder, BALANCE_TOLERANCE};
 use super::scenes::{case_scene, Params, SceneInputs};
+use crate::domain::Domain;
 use crate::driver::{history_columns, history_row};
 use crate::error::{InputError, MufeError, Result};
 use crate::io::plot::{self, Plot, Scale, Series};
@@ -11,7 +13,7 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// One row of `validation.json` (DESIGN.md §1 fields first, then case extras).
+/// One row of `validation.json` (the fields of the printed table first, then case extras).
 #[derive(Debug, Clone, Serialize)]
 pub struct CaseOutcome {
     pub case: String,
@@ -46,13 +48,15 @@ pub trait Case {
     /// Accuracy target (fraction) at the finest meshing ratio.
     fn target(&self, quick: bool) -> f64;
     /// Runs at one meshing ratio: the case scene (after `overrides`) gives the material,
-    /// radius and friction, the scene run is generated from them with `params`.
+    /// radius and friction, the scene run is generated from them with `params`. With a
+    /// recorder the run also writes `results.h5` and `energy.png` ([`super::record`]).
     fn run(
         &self,
         mr: f64,
         quick: bool,
         overrides: &[String],
         params: &Params,
+        record: Option<&Recorder>,
     ) -> Result<CaseOutcome>;
     /// The scene a run of this case uses (`mufe validate --write-scenes`), generated from
     /// the case scene after `overrides`.
@@ -214,12 +218,17 @@ pub fn run_cases(
     out: &Path,
     overrides: &[String],
     params: &Params,
+    domain: &Domain,
 ) -> Result<Vec<CaseOutcome>> {
     std::fs::create_dir_all(out)
         .map_err(|e| MufeError::Io(format!("{}: cannot create directory: {e}", out.display())))?;
+    let recorder = Recorder {
+        domain,
+        root: out.to_path_buf(),
+    };
     println!(
-        "{:<9} {:>8} {:>9} {:>8} {:>9} {:>9} {:>8} {:>5}",
-        "case", "MR", "elements", "steps", "wall s", "error", "target", "pass"
+        "{:<15} {:>8} {:>9} {:>8} {:>9} {:>9} {:>8} {:>9} {:>5}",
+        "case", "MR", "elements", "steps", "wall s", "error", "target", "balance", "pass"
     );
     let mut all = Vec::new();
     for case in cases {
@@ -229,10 +238,13 @@ pub fn run_cases(
         let mut outcomes = Vec::new();
         for mr in list {
             let t0 = Instant::now();
-            let mut o = case.run(mr, quick, overrides, params)?;
+            let mut o = case.run(mr, quick, overrides, params, Some(&recorder))?;
             o.wall_s = t0.elapsed().as_secs_f64();
+            let balance = balance_error(&o);
+            // every case keeps its energy ledger closed, whatever its curve metric
+            o.pass &= balance <= BALANCE_TOLERANCE;
             println!(
-                "{:<9} {:>8.4} {:>9} {:>8} {:>9.1} {:>9} {:>8} {:>5}",
+                "{:<15} {:>8.4} {:>9} {:>8} {:>9.1} {:>9} {:>8} {:>9} {:>5}",
                 o.case,
                 o.mr,
                 o.elements,
@@ -240,6 +252,7 @@ pub fn run_cases(
                 o.wall_s,
                 percent(o.error),
                 percent(o.target),
+                percent(balance),
                 if o.pass { "yes" } else { "NO" }
             );
             outcomes.push(o);
@@ -286,11 +299,20 @@ pub fn run_cases(
     write_json(&out.join("validation.json"), &all)?;
     speed_vs_error_plot(&out.join("speed_vs_error.png"), &all)?;
     println!(
-        "wrote {}, {} and one PNG per case",
+        "wrote {}, {}, one PNG per case, and DIR/<case>/mr_<MR>/results.h5 + energy.png per run",
         out.join("validation.json").display(),
         out.join("speed_vs_error.png").display()
     );
     Ok(all)
+}
+
+/// The largest energy-balance drift of a run ([`super::record::CaseOutput`]); infinite
+/// when a case did not report it.
+pub fn balance_error(o: &CaseOutcome) -> f64 {
+    o.details
+        .get("energy_balance_error")
+        .and_then(|v| v.as_f64())
+        .unwrap_or(f64::INFINITY)
 }
 
 /// A fraction as a percentage, in scientific notation below 0.01 %.

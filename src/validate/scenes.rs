@@ -22,7 +22,7 @@ use crate::error::{num, InputError};
 use crate::material::ElasticParameters;
 use crate::scene::{LoadedScene, ShapeSpec};
 
-/// The paper's material and geometry (PAPER.md Table 1), the origin of the default
+/// The paper's material and geometry (docs/THEORY.md, Conventions), the origin of the default
 /// dimensionless parameters: the shipped scenes are generated for them.
 pub mod paper {
     pub const YOUNGS_MODULUS: f64 = 63e9;
@@ -412,6 +412,16 @@ impl TwoSphereParams {
         p
     }
 
+    /// The full cycle of `mindlin_cyclic`: as [`Self::mindlin`], to ±0.8 δt,max (partial
+    /// slip throughout, Q*/μN = 0.91) and back twice, at 3/4 of its tangential speed (the
+    /// shorter legs still fit their ramps).
+    pub fn mindlin_cyclic() -> Self {
+        let mut p = Self::mindlin();
+        p.amplitude = 0.8;
+        p.vt *= 0.75;
+        p
+    }
+
     /// Torsion on the paper's glass: N = 70 N, relative twist to G a² β/(μN) = 0.6 (c/a ≈
     /// 0.1) in 9 µs, patch 110 µm with growth 0.3.
     pub fn torsion() -> Self {
@@ -438,6 +448,7 @@ impl TwoSphereParams {
 pub struct Params {
     pub hertz: HertzParams,
     pub mindlin: TwoSphereParams,
+    pub mindlin_cyclic: TwoSphereParams,
     pub torsion: TwoSphereParams,
     pub rolling: TwoSphereParams,
 }
@@ -447,6 +458,7 @@ impl Default for Params {
         Self {
             hertz: HertzParams::default(),
             mindlin: TwoSphereParams::mindlin(),
+            mindlin_cyclic: TwoSphereParams::mindlin_cyclic(),
             torsion: TwoSphereParams::torsion(),
             rolling: TwoSphereParams::rolling(),
         }
@@ -521,6 +533,7 @@ impl Params {
         let mut fields = match case {
             "hertz" => self.hertz.fields(),
             "mindlin" => self.mindlin.fields(),
+            "mindlin_cyclic" => self.mindlin_cyclic.fields(),
             "torsion" => self.torsion.fields(),
             "rolling" => self.rolling.fields(),
             other => {
@@ -808,7 +821,7 @@ pub fn hertz(inputs: &SceneInputs, p: &HertzParams) -> Result<String, InputError
     let u_force = |a: f64| u.force_at(a);
     Ok(format!(
         r#"# Hertz normal contact: a sphere squeezed between two rigid frictionless plates
-# (THEORY.md §1, finite-sphere reference). Both plates approach the centre plane at the
+# (docs/THEORY.md §1, finite-sphere reference). Both plates approach the centre plane at the
 # same speed, starting {gap_um:.2} µm from the poles, so δ = approach of each plate from
 # first touch and F = plate force. The travel reaches the Hertz contact radius
 # a/R = {a_end:.4} (F ≈ {f_end:.4} N). Plate speed:
@@ -877,6 +890,7 @@ frames = false
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum TwoSphereKind {
     Mindlin,
+    MindlinCyclic,
     Torsion,
     Rolling,
 }
@@ -889,6 +903,7 @@ pub fn two_sphere(
 ) -> Result<String, InputError> {
     let name = match kind {
         TwoSphereKind::Mindlin => "mindlin",
+        TwoSphereKind::MindlinCyclic => "mindlin_cyclic",
         TwoSphereKind::Torsion => "torsion",
         TwoSphereKind::Rolling => "rolling",
     };
@@ -911,7 +926,7 @@ pub fn two_sphere(
     .map_err(fail)?;
     let t = t + p.settle * u.time;
     let (header, motion, end) = match kind {
-        TwoSphereKind::Mindlin => {
+        TwoSphereKind::Mindlin | TwoSphereKind::MindlinCyclic => {
             let amp = p.amplitude * dtmax;
             let vt = p.vt * dtmax / u.time;
             let t_ramp = p.t_ramp * u.time;
@@ -929,7 +944,7 @@ pub fn two_sphere(
             let what = ["", ", unloading", ", unloading, reloading"][reversals.min(2)];
             (
                 format!(
-                    "Mindlin–Deresiewicz: two spheres, tangential loading at constant N{what} (THEORY.md §2)"
+                    "Mindlin–Deresiewicz: two spheres, tangential loading at constant N{what} (docs/THEORY.md §2)"
                 ),
                 drive_block(p, r, &merge(&normal, &tangential), None),
                 t,
@@ -944,7 +959,7 @@ pub fn two_sphere(
             let mut angular: Points = vec![(0.0, 0.0)];
             angular.extend(seg);
             (
-                "Torsion about the contact normal of two spheres vs Lubkin's exact curve (THEORY.md §3)"
+                "Torsion about the contact normal of two spheres vs Lubkin's exact curve (docs/THEORY.md §3)"
                     .to_string(),
                 drive_block(p, r, &fmt_hist(&normal, 2), Some(&fmt_hist(&angular, 2))),
                 t_end,
@@ -958,7 +973,7 @@ pub fn two_sphere(
             let mut angular: Points = vec![(0.0, 0.0)];
             angular.extend(seg);
             (
-                "Rolling: upper sphere rotated about its own fixed centre, moment vs angle (THEORY.md §4)"
+                "Rolling: upper sphere rotated about its own fixed centre, moment vs angle (docs/THEORY.md §4)"
                     .to_string(),
                 drive_block(p, r, &fmt_hist(&normal, 2), Some(&fmt_hist(&angular, 0))),
                 t_end,
@@ -1066,6 +1081,9 @@ pub fn case_scene(case: &str, inputs: &SceneInputs, params: &Params) -> Result<S
     match case {
         "hertz" => hertz(inputs, &params.hertz),
         "mindlin" => two_sphere(TwoSphereKind::Mindlin, inputs, &params.mindlin),
+        "mindlin_cyclic" => {
+            two_sphere(TwoSphereKind::MindlinCyclic, inputs, &params.mindlin_cyclic)
+        }
         "torsion" => two_sphere(TwoSphereKind::Torsion, inputs, &params.torsion),
         "rolling" => two_sphere(TwoSphereKind::Rolling, inputs, &params.rolling),
         other => Err(InputError::new(

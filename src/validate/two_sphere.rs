@@ -21,6 +21,8 @@
 //! - rolling: max |M − M_ref(θ)| / (μN R') over the loading branch, R' = R − δn/2 the
 //!   lever of the contact force about the upper centre.
 
+use super::mindlin_cyclic::{analyse as analyse_cycle, CyclePoint, LOOP_TOLERANCE};
+use super::record::{recorded_mesh, CaseOutput, Recorder};
 use super::reference::{Lubkin, Mindlin, Rolling};
 use super::runner::{
     case_inputs, case_solver, deformation_kinetic_energy, generated_case_scene, outcome_scene,
@@ -36,6 +38,8 @@ use serde_json::json;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Kind {
     Mindlin,
+    /// A full cycle 0 → +δa → −δa → +δa judged by [`super::mindlin_cyclic`].
+    MindlinCyclic,
     Torsion,
     Rolling,
 }
@@ -55,6 +59,8 @@ struct Sample {
     dz: f64,
     p: [f64; 3],
     l: [f64; 3],
+    /// ALLFD + ALLVD so far (J).
+    dissipated: f64,
     tangential: bool,
 }
 
@@ -81,6 +87,7 @@ fn momentum(
 }
 
 pub const MINDLIN_SCENE: &str = include_str!("../../jobs/validation/mindlin.toml");
+pub const MINDLIN_CYCLIC_SCENE: &str = include_str!("../../jobs/validation/mindlin_cyclic.toml");
 pub const TORSION_SCENE: &str = include_str!("../../jobs/validation/torsion.toml");
 pub const ROLLING_SCENE: &str = include_str!("../../jobs/validation/rolling.toml");
 
@@ -97,6 +104,7 @@ impl TwoSphereCase {
     fn scene_text(&self) -> &'static str {
         match self.kind {
             Kind::Mindlin => MINDLIN_SCENE,
+            Kind::MindlinCyclic => MINDLIN_CYCLIC_SCENE,
             Kind::Torsion => TORSION_SCENE,
             Kind::Rolling => ROLLING_SCENE,
         }
@@ -121,7 +129,7 @@ impl TwoSphereCase {
         let n = probe.get("base_force_z")?;
         let dz = probe.get("drive_displacement_z")?;
         Ok(match self.kind {
-            Kind::Mindlin => (
+            Kind::Mindlin | Kind::MindlinCyclic => (
                 probe.get("drive_displacement_x")?,
                 -probe.get("base_force_x")?,
                 n,
@@ -145,7 +153,9 @@ impl TwoSphereCase {
 
     fn reference(&self, s: &Setup, n: f64, x: f64) -> f64 {
         match self.kind {
-            Kind::Mindlin => Mindlin::identical_spheres(&s.material, s.radius, s.mu, n).loading(x),
+            Kind::Mindlin | Kind::MindlinCyclic => {
+                Mindlin::identical_spheres(&s.material, s.radius, s.mu, n).loading(x)
+            }
             Kind::Torsion => Lubkin::identical_spheres(&s.material, s.radius, s.mu, n)
                 .moment_at_relative_twist(x),
             Kind::Rolling => Rolling {
@@ -158,7 +168,7 @@ impl TwoSphereCase {
 
     fn limit(&self, s: &Setup, n: f64) -> f64 {
         match self.kind {
-            Kind::Mindlin => s.mu * n,
+            Kind::Mindlin | Kind::MindlinCyclic => s.mu * n,
             Kind::Torsion => {
                 Lubkin::identical_spheres(&s.material, s.radius, s.mu, n).full_slip_moment()
             }
@@ -170,7 +180,7 @@ impl TwoSphereCase {
     /// meshing ratio (each with its own measured N) is drawn against one theory curve.
     fn labels(&self) -> (&'static str, &'static str) {
         match self.kind {
-            Kind::Mindlin => (
+            Kind::Mindlin | Kind::MindlinCyclic => (
                 "relative tangential displacement δt / δt,max",
                 "tangential force Q / μN",
             ),
@@ -190,7 +200,7 @@ impl TwoSphereCase {
     fn x_scale(&self, s: &Setup, n: f64) -> f64 {
         let md = Mindlin::identical_spheres(&s.material, s.radius, s.mu, n);
         match self.kind {
-            Kind::Mindlin => md.slip_displacement,
+            Kind::Mindlin | Kind::MindlinCyclic => md.slip_displacement,
             Kind::Torsion => {
                 let l = Lubkin::identical_spheres(&s.material, s.radius, s.mu, n);
                 2.0 * l.mu * l.normal_force / (l.shear_modulus * l.a * l.a)
@@ -204,6 +214,7 @@ impl Case for TwoSphereCase {
     fn name(&self) -> &'static str {
         match self.kind {
             Kind::Mindlin => "mindlin",
+            Kind::MindlinCyclic => "mindlin_cyclic",
             Kind::Torsion => "torsion",
             Kind::Rolling => "rolling",
         }
@@ -217,7 +228,7 @@ impl Case for TwoSphereCase {
         if quick {
             // coarsest meshing ratio that meets the full target (docs/BENCHMARKS.md)
             vec![match self.kind {
-                Kind::Mindlin => 0.009,
+                Kind::Mindlin | Kind::MindlinCyclic => 0.009,
                 Kind::Torsion | Kind::Rolling => 0.018,
             }]
         } else {
@@ -227,7 +238,7 @@ impl Case for TwoSphereCase {
 
     fn target(&self, quick: bool) -> f64 {
         let t = match self.kind {
-            Kind::Mindlin => 0.05,
+            Kind::Mindlin | Kind::MindlinCyclic => 0.05,
             Kind::Torsion => 0.08,
             Kind::Rolling => 0.10,
         };
@@ -244,6 +255,7 @@ impl Case for TwoSphereCase {
         quick: bool,
         overrides: &[String],
         params: &Params,
+        record: Option<&Recorder>,
     ) -> Result<CaseOutcome> {
         let name = self.name();
         let inputs = case_inputs(name, self.scene_text(), overrides)?;
@@ -255,6 +267,8 @@ impl Case for TwoSphereCase {
         ];
         let (loaded, _) = generated_case_scene(name, self.scene_text(), overrides, params, &sets)?;
         let mut solver = case_solver(&loaded)?;
+        let mesh = recorded_mesh(record, &loaded)?;
+        let mut output = CaseOutput::open(record, name, mr, &loaded, mesh.as_ref(), &solver)?;
         let mut probe = Probe::new(&solver);
         let sample_every =
             ((loaded.scene.output.history_interval.unwrap_or(2e-8) / solver.model.dt).round()
@@ -284,6 +298,7 @@ impl Case for TwoSphereCase {
         let mut tangential_started = false;
         while solver.state.step < max_steps {
             solver.step()?;
+            output.after_step(&solver, solver.state.step == max_steps)?;
             if solver.state.step % sample_every != 0 {
                 continue;
             }
@@ -302,6 +317,8 @@ impl Case for TwoSphereCase {
                 dz,
                 p,
                 l,
+                dissipated: probe.get("friction_dissipation")?
+                    + probe.get("damping_dissipation")?,
                 tangential: tangential_started,
             });
             if tangential_started {
@@ -311,6 +328,7 @@ impl Case for TwoSphereCase {
             }
         }
         let mut raw = Vec::new();
+        let mut cycle = Vec::new();
         let mut inertia_max: f64 = 0.0;
         for k in 0..samples.len() {
             if !samples[k].tangential {
@@ -325,12 +343,17 @@ impl Case for TwoSphereCase {
             let dl: Vec<f64> = (0..3).map(|i| (b.l[i] - a.l[i]) / dt).collect();
             let smp = &samples[k];
             let correction = match self.kind {
-                Kind::Mindlin => dp[0],
+                Kind::Mindlin | Kind::MindlinCyclic => dp[0],
                 Kind::Torsion => dl[2],
                 Kind::Rolling => dl[0] + (2.0 * setup.radius + smp.dz) * dp[1],
             };
             inertia_max = inertia_max.max(correction.abs());
             raw.push((smp.x, smp.y + correction, smp.n - dp[2], smp.dz));
+            cycle.push(CyclePoint {
+                x: smp.x,
+                q: smp.y + correction,
+                dissipated: smp.dissipated,
+            });
         }
         let (mut n_min, mut n_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for r in &raw {
@@ -382,6 +405,15 @@ impl Case for TwoSphereCase {
             });
         let target = self.target(quick);
         let mut details = serde_json::Map::new();
+        let mut pass = err <= target;
+        if self.kind == Kind::MindlinCyclic {
+            let md = Mindlin::identical_spheres(&setup.material, setup.radius, setup.mu, n_mean);
+            let cycle = analyse_cycle(&cycle, &md)?;
+            err = cycle.error;
+            error_curve = cycle.error_curve;
+            pass = err <= target && cycle.loop_balance_error <= LOOP_TOLERANCE;
+            details.extend(cycle.details);
+        }
         details.insert("normal_force_mean_n".into(), json!(n_mean));
         if let Some(e) = masing_error {
             details.insert("masing_unloading_error".into(), json!(e));
@@ -408,10 +440,7 @@ impl Case for TwoSphereCase {
             "friction_dissipation_j".into(),
             json!(solver.state.energy.friction_dissipation),
         );
-        details.insert(
-            "energy_balance_error".into(),
-            json!(solver.state.energy.relative_balance_error()),
-        );
+        output.finish(&solver, &mut details)?;
         Ok(CaseOutcome {
             case: name.into(),
             mr,
@@ -420,7 +449,7 @@ impl Case for TwoSphereCase {
             wall_s: 0.0,
             error: err,
             target,
-            pass: err <= target,
+            pass,
             details,
             curve,
             error_curve,
@@ -447,13 +476,13 @@ impl Case for TwoSphereCase {
         };
         let mut theory = Vec::new();
         match self.kind {
-            Kind::Mindlin | Kind::Rolling => {
+            Kind::Mindlin | Kind::MindlinCyclic | Kind::Rolling => {
                 theory.push(Series {
                     label: "theory, loading (Mindlin)".into(),
                     points: xs(0.0, x_max).map(|x| (x, unit.loading(x))).collect(),
                     theory: true,
                 });
-                if self.kind == Kind::Mindlin {
+                if self.kind != Kind::Rolling {
                     // Masing unloading from the reversal point and reloading from the other end
                     let (d, q) = (x_max, unit.loading(x_max));
                     theory.push(Series {
@@ -504,6 +533,9 @@ impl Case for TwoSphereCase {
         let (xl, yl) = self.labels();
         let title = match self.kind {
             Kind::Mindlin => "Mindlin–Deresiewicz: tangential loading at constant N",
+            Kind::MindlinCyclic => {
+                "Mindlin–Deresiewicz–Masing: a full tangential cycle at constant N"
+            }
             Kind::Torsion => "Torsion about the contact normal (Lubkin)",
             Kind::Rolling => "Rolling about a fixed centre",
         };

@@ -1,4 +1,4 @@
-//! `results.h5`: the run's results in one parallel HDF5 file (layout: DESIGN.md §1).
+//! `results.h5`: the run's results in one parallel HDF5 file (layout: docs/ARCHITECTURE.md §7).
 //!
 //! ```text
 //! /scene                          fixed-length UTF-8 string: the scene text as run
