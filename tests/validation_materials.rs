@@ -63,6 +63,19 @@ fn mindlin_soft_rock() {
 }
 
 #[test]
+fn mindlin_cyclic_steel_mu_05() {
+    let sets = quick_case::sets(&STEEL);
+    for o in quick_case::run_quick("mindlin_cyclic", "steel, μ = 0.5", &sets) {
+        let loop_error = o.details["loop_balance_error"].as_f64().unwrap();
+        assert!(
+            loop_error <= mufe::validate::mindlin_cyclic::LOOP_TOLERANCE,
+            "loop area vs ΔALLFD + ΔALLVD: {:.2}%",
+            100.0 * loop_error
+        );
+    }
+}
+
+#[test]
 fn torsion_steel_mu_05() {
     run_quick("torsion", "steel, μ = 0.5", &STEEL);
 }

@@ -238,12 +238,8 @@ impl Case for PlasticCubeCase {
         }
     }
 
-    fn target(&self, quick: bool) -> f64 {
-        if quick {
-            super::QUICK_TOLERANCE_FACTOR * TARGET
-        } else {
-            TARGET
-        }
+    fn full_target(&self) -> f64 {
+        TARGET
     }
 
     fn run(

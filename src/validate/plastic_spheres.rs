@@ -522,7 +522,7 @@ impl PlasticSpheresCase {
             },
             // grey like Hertz: drawn only over its fit (ω* ≥ 1), where it leaves Hertz
             Series {
-                label: "Kogut–Etsion 2002 (grey, from ω* = 1)".into(),
+                label: "Kogut–Etsion 2002 (from ω* = 1)".into(),
                 points: curve(&|d| ke.force(d))
                     .into_iter()
                     .filter(|p| p.0 * jg.delta_c >= ke.omega_c)
@@ -530,7 +530,7 @@ impl PlasticSpheresCase {
                 theory: true,
             },
             Series {
-                label: "Hertz, elastic (grey, the upper one)".into(),
+                label: "Hertz, elastic (no yield)".into(),
                 points: curve(&|d| jg.hertz(d)),
                 theory: true,
             },
@@ -568,12 +568,8 @@ impl Case for PlasticSpheresCase {
         }
     }
 
-    fn target(&self, quick: bool) -> f64 {
-        if quick {
-            super::QUICK_TOLERANCE_FACTOR * TARGET
-        } else {
-            TARGET
-        }
+    fn full_target(&self) -> f64 {
+        TARGET
     }
 
     fn run(

@@ -45,8 +45,17 @@ pub trait Case {
     fn shipped_scene(&self) -> &'static str;
     /// Default meshing ratios at the contact (full sweep, or quick).
     fn default_mrs(&self, quick: bool) -> Vec<f64>;
-    /// Accuracy target (fraction) at the finest meshing ratio.
-    fn target(&self, quick: bool) -> f64;
+    /// Accuracy target (fraction) of the full sweep's finest meshing ratio.
+    fn full_target(&self) -> f64;
+    /// The target of a run: the full target, or [`super::QUICK_TOLERANCE_FACTOR`] times it
+    /// for the quick (coarse) runs.
+    fn target(&self, quick: bool) -> f64 {
+        if quick {
+            super::QUICK_TOLERANCE_FACTOR * self.full_target()
+        } else {
+            self.full_target()
+        }
+    }
     /// Runs at one meshing ratio: the case scene (after `overrides`) gives the material,
     /// radius and friction, the scene run is generated from them with `params`. With a
     /// recorder the run also writes `results.h5` and `energy.png` ([`super::record`]).

@@ -236,16 +236,11 @@ impl Case for TwoSphereCase {
         }
     }
 
-    fn target(&self, quick: bool) -> f64 {
-        let t = match self.kind {
+    fn full_target(&self) -> f64 {
+        match self.kind {
             Kind::Mindlin | Kind::MindlinCyclic => 0.05,
             Kind::Torsion => 0.08,
             Kind::Rolling => 0.10,
-        };
-        if quick {
-            super::QUICK_TOLERANCE_FACTOR * t
-        } else {
-            t
         }
     }
 
