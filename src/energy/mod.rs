@@ -97,17 +97,21 @@ impl EnergyLedger {
             - self.external_work()
     }
 
-    /// Drift of ETOTAL since the first step, relative to the largest energy in play.
-    pub fn relative_balance_error(&self) -> f64 {
-        let e0 = self.initial_total.unwrap_or(0.0);
-        let scale = self
-            .kinetic
+    /// The largest of |ALLKE|, |ALLIE|, |ALLWK|, |ALLVD|, |ALLFD| (J): the scale of the
+    /// balance error.
+    pub fn largest_term(&self) -> f64 {
+        self.kinetic
             .abs()
             .max(self.internal().abs())
             .max(self.external_work().abs())
             .max(self.damping_dissipation().abs())
             .max(self.friction_dissipation.abs())
-            .max(e0.abs());
+    }
+
+    /// Drift of ETOTAL since the first step, relative to the largest energy in play.
+    pub fn relative_balance_error(&self) -> f64 {
+        let e0 = self.initial_total.unwrap_or(0.0);
+        let scale = self.largest_term().max(e0.abs());
         if scale == 0.0 {
             0.0
         } else {

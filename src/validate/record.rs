@@ -88,14 +88,7 @@ impl<'a, 'd> CaseOutput<'a, 'd> {
     /// `[output]` asks for. `last`: the run's final step.
     pub fn after_step(&mut self, solver: &Solver, last: bool) -> Result<()> {
         let e = &solver.state.energy;
-        let largest = e
-            .kinetic
-            .abs()
-            .max(e.internal().abs())
-            .max(e.external_work().abs())
-            .max(e.damping_dissipation().abs())
-            .max(e.friction_dissipation.abs());
-        self.scale = self.scale.max(largest);
+        self.scale = self.scale.max(e.largest_term());
         if self.scale > 0.0 {
             let drift = (e.total() - e.initial_total.unwrap_or(0.0)).abs();
             self.max_balance_error = self.max_balance_error.max(drift / self.scale);
