@@ -251,9 +251,10 @@ fn estimate_and_guard(
     max_steps: Option<u64>,
 ) -> Result<crate::scene::estimate::SceneEstimate, InputError> {
     use crate::scene::estimate;
-    let est = estimate::estimate_scene(&loaded.path, &loaded.scene)?;
+    let blame = |e| loaded.scene.blame_packing(e);
+    let est = estimate::estimate_scene(&loaded.path, &loaded.scene).map_err(blame)?;
     if !force {
-        estimate::guard(&loaded.path, &est, estimate::memory_limit()?, max_steps)?;
+        estimate::guard(&loaded.path, &est, estimate::memory_limit()?, max_steps).map_err(blame)?;
     }
     Ok(est)
 }
