@@ -50,7 +50,7 @@ fn counts_match_the_closed_forms() {
         assert_eq!(open.sites().len(), 4 * n * m * k);
         let closed = spec(cells, Faces::Closed);
         // even-parity points of a (2n+1)(2m+1)(2k+1) grid whose corner is even
-        let grid = ((2 * n + 1) * (2 * m + 1) * (2 * k + 1) + 1) / 2;
+        let grid = ((2 * n + 1) * (2 * m + 1) * (2 * k + 1)).div_ceil(2);
         assert_eq!(closed.count(), Some(grid));
         assert_eq!(closed.sites().len(), grid);
     }
