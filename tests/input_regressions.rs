@@ -593,3 +593,83 @@ fn plasticity_on_another_elastic_law_is_refused() {
         &["materials.glass.law", "biot"],
     );
 }
+
+const FCC_CELL: &str = "jobs/fcc/fcc_cell.toml";
+
+#[test]
+fn bad_packing_fields_are_named() {
+    for (set, field, needle) in [
+        ("packings[0].cells=[0, 1, 1]", "packings[0].cells", "≥ 1"),
+        ("packings[0].cells=[1, -2, 1]", "packings[0].cells", "-2"),
+        ("packings[0].lattice=\"bcc\"", "packings[0].lattice", "fcc"),
+        ("packings[0].faces=\"half\"", "packings[0].faces", "closed"),
+        (
+            "packings[0].material=\"steel\"",
+            "packings[0].material",
+            "steel",
+        ),
+        ("packings[0].gap=0.5", "packings[0].gap", "0.5"),
+        ("packings[0].gap=-0.01", "packings[0].gap", "-0.01"),
+        (
+            "packings[0].sphere.radius=0.0",
+            "packings[0].sphere.radius",
+            "positive",
+        ),
+        (
+            "packings[0].sphere.seeding=-1e-4",
+            "packings[0].sphere.seeding",
+            "positive",
+        ),
+        (
+            "packings[0].sphere.seeding=2e-3",
+            "packings[0].sphere.seeding",
+            "radius",
+        ),
+        (
+            "packings[0].sphere.contact_seeding=5e-4",
+            "packings[0].sphere.contact_seeding",
+            "coarser",
+        ),
+        (
+            "packings[0].sphere.contact_growth=2.0",
+            "packings[0].sphere.contact_growth",
+            "[0.01, 1]",
+        ),
+        (
+            "packings[0].cells=[100, 100, 100]",
+            "packings[0].cells",
+            "100000 grains",
+        ),
+        ("packings[0].name=\"a.b\"", "packings[0].name", "identifier"),
+        ("packings[0].shape=1", "packings[0]", "shape"),
+    ] {
+        refused(&check_set(FCC_CELL, set), 5, &[field, needle]);
+    }
+}
+
+#[test]
+fn packing_names_must_not_clash_with_grains() {
+    let set = r#"grains=[{ name = "cell_3", material = "glass", centre = [0.1, 0.0, 0.0], shape = { sphere = { radius = 1e-3, seeding = 5e-4 } } }]"#;
+    refused(
+        &check_set(FCC_CELL, set),
+        5,
+        &["packings[0].name", "cell_3"],
+    );
+}
+
+#[test]
+fn a_packing_too_big_for_memory_names_its_cells() {
+    // one distinct sphere, so check itself fits; `run` must refuse the whole block
+    let o = mufe_env(
+        &[
+            "run",
+            &root(FCC_CELL),
+            "--set",
+            "packings[0].cells=[20, 20, 20]",
+            "--out",
+            tmp("packing_memory").to_str().unwrap(),
+        ],
+        &[("MUFE_MEMORY_LIMIT", "1G")],
+    );
+    refused(&o, 5, &["packings[0].cells", "memory"]);
+}

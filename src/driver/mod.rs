@@ -35,7 +35,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 pub use history::{history_columns, history_row};
-pub use summary::print_model_summary;
+pub use summary::{print_model_summary, print_representative_summary};
 
 /// Options of one run.
 #[derive(Debug, Clone)]

@@ -8,36 +8,72 @@ use crate::solver::Solver;
 
 /// The `mufe check`/`run` header: grains, elements, nodes, Δt, mass scaling, memory.
 pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u64) {
+    print_summary(solver, loaded, total_steps, None);
+}
+
+/// The header when the model holds one representative of each distinct grain (shape and
+/// material) and `copies[g]` scene grains are like model grain `g`: totals, mass and
+/// memory are those of the whole scene.
+pub fn print_representative_summary(
+    solver: &Solver,
+    loaded: &LoadedScene,
+    total_steps: u64,
+    copies: &[usize],
+) {
+    print_summary(solver, loaded, total_steps, Some(copies));
+}
+
+fn print_summary(
+    solver: &Solver,
+    loaded: &LoadedScene,
+    total_steps: u64,
+    copies: Option<&[usize]>,
+) {
     let m = &solver.model;
+    let copy = |g: usize| copies.map_or(1, |c| c[g]);
     println!("scene: {}", loaded.path);
+    if copies.is_some() {
+        println!(
+            "distinct grains (shape and material): {}, each meshed and built once; the totals are the whole scene's",
+            m.grains.len()
+        );
+    }
     println!(
-        "{:<12} {:>10} {:>10} {:>9} {:>9} {:>10} {:>10}",
-        "grain", "elements", "nodes", "facets", "min dih°", "max aspect", "min edge m"
+        "{:<12} {:>10} {:>10} {:>9} {:>9} {:>10} {:>10}{}",
+        "grain",
+        "elements",
+        "nodes",
+        "facets",
+        "min dih°",
+        "max aspect",
+        "min edge m",
+        if copies.is_some() { "    copies" } else { "" }
     );
-    for g in m.grains.iter().take(20) {
+    for (gi, g) in m.grains.iter().enumerate().take(20) {
         let q = &g.quality;
         println!(
-            "{:<12} {:>10} {:>10} {:>9} {:>9.2} {:>10.2} {:>10.3e}",
+            "{:<12} {:>10} {:>10} {:>9} {:>9.2} {:>10.2} {:>10.3e}{}",
             g.name,
             q.elements,
             q.nodes,
             q.surface_facets,
             q.min_dihedral_deg,
             q.max_aspect_ratio,
-            q.min_edge
+            q.min_edge,
+            copies.map_or(String::new(), |c| format!(" {:>9}", c[gi]))
         );
     }
     if m.grains.len() > 20 {
         println!("... {} more grains", m.grains.len() - 20);
     }
-    let phys = m.total_physical_mass();
-    println!(
-        "totals: {} grains, {} elements, {} nodes; mass {:.4e} kg",
-        m.grains.len(),
-        m.num_elements(),
-        m.num_nodes(),
-        phys
-    );
+    let (mut grains, mut elements, mut nodes, mut phys) = (0, 0, 0, 0.0);
+    for (gi, g) in m.grains.iter().enumerate() {
+        grains += copy(gi);
+        elements += g.elements.len() * copy(gi);
+        nodes += g.nodes.len() * copy(gi);
+        phys += m.physical_mass[g.nodes.clone()].iter().sum::<f64>() * copy(gi) as f64;
+    }
+    println!("totals: {grains} grains, {elements} elements, {nodes} nodes; mass {phys:.4e} kg");
     println!(
         "time step: stable {:.4e} s (element {}, safety {}), used {:.4e} s; {} steps for {:.4e} s",
         m.dt_stable,
@@ -93,11 +129,10 @@ pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u
             );
         }
     }
-    let bytes = estimate_memory_bytes(m);
+    let per_element = estimate_memory_bytes(m) as f64 / m.num_elements().max(1) as f64;
     println!(
-        "memory estimate: {:.1} MiB ({:.0} bytes/element)",
-        bytes as f64 / 1048576.0,
-        bytes as f64 / m.num_elements().max(1) as f64
+        "memory estimate: {:.1} MiB ({per_element:.0} bytes/element)",
+        per_element * elements as f64 / 1048576.0,
     );
 }
 
