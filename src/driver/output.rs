@@ -12,6 +12,7 @@ use crate::model::global::GlobalMesh;
 use crate::scene::LoadedScene;
 use crate::solver::Solver;
 use std::path::Path;
+use std::time::Instant;
 
 /// Output state of a run in progress on one rank.
 pub struct Output<'a, 'd> {
@@ -26,6 +27,9 @@ pub struct Output<'a, 'd> {
     frame_index: usize,
     energy_plot: EnergyPlot,
     row: Vec<f64>,
+    /// Wall-clock time of the last history flush, and the scene's interval between them.
+    last_flush: Instant,
+    flush_interval: f64,
 }
 
 impl<'a, 'd> Output<'a, 'd> {
@@ -76,6 +80,8 @@ impl<'a, 'd> Output<'a, 'd> {
             frame_index: 0,
             energy_plot: EnergyPlot::default(),
             row: Vec::new(),
+            last_flush: Instant::now(),
+            flush_interval: scene.output.flush_interval,
         };
         if output.frames {
             output.write_frame(solver)?;
@@ -90,6 +96,7 @@ impl<'a, 'd> Output<'a, 'd> {
         let n = solver.state.step;
         if n.is_multiple_of(self.history_every) || last {
             self.push_history_row(solver)?;
+            self.flush_history_when_due()?;
         }
         if let Some(fe) = self.frame_every {
             if n.is_multiple_of(fe) && !last && self.frames {
@@ -114,6 +121,19 @@ impl<'a, 'd> Output<'a, 'd> {
         self.writer.close()?;
         if self.domain.is_root() {
             self.energy_plot.draw(&dir.join("energy.png"))?;
+        }
+        Ok(())
+    }
+
+    /// Flushes the buffered history rows once `flush_interval` seconds of wall time have
+    /// passed on any rank. The decision is reduced over the ranks (the flush is
+    /// collective; clocks differ), once per history row, beside the row's own reduction.
+    fn flush_history_when_due(&mut self) -> Result<()> {
+        let mut elapsed = [self.last_flush.elapsed().as_secs_f64()];
+        self.domain.max_in_place(&mut elapsed);
+        if elapsed[0] >= self.flush_interval {
+            self.writer.flush_history()?;
+            self.last_flush = Instant::now();
         }
         Ok(())
     }

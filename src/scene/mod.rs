@@ -308,6 +308,10 @@ pub struct OutputSpec {
     /// Write field snapshots at all.
     #[serde(default = "default_true")]
     pub frames: bool,
+    /// Wall-clock seconds between flushes of the buffered history rows to `results.h5`
+    /// (default 5): a run that is killed keeps its history up to the last flush.
+    #[serde(default = "default_flush_interval")]
+    pub flush_interval: f64,
 }
 
 impl Default for OutputSpec {
@@ -316,8 +320,13 @@ impl Default for OutputSpec {
             history_interval: None,
             frame_interval: None,
             frames: true,
+            flush_interval: default_flush_interval(),
         }
     }
+}
+
+fn default_flush_interval() -> f64 {
+    5.0
 }
 
 fn default_true() -> bool {

@@ -234,6 +234,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     if let Some(h) = o.history_interval {
         c.positive("output.history_interval", h)?;
     }
+    c.positive("output.flush_interval", o.flush_interval)?;
     if let Some(h) = o.frame_interval {
         c.positive("output.frame_interval", h)?;
     }
