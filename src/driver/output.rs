@@ -8,6 +8,7 @@ use super::RunOptions;
 use crate::domain::Domain;
 use crate::error::{MufeError, Result};
 use crate::io::results::{MeshPart, Provenance, ResultsWriter, RESULTS_FILE_NAME};
+use crate::io::xdmf::{write_xdmf, XdmfLayout, XDMF_FILE_NAME};
 use crate::model::global::GlobalMesh;
 use crate::scene::LoadedScene;
 use crate::solver::Solver;
@@ -25,6 +26,9 @@ pub struct Output<'a, 'd> {
     frame_every: Option<u64>,
     frames: bool,
     frame_index: usize,
+    /// (index, time) of the frames written, for `results.xdmf`.
+    frame_times: Vec<(usize, f64)>,
+    dir: std::path::PathBuf,
     energy_plot: EnergyPlot,
     row: Vec<f64>,
     /// Wall-clock time of the last history flush, and the scene's interval between them.
@@ -78,6 +82,8 @@ impl<'a, 'd> Output<'a, 'd> {
                 .map(|f| ((f / dt).round() as u64).max(1)),
             frames: scene.output.frames,
             frame_index: 0,
+            frame_times: Vec::new(),
+            dir: opts.out.clone(),
             energy_plot: EnergyPlot::default(),
             row: Vec::new(),
             last_flush: Instant::now(),
@@ -155,7 +161,25 @@ impl<'a, 'd> Output<'a, 'd> {
             &solver.state.partition.owner,
             self.frame_index,
         )?;
+        self.frame_times.push((self.frame_index, solver.state.time));
         self.frame_index += 1;
+        // rank 0 alone: a failure is reported, not returned, so that the ranks stay in
+        // step (the description is auxiliary; results.h5 holds the data)
+        if self.domain.is_root() {
+            let path = self.dir.join(XDMF_FILE_NAME);
+            let written = write_xdmf(
+                &path,
+                &XdmfLayout {
+                    h5_name: RESULTS_FILE_NAME,
+                    nodes: self.global.total_nodes() as u64,
+                    elements: self.global.total_elements() as u64,
+                    frames: &self.frame_times,
+                },
+            );
+            if let Err(e) = written {
+                eprintln!("warning: {}: {e}", path.display());
+            }
+        }
         Ok(())
     }
 }

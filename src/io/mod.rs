@@ -14,3 +14,4 @@ pub use collective::IoMode;
 pub use results::{
     FieldPart, HistoryColumn, IoStats, MeshPart, Provenance, ResultsWriter, RESULTS_FILE_NAME,
 };
+pub mod xdmf;
