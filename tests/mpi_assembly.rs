@@ -55,6 +55,44 @@ fn run(
     (out.join("results.h5"), output)
 }
 
+/// The last frame's `owner_rank` (the rank that advanced each element, written per frame
+/// so that migration shows) names every rank of the run and no other, and is constant
+/// over each grain.
+fn assert_owner_ranks_in_last_frame(path: &Path, ranks: usize) {
+    let f = hdf5::File::open(path).unwrap();
+    let mut frames = f.group("frames").unwrap().member_names().unwrap();
+    frames.sort();
+    let last = frames.last().unwrap();
+    let owner: Vec<f64> = f
+        .dataset(&format!("frames/{last}/owner_rank"))
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    let grain: Vec<u32> = f
+        .dataset("mesh/grain_of_element")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    let mut seen = vec![false; ranks];
+    let mut of_grain = std::collections::BTreeMap::new();
+    for (&r, &g) in owner.iter().zip(&grain) {
+        assert!(
+            r >= 0.0 && r < ranks as f64 && r.fract() == 0.0,
+            "owner rank {r}"
+        );
+        seen[r as usize] = true;
+        assert_eq!(
+            *of_grain.entry(g).or_insert(r),
+            r,
+            "grain {g} split over ranks"
+        );
+    }
+    assert!(
+        seen.iter().all(|&s| s),
+        "{ranks} ranks: every rank owns elements"
+    );
+}
+
 /// All `/history` series of a results file, by name.
 fn history(path: &Path) -> Vec<(String, Vec<f64>)> {
     let f = hdf5::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
@@ -169,6 +207,7 @@ fn compare_configurations(
                 "migration happened: {stdout}"
             );
         }
+        assert_owner_ranks_in_last_frame(&path, ranks);
         let h = history(&path);
         assert_eq!(h.len(), golden.len(), "{ranks} ranks: same columns");
         for ((name, a), (name_b, b)) in golden.iter().zip(&h) {

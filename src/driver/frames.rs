@@ -73,6 +73,8 @@ pub fn write_frame(
         &global.element_offset,
         1,
     );
+    // the rank that advanced each element at this frame (migration moves grains)
+    let owner_rank = gather(&vec![domain.rank() as f64; ne], &global.element_offset, 1);
     let (n, e) = (global.total_nodes() as u64, global.total_elements() as u64);
     let fields = [
         FieldPart {
@@ -104,6 +106,14 @@ pub fn write_frame(
             units: "Pa",
             components: 1,
             data: &vm,
+            offset: 0,
+            total: e,
+        },
+        FieldPart {
+            name: "owner_rank",
+            units: "",
+            components: 1,
+            data: &owner_rank,
             offset: 0,
             total: e,
         },

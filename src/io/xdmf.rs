@@ -8,6 +8,7 @@
 //! `displacement` to see the deformed grains. The stress is stored in `results.h5` as
 //! (xx, yy, zz, yz, xz, xy), which is not XDMF's Tensor6 order (xx, xy, xz, yy, yz, zz),
 //! so it is described as six scalar components (`stress_xx`, …) taken by hyperslab.
+//! `owner_rank` is the MPI rank that advanced each element at that frame.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -80,7 +81,11 @@ pub fn xdmf_text(layout: &XdmfLayout) -> String {
                 &slab,
             );
         }
-        for name in ["von_mises_stress", "equivalent_plastic_strain"] {
+        for name in [
+            "von_mises_stress",
+            "equivalent_plastic_strain",
+            "owner_rank",
+        ] {
             attribute(
                 &mut s,
                 name,
@@ -151,7 +156,7 @@ mod tests {
             text.contains("0 5 1 1 7 1"),
             "hyperslab of the 6th stress component"
         );
-        assert_eq!(text.matches("<Attribute").count(), 2 * 11);
+        assert_eq!(text.matches("<Attribute").count(), 2 * 12);
         assert!(text.trim_end().ends_with("</Xdmf>"));
     }
 }
