@@ -175,52 +175,42 @@ fn bad_fields_are_named() {
         }
     };
     let t = || scene_text("[2, 2, 2]", "open", 0.0);
-    assert_eq!(
-        err(t(), &["packings[0].cells=[0, 2, 2]"]),
-        "packings[0].cells"
-    );
-    assert_eq!(
-        err(t(), &["packings[0].cells=[2, -1, 2]"]),
-        "packings[0].cells"
-    );
-    assert_eq!(
-        err(t(), &["packings[0].material=\"steel\""]),
-        "packings[0].material"
-    );
-    assert_eq!(
-        err(t(), &["packings[0].lattice=\"bcc\""]),
-        "packings[0].lattice"
-    );
-    assert_eq!(
-        err(t(), &["packings[0].faces=\"half\""]),
-        "packings[0].faces"
-    );
-    assert_eq!(err(t(), &["packings[0].gap=0.6"]), "packings[0].gap");
-    assert_eq!(err(t(), &["packings[0].gap=-0.02"]), "packings[0].gap");
-    // within the gap bounds but deeper than the faceting: the overlap check, renamed
-    let deep = [
-        "packings[0].gap=-0.009",
-        "packings[0].sphere.seeding=1e-4",
-        "packings[0].sphere.contact_seeding=5e-5",
+    // (overrides, the field the one-line error must name)
+    let cases: [(&[&str], &str); 13] = [
+        (&["packings[0].cells=[0, 2, 2]"], "packings[0].cells"),
+        (&["packings[0].cells=[2, -1, 2]"], "packings[0].cells"),
+        (&["packings[0].material=\"steel\""], "packings[0].material"),
+        (&["packings[0].lattice=\"bcc\""], "packings[0].lattice"),
+        (&["packings[0].faces=\"half\""], "packings[0].faces"),
+        (&["packings[0].gap=0.6"], "packings[0].gap"),
+        (&["packings[0].gap=-0.02"], "packings[0].gap"),
+        // within the gap bounds but deeper than the faceting: the overlap check, renamed
+        (
+            &[
+                "packings[0].gap=-0.009",
+                "packings[0].sphere.seeding=1e-4",
+                "packings[0].sphere.contact_seeding=5e-5",
+            ],
+            "packings[0].gap",
+        ),
+        (
+            &["packings[0].sphere.radius=-1.0"],
+            "packings[0].sphere.radius",
+        ),
+        (
+            &["packings[0].sphere.seeding=2e-3"],
+            "packings[0].sphere.seeding",
+        ),
+        (
+            &["packings[0].sphere.contact_seeding=6e-4"],
+            "packings[0].sphere.contact_seeding",
+        ),
+        (&["packings[0].cells=[100, 100, 100]"], "packings[0].cells"),
+        (&["packings[0].name=\"a b\""], "packings[0].name"),
     ];
-    assert_eq!(err(t(), &deep), "packings[0].gap");
-    assert_eq!(
-        err(t(), &["packings[0].sphere.radius=-1.0"]),
-        "packings[0].sphere.radius"
-    );
-    assert_eq!(
-        err(t(), &["packings[0].sphere.seeding=2e-3"]),
-        "packings[0].sphere.seeding"
-    );
-    assert_eq!(
-        err(t(), &["packings[0].sphere.contact_seeding=6e-4"]),
-        "packings[0].sphere.contact_seeding"
-    );
-    assert_eq!(
-        err(t(), &["packings[0].cells=[100, 100, 100]"]),
-        "packings[0].cells"
-    );
-    assert_eq!(err(t(), &["packings[0].name=\"a b\""]), "packings[0].name");
+    for (set, field) in cases {
+        assert_eq!(err(t(), set), *field, "{set:?}");
+    }
     let dup = format!(
         "{}[[grains]]\nname = \"fcc_3\"\nmaterial = \"glass\"\ncentre = [1.0, 0.0, 0.0]\nshape = {{ sphere = {{ radius = 1e-3, seeding = 5e-4 }} }}\n",
         t()
