@@ -150,6 +150,9 @@ impl Solver {
             && state.motion_work.len() == self.motions.len()
             && state.plastic.len() == self.state.plastic.len()
             && state.contact.walls.len() == m.contact.walls.len()
+            && (state.contact.walls.iter())
+                .zip(&m.contact.walls)
+                .all(|(ws, w)| ws.servo.is_some() == w.servo.is_some())
             && state.partition.owner.len() == self.state.partition.owner.len();
         if !fits {
             return Err(MufeError::Run(format!(
