@@ -673,3 +673,75 @@ fn a_packing_too_big_for_memory_names_its_cells() {
     );
     refused(&o, 5, &["packings[0].cells", "memory"]);
 }
+
+const SERVO_SPHERE: &str = "jobs/tests/servo_sphere.toml";
+const FCC_SERVO: &str = "jobs/fcc/fcc_cell_servo.toml";
+
+/// Bad servo-wall input (issue 11, item 2) is one line naming the field, before meshing.
+#[test]
+fn bad_servo_walls_are_refused() {
+    for (scene, set, field, needle) in [
+        (
+            SERVO_SPHERE,
+            "walls[1].servo.stress=0.0",
+            "walls[1].servo.stress",
+            "> 0",
+        ),
+        (
+            SERVO_SPHERE,
+            "walls[1].servo.stress=-5e4",
+            "walls[1].servo.stress",
+            "> 0",
+        ),
+        (
+            FCC_SERVO,
+            "walls[1].servo.area_of=\"box\"",
+            "walls[1].servo.area_of",
+            "no packing named 'box'",
+        ),
+        (
+            FCC_SERVO,
+            "walls[1].normal=[0.0, 0.6, -0.8]",
+            "walls[1].servo.area_of",
+            "coordinate axis",
+        ),
+        (
+            SERVO_SPHERE,
+            "walls[1].velocity={ times = [0.0], values = [[0.0, 0.0, -1.0]] }",
+            "walls[1].servo",
+            "at most one of velocity, displacement and servo",
+        ),
+        (
+            SERVO_SPHERE,
+            "walls[1].servo={ stress = 5e4 }",
+            "walls[1].servo",
+            "area",
+        ),
+        (
+            FCC_SERVO,
+            "walls[1].servo={ stress = 5e4, area = 1e-5, area_of = \"cell\" }",
+            "walls[1].servo.area",
+            "not both",
+        ),
+        (
+            SERVO_SPHERE,
+            "walls[1].servo.time_constant=0.0",
+            "walls[1].servo.time_constant",
+            "> 0",
+        ),
+        (
+            SERVO_SPHERE,
+            "walls[1].servo.max_speed=-1.0",
+            "walls[1].servo.max_speed",
+            "> 0",
+        ),
+        (
+            SERVO_SPHERE,
+            "walls[1].servo.gain=1.0",
+            "walls[1].servo",
+            "gain",
+        ),
+    ] {
+        refused(&check_set(scene, set), 5, &[field, needle]);
+    }
+}

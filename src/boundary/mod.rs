@@ -3,6 +3,8 @@
 //! overrides the driven components of v_{n+½} so that the nodes land exactly on their
 //! prescribed positions at t_{n+1}, and records the reaction force and moment needed.
 
+pub mod servo;
+
 use crate::scene::History3;
 use serde::{Deserialize, Serialize};
 

@@ -100,6 +100,7 @@ pub use crate::model::contact_layout::{
 };
 pub use overlap::check_initial_overlap;
 
+use crate::boundary::servo::ServoState;
 use crate::energy::WorkAccumulator;
 use crate::error::MufeError;
 use crate::math::dot;
@@ -149,6 +150,9 @@ pub struct WallState {
     pub displacement: [f64; 3],
     /// Nodes in contact at the last step.
     pub contacts: usize,
+    /// Kinematics and filtered force of a servo wall (`None` for prescribed walls).
+    #[serde(default)]
+    pub servo: Option<ServoState>,
 }
 
 /// Diagnostics of the last contact evaluation (and maxima over the run).
@@ -187,7 +191,15 @@ impl ContactState {
     /// Initial contact state for a model.
     pub fn new(model: &Model) -> Self {
         Self {
-            walls: vec![WallState::default(); model.contact.walls.len()],
+            walls: model
+                .contact
+                .walls
+                .iter()
+                .map(|w| WallState {
+                    servo: w.servo.as_ref().map(|_| ServoState::default()),
+                    ..Default::default()
+                })
+                .collect(),
             stats: ContactStats {
                 grain_force: vec![[0.0; 3]; model.grains.len()],
                 ..Default::default()
@@ -265,9 +277,10 @@ pub fn needs_rebuild(
     }
     scratch.wall_now.clear();
     scratch.wall_next.clear();
-    for w in &cm.walls {
-        scratch.wall_now.push(w.displacement_at(time));
-        scratch.wall_next.push(w.displacement_at(time + dt));
+    for (w, ws) in cm.walls.iter().zip(&state.walls) {
+        let [_, now, next] = walls::displacements(w, ws, time, dt);
+        scratch.wall_now.push(now);
+        scratch.wall_next.push(next);
     }
     scratch
         .broad
@@ -498,6 +511,29 @@ pub fn enforce_walls(
     );
     let c = state.contacts();
     state.stats.max_contacts_run = state.stats.max_contacts_run.max(c);
+}
+
+/// This rank's normal force F = f·n on each servo wall (N), in wall order, into `out`
+/// (cleared first); the caller sums it over ranks before [`advance_servo_walls`].
+pub fn servo_normal_forces(model: &Model, state: &ContactState, out: &mut Vec<f64>) {
+    out.clear();
+    for (w, ws) in model.contact.walls.iter().zip(&state.walls) {
+        if w.servo.is_some() {
+            out.push(dot(ws.force, w.normal));
+        }
+    }
+}
+
+/// Stage 3b: moves each servo wall to t_{n+1} and sets its next speed from its normal
+/// force `global` (N, summed over ranks, in the order of [`servo_normal_forces`]).
+pub fn advance_servo_walls(model: &Model, state: &mut ContactState, global: &[f64], dt: f64) {
+    let mut forces = global.iter();
+    for (w, ws) in model.contact.walls.iter().zip(&mut state.walls) {
+        if let (Some(control), Some(servo)) = (&w.servo, &mut ws.servo) {
+            let force = forces.next().copied().unwrap_or(0.0);
+            control.advance(servo, force, dt);
+        }
+    }
 }
 
 #[cfg(test)]

@@ -19,8 +19,22 @@
 //! Nodes with any prescribed component are left to their prescribed motion. A node touching
 //! two walls is corrected wall after wall, in scene order.
 
-use super::{ContactModel, ContactState};
+use super::{ContactModel, ContactState, Wall, WallState};
 use crate::math::{add, dot, norm, scale, sub};
+
+/// Displacement of a wall from t = 0 (m) at t_{n−1}, t_n and t_{n+1} (`t` = t_n): from its
+/// prescribed history, or for a servo wall from its state (s n at each time).
+#[inline]
+pub fn displacements(wall: &Wall, ws: &WallState, t: f64, dt: f64) -> [[f64; 3]; 3] {
+    match (&wall.servo, &ws.servo) {
+        (Some(_), Some(s)) => s.displacements(dt).map(|d| scale(wall.normal, d)),
+        _ => [
+            wall.displacement_at(t - dt),
+            wall.displacement_at(t),
+            wall.displacement_at(t + dt),
+        ],
+    }
+}
 
 /// Corrects `v_next` (v_{n+½}) of the candidate nodes `wall_nodes` (wall, flat surface
 /// index; ordered by wall) so that no node ends behind a wall at t_{n+1}; records each
@@ -40,9 +54,7 @@ pub fn enforce(
 ) {
     let mut cursor = 0;
     for (w, wall) in cm.walls.iter().enumerate() {
-        let u_prev = wall.displacement_at(t - dt);
-        let u_now = wall.displacement_at(t);
-        let u_next = wall.displacement_at(t + dt);
+        let [u_prev, u_now, u_next] = displacements(wall, &state.walls[w], t, dt);
         let vw_before = scale(sub(u_now, u_prev), 1.0 / dt);
         let vw_after = scale(sub(u_next, u_now), 1.0 / dt);
         let p_next = wall.point_at_displacement(u_next);

@@ -142,6 +142,32 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
                 ));
             }
         }
+        if w.servo.is_some() {
+            for (what, units, desc) in [
+                (
+                    "stress_target",
+                    "Pa",
+                    "target normal stress of the servo wall",
+                ),
+                (
+                    "stress",
+                    "Pa",
+                    "filtered normal force of the wall on the grains over the servo area",
+                ),
+                (
+                    "stress_error",
+                    "1",
+                    "(stress − stress_target)/stress_target",
+                ),
+            ] {
+                c.push(HistoryColumn::new(
+                    &format!("{}_{what}", w.name),
+                    units,
+                    None,
+                    desc,
+                ));
+            }
+        }
     }
     c
 }
@@ -158,9 +184,13 @@ pub fn history_reductions(solver: &Solver) -> Vec<Reduce> {
     if solver.model.contact.active() {
         k.extend([Reduce::Sum, Reduce::Max, Reduce::Sum]);
     }
-    for _ in &solver.model.contact.walls {
+    for w in &solver.model.contact.walls {
         k.extend([Reduce::Sum; 3]);
         k.extend([Reduce::Same; 3]);
+        if w.servo.is_some() {
+            // from the force already summed over ranks in the step
+            k.extend([Reduce::Same; 3]);
+        }
     }
     k
 }
@@ -208,9 +238,16 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
         let c = &s.contact;
         row.extend_from_slice(&[c.contacts() as f64, c.stats.max_penetration, c.stats.energy]);
     }
-    for w in &s.contact.walls {
+    for (wall, w) in solver.model.contact.walls.iter().zip(&s.contact.walls) {
         row.extend_from_slice(&w.force);
         row.extend_from_slice(&w.displacement);
+        if let (Some(control), Some(servo)) = (&wall.servo, &w.servo) {
+            row.extend_from_slice(&[
+                control.target_stress,
+                control.stress(servo),
+                control.stress_error(servo),
+            ]);
+        }
     }
 }
 

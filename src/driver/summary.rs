@@ -114,6 +114,21 @@ fn print_summary(
                 cm.margin
             );
         }
+        for w in &cm.walls {
+            if let Some(s) = &w.servo {
+                println!(
+                    "servo wall {}: {:.4e} Pa on {:.4e} m² (F* = {:.4e} N), stiffness {:.3e} N/m, τ = {:.3e} s (filter {:.3e} s), max speed {:.3e} m/s",
+                    w.name,
+                    s.target_stress,
+                    s.area,
+                    s.target_force,
+                    s.stiffness,
+                    s.time_constant,
+                    s.filter_time,
+                    s.max_speed
+                );
+            }
+        }
         if st.contact_dt.is_finite() {
             println!(
                 "contact stable step: {:.4e} s (node {}) vs {:.4e} s from elements alone (×{:.3}){}",

@@ -293,6 +293,51 @@ pub struct WallSpec {
     /// Translation displacement history (m).
     #[serde(default)]
     pub displacement: Option<History3>,
+    /// Stress-controlled wall (instead of velocity/displacement): it moves along its normal
+    /// so that its normal force holds `stress × area` (see `crate::boundary::servo`).
+    #[serde(default)]
+    pub servo: Option<ServoSpec>,
+}
+
+/// A servo-controlled wall: a target compressive normal stress on an area.
+///
+/// ```toml
+/// servo = { stress = 5.0e4, area_of = "cell" }   # Pa; area from packing "cell"'s span
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServoSpec {
+    /// Target normal stress (Pa), > 0, compressive: force the wall exerts on the grains
+    /// along its normal, divided by the area.
+    pub stress: f64,
+    /// Area the stress acts on (m²). Exactly one of `area` and `area_of`.
+    #[serde(default)]
+    pub area: Option<f64>,
+    /// Name of a packing: the area is the product of its lattice-span extents (between
+    /// outer sphere centres) along the two axes perpendicular to the wall normal, which
+    /// must then be a coordinate axis.
+    #[serde(default)]
+    pub area_of: Option<String>,
+    /// Time constant τ of the closed loop (s), > 0. Default: the larger of 2 periods of
+    /// the specimen on its estimated contact stiffness and 20 P-wave transits across it.
+    #[serde(default)]
+    pub time_constant: Option<f64>,
+    /// Largest wall speed (m/s), > 0. Default: 1e-4 × the largest P-wave speed √(E/ρ).
+    #[serde(default)]
+    pub max_speed: Option<f64>,
+    /// Stiffness the wall sees at the target load (N/m), > 0, overriding the Hertz
+    /// estimate (e.g. for meshes too coarse to resolve the contacts).
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+}
+
+/// The coordinate axis a normal lies along (exactly one non-zero component), if any.
+pub fn normal_axis(normal: [f64; 3]) -> Option<usize> {
+    let nonzero: Vec<usize> = (0..3).filter(|&k| normal[k] != 0.0).collect();
+    match nonzero[..] {
+        [k] => Some(k),
+        _ => None,
+    }
 }
 
 /// What is written and how often.

@@ -1,7 +1,7 @@
 //! Semantic checks of a typed scene. Each failure names the file and the dotted field.
 
 use super::estimate::{estimate_scene, wave_speed, MAX_EXACT_STEPS};
-use super::{BoundarySpec, History3, NodeSelector, Scene, ShapeSpec, WallSpec};
+use super::{BoundarySpec, History3, NodeSelector, Scene, ServoSpec, ShapeSpec, WallSpec};
 use crate::error::{echo, num, InputError};
 
 struct Checker<'a> {
@@ -781,5 +781,53 @@ fn validate_wall(c: &Checker, scene: &Scene, i: usize, w: &WallSpec) -> Result<(
     c.nonzero_vec3(&f("normal"), &w.normal)?;
     c.non_negative(&f("friction"), w.friction)?;
     c.translation(&f(""), &w.velocity, &w.displacement)?;
+    if let Some(servo) = &w.servo {
+        validate_servo(c, scene, i, w, servo)?;
+    }
+    Ok(())
+}
+
+fn validate_servo(
+    c: &Checker,
+    scene: &Scene,
+    i: usize,
+    w: &WallSpec,
+    servo: &ServoSpec,
+) -> Result<(), InputError> {
+    let f = |x: &str| format!("walls[{i}].servo{x}");
+    if w.velocity.is_some() || w.displacement.is_some() {
+        return Err(c.err(
+            f(""),
+            "give at most one of velocity, displacement and servo",
+        ));
+    }
+    c.positive(&f(".stress"), servo.stress)?;
+    match (&servo.area, &servo.area_of) {
+        (Some(_), Some(_)) => {
+            return Err(c.err(f(".area"), "give either area or area_of, not both"))
+        }
+        (None, None) => return Err(c.err(f(""), "needs area (m²) or area_of (a packing name)")),
+        (Some(a), None) => c.positive(&f(".area"), *a)?,
+        (None, Some(name)) => {
+            if !scene.packings.iter().any(|p| &p.name == name) {
+                return Err(c.err(f(".area_of"), format!("no packing named '{}'", echo(name))));
+            }
+            if super::normal_axis(w.normal).is_none() {
+                return Err(c.err(
+                    f(".area_of"),
+                    "needs the wall normal along a coordinate axis (the area is the packing's span across it)",
+                ));
+            }
+        }
+    }
+    for (field, v) in [
+        (".time_constant", servo.time_constant),
+        (".max_speed", servo.max_speed),
+        (".stiffness", servo.stiffness),
+    ] {
+        if let Some(v) = v {
+            c.positive(&f(field), v)?;
+        }
+    }
     Ok(())
 }

@@ -1,7 +1,8 @@
 //! The explicit central-difference step as named, timed stages:
 //! contact (detection, grain–grain forces at x_n) → internal forces (+ contact forces)
 //! → boundary (body force, damping, prescribed motions) → contact (kinematic walls on
-//! v_{n+½}) → integrate → energy. Time in both contact parts is charged to `contact`.
+//! v_{n+½}; servo walls move to t_{n+1} from their force summed over ranks) → integrate
+//! → energy. Time in both contact parts is charged to `contact`.
 //!
 //! Convention: at the start of step n the state holds x_n and v_{n−½};
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
@@ -52,6 +53,8 @@ pub struct Scratch {
     pub elements: ElementScratch,
     /// Cached contact candidate lists and per-point results.
     pub contact: ContactScratch,
+    /// Normal force of each servo wall, this rank's share then summed over ranks (N).
+    servo_forces: Vec<f64>,
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
     pub(super) grain_rigid: Vec<RigidVelocity>,
@@ -120,6 +123,7 @@ impl Solver {
             v_next: vec![[0.0; 3]; n],
             elements: ElementScratch::new(&model),
             contact: ContactScratch::default(),
+            servo_forces: Vec::new(),
             node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
         };
@@ -146,6 +150,9 @@ impl Solver {
             && state.motion_work.len() == self.motions.len()
             && state.plastic.len() == self.state.plastic.len()
             && state.contact.walls.len() == m.contact.walls.len()
+            && (state.contact.walls.iter())
+                .zip(&m.contact.walls)
+                .all(|(ws, w)| ws.servo.is_some() == w.servo.is_some())
             && state.partition.owner.len() == self.state.partition.owner.len();
         if !fits {
             return Err(MufeError::Run(format!(
@@ -262,6 +269,24 @@ impl Solver {
                 &scratch.contact,
             )
         });
+        if model.contact.has_servo_walls() {
+            // The servo walls must move identically on every rank: one small sum of their
+            // normal forces (serial runs: the local force as is).
+            timers.time(Stage::Contact, || {
+                crate::contact::servo_normal_forces(
+                    model,
+                    &state.contact,
+                    &mut scratch.servo_forces,
+                );
+                hooks.sum(&mut scratch.servo_forces);
+                crate::contact::advance_servo_walls(
+                    model,
+                    &mut state.contact,
+                    &scratch.servo_forces,
+                    dt,
+                );
+            });
+        }
 
         // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
         // before integration overwrites v.
