@@ -6,6 +6,10 @@
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
+#[path = "common/results.rs"]
+mod results;
+
+use results::history;
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -91,18 +95,6 @@ fn assert_owner_ranks_in_last_frame(path: &Path, ranks: usize) {
         seen.iter().all(|&s| s),
         "{ranks} ranks: every rank owns elements"
     );
-}
-
-/// All `/history` series of a results file, by name.
-fn history(path: &Path) -> Vec<(String, Vec<f64>)> {
-    let f = hdf5::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let g = f.group("history").unwrap();
-    let mut names = g.member_names().unwrap();
-    names.sort();
-    names
-        .into_iter()
-        .map(|n| (n.clone(), g.dataset(&n).unwrap().read_raw::<f64>().unwrap()))
-        .collect()
 }
 
 #[test]

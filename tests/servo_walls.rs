@@ -3,16 +3,18 @@
 //!   servo wall at 50 kPa) run by `mufe run`: the filtered stress reaches the target and is
 //!   held within 1 % over the second half, the energy ledger balances, the servo columns
 //!   are in `/history` (only for the servo wall);
-//! - the same scene restored from a JSON `State` mid-run continues bitwise identically;
+//! - (the same scene restored from a JSON `State` mid-run continues bitwise identically:
+//!   `tests/state_restore.rs`);
 //! - `jobs/fcc/fcc_cell_servo.toml` (14 spheres, five servo walls) gives the same
 //!   `/history` on 2 ranks as on 1 (1e-10): the walls move from the force summed over ranks.
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
+#[path = "common/results.rs"]
+mod results;
 
-use mufe::driver::history_row;
-use mufe::scene::load_scene;
-use mufe::solver::{build_solver, Solver, State};
+use results::history;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
@@ -32,18 +34,6 @@ fn out_dir(name: &str) -> PathBuf {
         .join(name);
     let _ = std::fs::remove_dir_all(&d);
     d
-}
-
-/// `/history` series by name.
-fn history(path: &Path) -> Vec<(String, Vec<f64>)> {
-    let f = hdf5::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let g = f.group("history").unwrap();
-    let mut names = g.member_names().unwrap();
-    names.sort();
-    names
-        .into_iter()
-        .map(|n| (n.clone(), g.dataset(&n).unwrap().read_raw::<f64>().unwrap()))
-        .collect()
 }
 
 fn column<'a>(h: &'a [(String, Vec<f64>)], name: &str) -> &'a [f64] {
@@ -126,47 +116,6 @@ fn servo_wall_reaches_and_holds_the_target_stress_with_the_ledger_balanced() {
         drift / largest
     );
     assert!(column(&h, "external_work").last().unwrap() > &0.0);
-}
-
-fn solver() -> Solver {
-    let loaded = load_scene(&root(SPHERE), &[]).unwrap();
-    build_solver(&loaded).expect("model builds")
-}
-
-fn advance(solver: &mut Solver, steps: usize) -> Vec<Vec<f64>> {
-    let mut rows = Vec::with_capacity(steps);
-    for _ in 0..steps {
-        solver.step().expect("step");
-        let mut row = Vec::new();
-        history_row(solver, &mut row);
-        rows.push(row);
-    }
-    rows
-}
-
-#[test]
-fn servo_state_round_trip_mid_run_continues_identically() {
-    let mut original = solver();
-    advance(&mut original, 3000);
-    let json = serde_json::to_string(&original.state).expect("state serialises");
-    let expected = advance(&mut original, 1500);
-
-    let mut restored = solver();
-    let state: State = serde_json::from_str(&json).expect("state deserialises");
-    let servo = state.contact.walls[1].servo.expect("servo state in State");
-    assert!(servo.filtered_force > 0.0 && servo.displacement != 0.0);
-    restored.restore(state).expect("state fits");
-    let got = advance(&mut restored, 1500);
-    for (i, (a, b)) in expected.iter().zip(&got).enumerate() {
-        for (k, (x, y)) in a.iter().zip(b).enumerate() {
-            assert_eq!(
-                x.to_bits(),
-                y.to_bits(),
-                "row {i}, column {k}: {y:e} vs {x:e}"
-            );
-        }
-    }
-    assert!(original.state == restored.state, "final states differ");
 }
 
 fn run_cell(ranks: usize, name: &str) -> PathBuf {

@@ -119,3 +119,10 @@ fn a_state_of_another_scene_is_refused() {
     let err = assembly.restore(sphere.state.clone()).unwrap_err();
     assert!(err.to_string().contains("does not fit"), "{err}");
 }
+
+#[test]
+fn servo_state_round_trip_mid_run_continues_identically() {
+    let mid = round_trip("jobs/tests/servo_sphere.toml", 3000, 1500);
+    let servo = mid.contact.walls[1].servo.expect("servo state in State");
+    assert!(servo.filtered_force > 0.0 && servo.displacement != 0.0);
+}

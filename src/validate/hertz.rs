@@ -98,12 +98,12 @@ impl Case for HertzCase {
         SCENE
     }
 
-    fn default_mrs(&self, quick: bool) -> Vec<f64> {
-        if quick {
-            vec![QUICK_MR]
-        } else {
-            vec![0.0045, 0.0032, 0.0023, 0.0016]
-        }
+    fn sweep_mrs(&self) -> Vec<f64> {
+        vec![0.0045, 0.0032, 0.0023, 0.0016]
+    }
+
+    fn quick_mr(&self) -> f64 {
+        QUICK_MR
     }
 
     fn full_target(&self) -> f64 {

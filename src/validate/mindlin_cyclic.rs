@@ -82,14 +82,14 @@ pub fn analyse(points: &[CyclePoint], md: &Mindlin) -> Result<CycleAnalysis> {
         .ok_or_else(|| incomplete("reload back to +δa"))?;
     let (x_top, x_bottom) = (points[top].x, points[bottom].x);
     let q_top = md.loading(x_top);
-    let q_bottom = masing(md, x_top, q_top, x_bottom);
+    let q_bottom = md.unloading(x_top, q_top, x_bottom);
     let reference = |i: usize, x: f64| {
         if i <= top {
             md.loading(x)
         } else if i <= bottom {
-            masing(md, x_top, q_top, x)
+            md.unloading(x_top, q_top, x)
         } else {
-            masing(md, x_bottom, q_bottom, x)
+            md.unloading(x_bottom, q_bottom, x)
         }
     };
     let (mut error, mut error_curve) = (0.0f64, Vec::new());
@@ -131,11 +131,6 @@ pub fn analyse(points: &[CyclePoint], md: &Mindlin) -> Result<CycleAnalysis> {
     })
 }
 
-/// The Masing branch from the reversal (x*, Q*).
-fn masing(md: &Mindlin, x_star: f64, q_star: f64, x: f64) -> f64 {
-    md.unloading(x_star, q_star, x)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -159,16 +154,16 @@ mod tests {
         xs.extend((1..=2 * n).map(|i| da - 2.0 * da * i as f64 / (2 * n) as f64));
         xs.extend((1..=2 * n).map(|i| -da + 2.0 * da * i as f64 / (2 * n) as f64));
         let q_top = md.loading(da);
-        let q_bottom = masing(&md, da, q_top, -da);
+        let q_bottom = md.unloading(da, q_top, -da);
         let mut points = Vec::new();
         let mut dissipated = 0.0;
         for (i, &x) in xs.iter().enumerate() {
             let q = if i <= n {
                 md.loading(x)
             } else if i <= 3 * n {
-                masing(&md, da, q_top, x)
+                md.unloading(da, q_top, x)
             } else {
-                masing(&md, -da, q_bottom, x)
+                md.unloading(-da, q_bottom, x)
             };
             if let Some(p) = points.last() {
                 let p: &CyclePoint = p;

@@ -230,12 +230,12 @@ impl Case for PlasticCubeCase {
     }
 
     /// MR = cell edge / cube edge.
-    fn default_mrs(&self, quick: bool) -> Vec<f64> {
-        if quick {
-            vec![0.5]
-        } else {
-            vec![0.5, 0.25]
-        }
+    fn sweep_mrs(&self) -> Vec<f64> {
+        vec![0.5, 0.25]
+    }
+
+    fn quick_mr(&self) -> f64 {
+        0.5
     }
 
     fn full_target(&self) -> f64 {

@@ -43,8 +43,18 @@ pub trait Case {
     fn name(&self) -> &'static str;
     /// The shipped scene text (`jobs/validation/<case>.toml`).
     fn shipped_scene(&self) -> &'static str;
+    /// Meshing ratios of the full sweep, coarse to fine.
+    fn sweep_mrs(&self) -> Vec<f64>;
+    /// The one meshing ratio of the quick run (`--quick`, `cargo test`).
+    fn quick_mr(&self) -> f64;
     /// Default meshing ratios at the contact (full sweep, or quick).
-    fn default_mrs(&self, quick: bool) -> Vec<f64>;
+    fn default_mrs(&self, quick: bool) -> Vec<f64> {
+        if quick {
+            vec![self.quick_mr()]
+        } else {
+            self.sweep_mrs()
+        }
+    }
     /// Accuracy target (fraction) of the full sweep's finest meshing ratio.
     fn full_target(&self) -> f64;
     /// The target of a run: the full target, or [`super::QUICK_TOLERANCE_FACTOR`] times it

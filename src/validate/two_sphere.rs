@@ -224,15 +224,15 @@ impl Case for TwoSphereCase {
         self.scene_text()
     }
 
-    fn default_mrs(&self, quick: bool) -> Vec<f64> {
-        if quick {
-            // coarsest meshing ratio that meets the full target (docs/BENCHMARKS.md)
-            vec![match self.kind {
-                Kind::Mindlin | Kind::MindlinCyclic => 0.009,
-                Kind::Torsion | Kind::Rolling => 0.018,
-            }]
-        } else {
-            vec![0.036, 0.018, 0.009, 0.0045]
+    fn sweep_mrs(&self) -> Vec<f64> {
+        vec![0.036, 0.018, 0.009, 0.0045]
+    }
+
+    /// The coarsest meshing ratio that meets the full target (docs/BENCHMARKS.md).
+    fn quick_mr(&self) -> f64 {
+        match self.kind {
+            Kind::Mindlin | Kind::MindlinCyclic => 0.009,
+            Kind::Torsion | Kind::Rolling => 0.018,
         }
     }
 
@@ -344,11 +344,13 @@ impl Case for TwoSphereCase {
             };
             inertia_max = inertia_max.max(correction.abs());
             raw.push((smp.x, smp.y + correction, smp.n - dp[2], smp.dz));
-            cycle.push(CyclePoint {
-                x: smp.x,
-                q: smp.y + correction,
-                dissipated: smp.dissipated,
-            });
+            if self.kind == Kind::MindlinCyclic {
+                cycle.push(CyclePoint {
+                    x: smp.x,
+                    q: smp.y + correction,
+                    dissipated: smp.dissipated,
+                });
+            }
         }
         let (mut n_min, mut n_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for r in &raw {
