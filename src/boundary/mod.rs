@@ -4,6 +4,7 @@
 //! prescribed positions at t_{n+1}, and records the reaction force and moment needed.
 
 pub mod servo;
+pub mod stages;
 
 use crate::scene::History3;
 use serde::{Deserialize, Serialize};

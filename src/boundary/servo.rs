@@ -98,6 +98,15 @@ pub struct ServoState {
 }
 
 impl ServoState {
+    /// Moves the wall to s_{n+1} at the current speed and sets the next step's speed
+    /// (m/s, towards the grains).
+    #[inline]
+    pub fn move_on(&mut self, dt: f64, next_velocity: f64) {
+        self.previous = self.displacement;
+        self.displacement += dt * self.velocity;
+        self.velocity = next_velocity;
+    }
+
     /// Normal displacements at t_{n−1}, t_n and t_{n+1} (m).
     #[inline]
     pub fn displacements(&self, dt: f64) -> [f64; 3] {
@@ -135,11 +144,18 @@ impl ServoControl {
     /// the wall to s_{n+1} and sets the speed of the next step.
     #[inline]
     pub fn advance(&self, s: &mut ServoState, force: f64, dt: f64) {
+        self.advance_to(s, force, self.target_force, dt);
+    }
+
+    /// [`Self::advance`] towards `target_force` (N) instead of the fixed one: a stress
+    /// held on an area that changes as the walls move.
+    #[inline]
+    pub fn advance_to(&self, s: &mut ServoState, force: f64, target_force: f64, dt: f64) {
         s.filtered_force += dt / (self.filter_time + dt) * (force - s.filtered_force);
-        s.previous = s.displacement;
-        s.displacement += dt * s.velocity;
-        s.velocity = (self.gain * (self.target_force - s.filtered_force))
-            .clamp(-self.max_speed, self.max_speed);
+        s.move_on(
+            dt,
+            (self.gain * (target_force - s.filtered_force)).clamp(-self.max_speed, self.max_speed),
+        );
     }
 
     /// Filtered normal stress F̄/A (Pa).

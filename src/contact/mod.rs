@@ -101,6 +101,7 @@ pub use crate::model::contact_layout::{
 pub use overlap::check_initial_overlap;
 
 use crate::boundary::servo::ServoState;
+use crate::boundary::stages::{StagePlan, StageProgress};
 use crate::energy::WorkAccumulator;
 use crate::error::MufeError;
 use crate::math::dot;
@@ -150,7 +151,8 @@ pub struct WallState {
     pub displacement: [f64; 3],
     /// Nodes in contact at the last step.
     pub contacts: usize,
-    /// Kinematics and filtered force of a servo wall (`None` for prescribed walls).
+    /// Kinematics (and filtered force) of a wall driven by its state: a servo wall, or any
+    /// wall of a staged scene (`None` for walls following a prescribed history).
     #[serde(default)]
     pub servo: Option<ServoState>,
 }
@@ -195,8 +197,11 @@ impl ContactState {
                 .contact
                 .walls
                 .iter()
-                .map(|w| WallState {
-                    servo: w.servo.as_ref().map(|_| ServoState::default()),
+                .enumerate()
+                .map(|(w, _)| WallState {
+                    servo: (model.stages.as_ref())
+                        .is_some_and(|p| p.drives_wall(w))
+                        .then(ServoState::default),
                     ..Default::default()
                 })
                 .collect(),
@@ -513,27 +518,30 @@ pub fn enforce_walls(
     state.stats.max_contacts_run = state.stats.max_contacts_run.max(c);
 }
 
-/// This rank's normal force F = f·n on each servo wall (N), in wall order, into `out`
-/// (cleared first); the caller sums it over ranks before [`advance_servo_walls`].
-pub fn servo_normal_forces(model: &Model, state: &ContactState, out: &mut Vec<f64>) {
+/// This rank's normal force F = f·n on every wall (N), in wall order, into `out`
+/// (cleared first); the caller sums it over ranks before [`advance_walls`].
+pub fn wall_normal_forces(model: &Model, state: &ContactState, out: &mut Vec<f64>) {
     out.clear();
     for (w, ws) in model.contact.walls.iter().zip(&state.walls) {
-        if w.servo.is_some() {
-            out.push(dot(ws.force, w.normal));
-        }
+        out.push(dot(ws.force, w.normal));
     }
 }
 
-/// Stage 3b: moves each servo wall to t_{n+1} and sets its next speed from its normal
-/// force `global` (N, summed over ranks, in the order of [`servo_normal_forces`]).
-pub fn advance_servo_walls(model: &Model, state: &mut ContactState, global: &[f64], dt: f64) {
-    let mut forces = global.iter();
-    for (w, ws) in model.contact.walls.iter().zip(&mut state.walls) {
-        if let (Some(control), Some(servo)) = (&w.servo, &mut ws.servo) {
-            let force = forces.next().copied().unwrap_or(0.0);
-            control.advance(servo, force, dt);
-        }
-    }
+/// Stage 3b: moves each state-driven wall to t_{n+1} and sets its next speed by the
+/// current stage (see [`crate::boundary::stages`]) from the wall forces `global` (N,
+/// summed over ranks, in the order of [`wall_normal_forces`]); may end the stage.
+pub fn advance_walls(
+    plan: &StagePlan,
+    state: &mut ContactState,
+    progress: &mut StageProgress,
+    global: &[f64],
+    t_next: f64,
+    dt: f64,
+) {
+    progress.wall_displacements.clear();
+    (progress.wall_displacements).extend(state.walls.iter().map(|w| w.displacement));
+    let kinematics = state.walls.iter_mut().map(|w| &mut w.servo);
+    plan.advance(progress, kinematics, global, t_next, dt);
 }
 
 #[cfg(test)]

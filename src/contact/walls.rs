@@ -26,9 +26,9 @@ use crate::math::{add, dot, norm, scale, sub};
 /// prescribed history, or for a servo wall from its state (s n at each time).
 #[inline]
 pub fn displacements(wall: &Wall, ws: &WallState, t: f64, dt: f64) -> [[f64; 3]; 3] {
-    match (&wall.servo, &ws.servo) {
-        (Some(_), Some(s)) => s.displacements(dt).map(|d| scale(wall.normal, d)),
-        _ => [
+    match &ws.servo {
+        Some(s) => s.displacements(dt).map(|d| scale(wall.normal, d)),
+        None => [
             wall.displacement_at(t - dt),
             wall.displacement_at(t),
             wall.displacement_at(t + dt),

@@ -1,6 +1,7 @@
 //! The `/history` series of a run: column definitions (names, units, Abaqus names),
 //! one row per output step, and how each column combines over ranks.
 
+use crate::boundary::stages::WallMode;
 use crate::domain::Domain;
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::io::results::HistoryColumn;
@@ -142,32 +143,36 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
                 ));
             }
         }
-        if w.servo.is_some() {
-            for (what, units, desc) in [
-                (
-                    "stress_target",
-                    "Pa",
-                    "target normal stress of the servo wall",
-                ),
-                (
-                    "stress",
-                    "Pa",
-                    "filtered normal force of the wall on the grains over the servo area",
-                ),
-                (
-                    "stress_error",
-                    "1",
-                    "(stress − stress_target)/stress_target",
-                ),
-            ] {
-                c.push(HistoryColumn::new(
-                    &format!("{}_{what}", w.name),
-                    units,
-                    None,
-                    desc,
-                ));
-            }
+    }
+    for w in servo_walls(solver) {
+        let w = &cm.walls[w];
+        for (what, units, desc) in [
+            (
+                "stress_target",
+                "Pa",
+                "target normal stress of the servo wall (this and the next two are 0 while the stage does not stress-control the wall)",
+            ),
+            (
+                "stress",
+                "Pa",
+                "filtered normal force of the wall on the grains over the servo area (the cell's current lattice span for area_of)",
+            ),
+            (
+                "stress_error",
+                "1",
+                "(stress − stress_target)/stress_target",
+            ),
+        ] {
+            c.push(HistoryColumn::new(
+                &format!("{}_{what}", w.name),
+                units,
+                None,
+                desc,
+            ));
         }
+    }
+    for (name, units, desc) in stage_columns(solver) {
+        c.push(HistoryColumn::new(&name, units, None, desc));
     }
     c
 }
@@ -184,14 +189,13 @@ pub fn history_reductions(solver: &Solver) -> Vec<Reduce> {
     if solver.model.contact.active() {
         k.extend([Reduce::Sum, Reduce::Max, Reduce::Sum]);
     }
-    for w in &solver.model.contact.walls {
+    for _ in &solver.model.contact.walls {
         k.extend([Reduce::Sum; 3]);
         k.extend([Reduce::Same; 3]);
-        if w.servo.is_some() {
-            // from the force already summed over ranks in the step
-            k.extend([Reduce::Same; 3]);
-        }
     }
+    // from the wall forces already summed over ranks in the step
+    let same = 3 * servo_walls(solver).count() + stage_columns(solver).len();
+    k.extend(std::iter::repeat_n(Reduce::Same, same));
     k
 }
 
@@ -238,17 +242,91 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
         let c = &s.contact;
         row.extend_from_slice(&[c.contacts() as f64, c.stats.max_penetration, c.stats.energy]);
     }
-    for (wall, w) in solver.model.contact.walls.iter().zip(&s.contact.walls) {
+    for w in &s.contact.walls {
         row.extend_from_slice(&w.force);
         row.extend_from_slice(&w.displacement);
-        if let (Some(control), Some(servo)) = (&wall.servo, &w.servo) {
-            row.extend_from_slice(&[
-                control.target_stress,
-                control.stress(servo),
-                control.stress_error(servo),
-            ]);
+    }
+    let Some(plan) = &solver.model.stages else {
+        return;
+    };
+    let p = &s.stages;
+    let measure = plan.measure(&p.wall_displacements, &p.wall_forces);
+    let stage = plan.current(p);
+    for w in servo_walls(solver) {
+        match (&stage.modes[w], &s.contact.walls[w].servo) {
+            (mode @ WallMode::Servo { control, .. }, Some(servo)) => {
+                let target = plan.target_force(w, mode, measure.as_ref());
+                let area = target / control.target_stress;
+                row.extend_from_slice(&[
+                    control.target_stress,
+                    servo.filtered_force / area,
+                    (servo.filtered_force - target) / target,
+                ]);
+            }
+            _ => row.extend_from_slice(&[0.0; 3]),
         }
     }
+    if plan.staged {
+        row.push((p.index.min(plan.stages.len() - 1) + 1) as f64);
+    }
+    if let Some(m) = measure {
+        row.extend_from_slice(&m.stress);
+        row.extend_from_slice(&m.stress_wall_to_wall);
+        row.extend_from_slice(&m.strain);
+        row.extend_from_slice(&[m.volumetric_strain, m.ratio, m.ratio_wall_to_wall]);
+    }
+}
+
+/// Walls stress-controlled in some stage (wall indices).
+fn servo_walls(solver: &Solver) -> impl Iterator<Item = usize> + '_ {
+    let plan = solver.model.stages.as_ref();
+    (0..solver.model.contact.walls.len()).filter(move |&w| {
+        plan.is_some_and(|p| {
+            (p.stages.iter()).any(|st| matches!(st.modes[w], WallMode::Servo { .. }))
+        })
+    })
+}
+
+/// The stage and cell columns (after the servo columns): (name, units, description).
+fn stage_columns(solver: &Solver) -> Vec<(String, &'static str, &'static str)> {
+    let mut c = Vec::new();
+    let Some(plan) = &solver.model.stages else {
+        return c;
+    };
+    if plan.staged {
+        c.push((
+            "stage".to_string(),
+            "",
+            "number of the stage in force (1 = the first [[stages]] entry)",
+        ));
+    }
+    if plan.cell.is_some() {
+        for (what, units, desc) in [
+            ("sigma", "Pa", "mean normal force of the axis' two walls over the lattice-span area (between outer sphere centres: wall to wall − 2R on the other two axes), compression positive"),
+            ("sigma_wall_to_wall", "Pa", "the same force over the wall-to-wall area"),
+            ("strain", "1", "nominal strain of the wall box since t = 0, (L0 − L)/L0, compression positive"),
+        ] {
+            for axis in ["x", "y", "z"] {
+                let name = match what.split_once('_') {
+                    Some((head, tail)) => format!("{head}_{axis}_{tail}"),
+                    None => format!("{what}_{axis}"),
+                };
+                c.push((name, units, desc));
+            }
+        }
+        c.push((
+            "volumetric_strain".into(),
+            "1",
+            "1 − V/V0 of the wall box, compression positive",
+        ));
+        c.push(("stress_ratio".into(), "1", "σ_axial / mean lateral σ on the lattice-span areas (axial = the axis of the moving walls; 0 while the lateral walls carry no load)"));
+        c.push((
+            "stress_ratio_wall_to_wall".into(),
+            "1",
+            "the same ratio on the wall-to-wall areas",
+        ));
+    }
+    c
 }
 
 /// How a history column combines over ranks.

@@ -158,7 +158,8 @@ impl Run<'_, '_> {
     fn advance_to(&mut self, last_step: u64, output: &mut Output) -> Result<Option<MufeError>> {
         let mut progress = Progress::new(self.talk, "run");
         let check_interval = self.loaded.scene.parallel.check_interval;
-        while self.solver.state.step < last_step {
+        let mut reported_stages = self.solver.state.stages.done.len();
+        while self.solver.state.step < last_step && !self.solver.state.stages.finished {
             if let Err(e) = self.solver.step_with(&mut self.hooks) {
                 if self.domain.size() > 1 {
                     eprintln!("rank {}: error: {e}", self.domain.rank());
@@ -168,9 +169,30 @@ impl Run<'_, '_> {
             }
             let n = self.solver.state.step;
             let t_out = Instant::now();
-            output.after_step(&self.solver, n == last_step)?;
+            let last = n == last_step || self.solver.state.stages.finished;
+            output.after_step(&self.solver, last)?;
             self.solver.timers.add(Stage::Output, t_out.elapsed());
-            progress.update(n as f64 / last_step as f64, n, self.solver.state.time);
+            match self.solver.model.stages.as_ref().filter(|p| p.staged) {
+                Some(plan) => {
+                    let s = &self.solver.state;
+                    if self.talk && s.stages.done.len() > reported_stages {
+                        progress.finish();
+                        for r in &s.stages.done[reported_stages..] {
+                            println!("{}", summary::describe_stage(r));
+                        }
+                        reported_stages = s.stages.done.len();
+                    }
+                    let i = s.stages.index.min(plan.stages.len() - 1);
+                    progress.set_label(&format!(
+                        "stage {}/{} {}",
+                        i + 1,
+                        plan.stages.len(),
+                        plan.stages[i].name
+                    ));
+                    progress.update(plan.stage_fraction(&s.stages, s.time), n, s.time);
+                }
+                None => progress.update(n as f64 / last_step as f64, n, self.solver.state.time),
+            }
             if self.domain.size() > 1 && n.is_multiple_of(check_interval) && n != last_step {
                 self.rebalance(n)?;
             }

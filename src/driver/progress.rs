@@ -74,6 +74,15 @@ impl Progress {
         }
     }
 
+    /// Renames the bar (e.g. at a new stage); the ETA restarts from there.
+    pub fn set_label(&mut self, label: &str) {
+        if self.label != label {
+            self.label = label.to_string();
+            self.start = Instant::now();
+            self.last_fraction = 0.0;
+        }
+    }
+
     /// Ends the live line.
     pub fn finish(&mut self) {
         if self.enabled && self.terminal {

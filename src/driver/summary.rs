@@ -2,6 +2,7 @@
 //! memory estimate, and the closing summary of `mufe run`.
 
 use super::RunSummary;
+use crate::boundary::stages::{StagePlan, StageRecord, WallMode};
 use crate::model::Model;
 use crate::scene::LoadedScene;
 use crate::solver::Solver;
@@ -114,20 +115,8 @@ fn print_summary(
                 cm.margin
             );
         }
-        for w in &cm.walls {
-            if let Some(s) = &w.servo {
-                println!(
-                    "servo wall {}: {:.4e} Pa on {:.4e} m² (F* = {:.4e} N), stiffness {:.3e} N/m, τ = {:.3e} s (filter {:.3e} s), max speed {:.3e} m/s",
-                    w.name,
-                    s.target_stress,
-                    s.area,
-                    s.target_force,
-                    s.stiffness,
-                    s.time_constant,
-                    s.filter_time,
-                    s.max_speed
-                );
-            }
+        if let Some(plan) = &solver.model.stages {
+            print_stage_plan(plan, &cm.walls);
         }
         if st.contact_dt.is_finite() {
             println!(
@@ -182,6 +171,19 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
         summary.wall_s,
         summary.elements as f64 * summary.steps as f64 / solver.timers.total_seconds().max(1e-9)
     );
+    let stages = &solver.state.stages;
+    if solver.model.stages.as_ref().is_some_and(|p| p.staged) {
+        for r in &stages.done {
+            println!("{}", describe_stage(r));
+        }
+        if !stages.finished {
+            println!(
+                "stages: ended in stage {} of {} at simulation.duration (or --max-steps)",
+                stages.index + 1,
+                solver.model.stages.as_ref().map_or(0, |p| p.stages.len())
+            );
+        }
+    }
     println!(
         "energy: kinetic {:.4e} J, strain {:.4e} J (recoverable {:.4e} J, plastic {:.4e} J), friction {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
         e.kinetic,
@@ -205,4 +207,87 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
         );
     }
     println!("results: {}", summary.results.display());
+}
+
+/// One line per stage (its wall modes and end conditions) and per servo wall.
+fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wall]) {
+    for (i, st) in plan.stages.iter().enumerate() {
+        if plan.staged {
+            let u = &st.until;
+            let mut ends = vec![format!("max_time {:.3e} s", u.max_time)];
+            if let Some((tol, hold)) = u.stress_held {
+                ends.push(format!("stress held within {tol} for {hold:.3e} s"));
+            }
+            if let Some(e) = u.axial_strain {
+                ends.push(format!("axial strain {e}"));
+            }
+            if let Some((drop, margin)) = u.failure {
+                ends.push(format!(
+                    "failure (ratio {drop} below peak) + {margin} strain"
+                ));
+            }
+            let modes: Vec<String> = (st.modes.iter().zip(walls))
+                .map(|(m, w)| match m {
+                    WallMode::Prescribed => format!("{} prescribed", w.name),
+                    WallMode::Fixed => format!("{} fixed", w.name),
+                    WallMode::Velocity(v) => format!("{} {v:.3e} m/s", w.name),
+                    WallMode::Servo { control, .. } => {
+                        format!("{} servo {:.4e} Pa", w.name, control.target_stress)
+                    }
+                })
+                .collect();
+            println!(
+                "stage {} '{}': {}; ends at {}",
+                i + 1,
+                st.name,
+                modes.join(", "),
+                ends.join(" or ")
+            );
+        }
+        for (m, w) in st.modes.iter().zip(walls) {
+            if let WallMode::Servo {
+                control: s,
+                lattice_area,
+            } = m
+            {
+                println!(
+                    "  servo wall {}: {:.4e} Pa on {:.4e} m²{} (F* = {:.4e} N), stiffness {:.3e} N/m, τ = {:.3e} s (filter {:.3e} s), max speed {:.3e} m/s",
+                    w.name,
+                    s.target_stress,
+                    s.area,
+                    if *lattice_area { " at t = 0, then the current lattice span" } else { "" },
+                    s.target_force,
+                    s.stiffness,
+                    s.time_constant,
+                    s.filter_time,
+                    s.max_speed
+                );
+            }
+        }
+    }
+}
+
+/// One line for a finished stage: its span, why it ended, the peak stress ratio and
+/// failure (time and axial strain since the stage start) when the cell measures them.
+pub fn describe_stage(r: &StageRecord) -> String {
+    let mut line = format!(
+        "stage '{}' done: t = {:.4e} … {:.4e} s, ended by {}",
+        r.name,
+        r.start,
+        r.end,
+        r.reason.describe()
+    );
+    if let Some(p) = r.peak {
+        line += &format!(
+            "; peak σ1/σ3 = {:.4} at t = {:.4e} s, axial strain {:.4e}",
+            p.ratio, p.time, p.axial_strain
+        );
+    }
+    if let Some(f) = r.failure {
+        line += &format!(
+            "; failure detected at t = {:.4e} s, axial strain {:.4e} (σ1/σ3 = {:.4})",
+            f.time, f.axial_strain, f.ratio
+        );
+    }
+    line
 }

@@ -351,6 +351,7 @@ pub fn build_model_with_ghosts(
             owned_nodes,
             owned_elements,
             contact,
+            stages: crate::boundary::stages::StagePlan::build(scene),
         },
         motions,
     ))

@@ -5,7 +5,6 @@
 //! `crate::solver::stable_step` accounts for its penalty springs in the time step.
 
 use super::GrainBlock;
-use crate::boundary::servo::{servo_control, ServoControl};
 use crate::boundary::Translation;
 use crate::math::{add, cross, norm, scale, sub};
 use crate::scene::Scene;
@@ -228,16 +227,10 @@ impl ContactModel {
                         (_, Some(d)) => Translation::Displacement(d.clone()),
                         _ => Translation::Fixed,
                     },
-                    servo: w.servo.as_ref().map(|s| servo_control(scene, w, s)),
                 }
             })
             .collect();
         cm
-    }
-
-    /// Whether some wall is servo-controlled.
-    pub fn has_servo_walls(&self) -> bool {
-        self.walls.iter().any(|w| w.servo.is_some())
     }
 
     /// Whether contact does anything in this model (two grains or a wall).
@@ -263,10 +256,9 @@ pub struct Wall {
     pub normal: [f64; 3],
     /// Coulomb μ against grains.
     pub friction: f64,
-    /// Prescribed motion (`Fixed` for a servo wall, which moves by its own state).
+    /// Prescribed motion (`Fixed` for a wall driven by its state: see
+    /// `crate::boundary::stages`).
     pub translation: Translation,
-    /// Stress control (`crate::boundary::servo`); its kinematics live in the wall's state.
-    pub servo: Option<ServoControl>,
 }
 
 impl Wall {

@@ -98,6 +98,9 @@ pub struct Model {
     pub node_grain: Vec<u32>,
     /// Surfaces, penalty data and walls for contact.
     pub contact: ContactModel,
+    /// How the state-driven walls move, stage by stage (`None`: every wall follows its
+    /// prescribed history).
+    pub stages: Option<crate::boundary::stages::StagePlan>,
     /// Grains, nodes and elements owned (advanced) by this rank: `grains[..owned_grains]`,
     /// nodes `..owned_nodes`, elements `..owned_elements`; the rest are ghosts.
     pub owned_grains: usize,

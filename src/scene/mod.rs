@@ -5,6 +5,7 @@
 pub mod estimate;
 mod overrides;
 pub mod packing;
+pub mod stages;
 mod validate;
 
 pub use overrides::apply_override;
@@ -41,6 +42,10 @@ pub struct Scene {
     /// Rigid plane walls (`[[walls]]`).
     #[serde(default)]
     pub walls: Vec<WallSpec>,
+    /// Loading stages run in sequence (`[[stages]]`, see [`stages`]); none = one stage
+    /// driven by the walls' own settings for `simulation.duration`.
+    #[serde(default)]
+    pub stages: Vec<stages::StageSpec>,
     #[serde(default)]
     pub output: OutputSpec,
     #[serde(default)]

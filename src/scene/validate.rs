@@ -4,16 +4,16 @@ use super::estimate::{estimate_scene, wave_speed, MAX_EXACT_STEPS};
 use super::{BoundarySpec, History3, NodeSelector, Scene, ServoSpec, ShapeSpec, WallSpec};
 use crate::error::{echo, num, InputError};
 
-struct Checker<'a> {
-    file: &'a str,
+pub(super) struct Checker<'a> {
+    pub(super) file: &'a str,
 }
 
 impl Checker<'_> {
-    fn err(&self, field: impl Into<String>, msg: impl Into<String>) -> InputError {
+    pub(super) fn err(&self, field: impl Into<String>, msg: impl Into<String>) -> InputError {
         InputError::new(self.file, field, msg)
     }
 
-    fn finite(&self, field: &str, v: f64) -> Result<(), InputError> {
+    pub(super) fn finite(&self, field: &str, v: f64) -> Result<(), InputError> {
         if v.is_finite() {
             Ok(())
         } else {
@@ -21,7 +21,7 @@ impl Checker<'_> {
         }
     }
 
-    fn positive(&self, field: &str, v: f64) -> Result<(), InputError> {
+    pub(super) fn positive(&self, field: &str, v: f64) -> Result<(), InputError> {
         self.finite(field, v)?;
         if v > 0.0 {
             Ok(())
@@ -30,7 +30,7 @@ impl Checker<'_> {
         }
     }
 
-    fn non_negative(&self, field: &str, v: f64) -> Result<(), InputError> {
+    pub(super) fn non_negative(&self, field: &str, v: f64) -> Result<(), InputError> {
         self.finite(field, v)?;
         if v >= 0.0 {
             Ok(())
@@ -39,14 +39,14 @@ impl Checker<'_> {
         }
     }
 
-    fn vec3(&self, field: &str, v: &[f64; 3]) -> Result<(), InputError> {
+    pub(super) fn vec3(&self, field: &str, v: &[f64; 3]) -> Result<(), InputError> {
         for (i, c) in v.iter().enumerate() {
             self.finite(&format!("{field}[{i}]"), *c)?;
         }
         Ok(())
     }
 
-    fn nonzero_vec3(&self, field: &str, v: &[f64; 3]) -> Result<(), InputError> {
+    pub(super) fn nonzero_vec3(&self, field: &str, v: &[f64; 3]) -> Result<(), InputError> {
         self.vec3(field, v)?;
         if v.iter().map(|c| c * c).sum::<f64>() == 0.0 {
             return Err(self.err(field, "must not be the zero vector"));
@@ -55,7 +55,7 @@ impl Checker<'_> {
     }
 
     /// Names used in history column names: letters, digits and `_` only.
-    fn identifier(&self, field: &str, name: &str) -> Result<(), InputError> {
+    pub(super) fn identifier(&self, field: &str, name: &str) -> Result<(), InputError> {
         if name.is_empty()
             || !name
                 .chars()
@@ -222,6 +222,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     for (i, w) in scene.walls.iter().enumerate() {
         validate_wall(&c, scene, i, w)?;
     }
+    super::stages::validate_stages(&c, scene)?;
 
     c.non_negative(
         "parallel.imbalance_threshold",
@@ -782,25 +783,34 @@ fn validate_wall(c: &Checker, scene: &Scene, i: usize, w: &WallSpec) -> Result<(
     c.non_negative(&f("friction"), w.friction)?;
     c.translation(&f(""), &w.velocity, &w.displacement)?;
     if let Some(servo) = &w.servo {
-        validate_servo(c, scene, i, w, servo)?;
+        if w.velocity.is_some() || w.displacement.is_some() {
+            return Err(c.err(
+                f("servo"),
+                "give at most one of velocity, displacement and servo",
+            ));
+        }
+        validate_servo(c, scene, &f("servo"), w, servo)?;
+    }
+    if !scene.stages.is_empty()
+        && (w.servo.is_some() || w.velocity.is_some() || w.displacement.is_some())
+    {
+        return Err(c.err(
+            f("servo"),
+            "a scene with [[stages]] sets every wall's motion in its stages; drop the wall's own velocity/displacement/servo",
+        ));
     }
     Ok(())
 }
 
-fn validate_servo(
+/// Checks a servo spec of wall `w`; `prefix` is its dotted field (`walls[1].servo`).
+pub(super) fn validate_servo(
     c: &Checker,
     scene: &Scene,
-    i: usize,
+    prefix: &str,
     w: &WallSpec,
     servo: &ServoSpec,
 ) -> Result<(), InputError> {
-    let f = |x: &str| format!("walls[{i}].servo{x}");
-    if w.velocity.is_some() || w.displacement.is_some() {
-        return Err(c.err(
-            f(""),
-            "give at most one of velocity, displacement and servo",
-        ));
-    }
+    let f = |x: &str| format!("{prefix}{x}");
     c.positive(&f(".stress"), servo.stress)?;
     match (&servo.area, &servo.area_of) {
         (Some(_), Some(_)) => {

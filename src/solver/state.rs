@@ -2,6 +2,7 @@
 //! scene. Scratch buffers (`crate::solver::Scratch`, contact candidate lists, element
 //! corner forces) are not state: they are rebuilt from the model and the state.
 
+use crate::boundary::stages::StageProgress;
 use crate::contact::ContactState;
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::material::PlasticPoint;
@@ -44,6 +45,9 @@ pub struct State {
     pub motion_work: Vec<WorkAccumulator>,
     /// Friction history, wall state, the candidate-list reference and contact diagnostics.
     pub contact: ContactState,
+    /// Stage in force, its progress and the finished stages' records; the walls' global
+    /// forces of the last step.
+    pub stages: StageProgress,
     /// Largest energy supplied so far, |ALLWK| + |initial total| + |ALLVD| summed over
     /// ranks (J): the blow-up check's bound on kinetic + strain energy.
     pub supplied_energy: f64,

@@ -53,8 +53,8 @@ pub struct Scratch {
     pub elements: ElementScratch,
     /// Cached contact candidate lists and per-point results.
     pub contact: ContactScratch,
-    /// Normal force of each servo wall, this rank's share then summed over ranks (N).
-    servo_forces: Vec<f64>,
+    /// Normal force of each wall, this rank's share then summed over ranks (N).
+    wall_forces: Vec<f64>,
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
     pub(super) grain_rigid: Vec<RigidVelocity>,
@@ -112,6 +112,7 @@ impl Solver {
             reactions: vec![Reaction::default(); motions.len()],
             motion_work: vec![WorkAccumulator::default(); motions.len()],
             contact: ContactState::new(&model),
+            stages: (model.stages.as_ref()).map_or_else(Default::default, |p| p.start()),
             supplied_energy: 0.0,
             partition: Partition {
                 owner: vec![0; model.grains.len()],
@@ -123,7 +124,7 @@ impl Solver {
             v_next: vec![[0.0; 3]; n],
             elements: ElementScratch::new(&model),
             contact: ContactScratch::default(),
-            servo_forces: Vec::new(),
+            wall_forces: Vec::new(),
             node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
         };
@@ -150,9 +151,10 @@ impl Solver {
             && state.motion_work.len() == self.motions.len()
             && state.plastic.len() == self.state.plastic.len()
             && state.contact.walls.len() == m.contact.walls.len()
-            && (state.contact.walls.iter())
-                .zip(&m.contact.walls)
-                .all(|(ws, w)| ws.servo.is_some() == w.servo.is_some())
+            && (state.contact.walls.iter()).enumerate().all(|(w, ws)| {
+                ws.servo.is_some() == m.stages.as_ref().is_some_and(|p| p.drives_wall(w))
+            })
+            && state.stages.index <= m.stages.as_ref().map_or(0, |p| p.stages.len())
             && state.partition.owner.len() == self.state.partition.owner.len();
         if !fits {
             return Err(MufeError::Run(format!(
@@ -269,20 +271,19 @@ impl Solver {
                 &scratch.contact,
             )
         });
-        if model.contact.has_servo_walls() {
-            // The servo walls must move identically on every rank: one small sum of their
-            // normal forces (serial runs: the local force as is).
+        if let Some(plan) = &model.stages {
+            // State-driven walls must move identically on every rank, and stages end at
+            // the same step everywhere: one small sum of the walls' normal forces (serial
+            // runs: the local forces as they are).
             timers.time(Stage::Contact, || {
-                crate::contact::servo_normal_forces(
-                    model,
-                    &state.contact,
-                    &mut scratch.servo_forces,
-                );
-                hooks.sum(&mut scratch.servo_forces);
-                crate::contact::advance_servo_walls(
-                    model,
+                crate::contact::wall_normal_forces(model, &state.contact, &mut scratch.wall_forces);
+                hooks.sum(&mut scratch.wall_forces);
+                crate::contact::advance_walls(
+                    plan,
                     &mut state.contact,
-                    &scratch.servo_forces,
+                    &mut state.stages,
+                    &scratch.wall_forces,
+                    state.time + dt,
                     dt,
                 );
             });

@@ -1,0 +1,499 @@
+//! Wall control over a run: the stage plan (each stage's wall modes and end condition),
+//! the box of walls as a measuring cell (stresses on the lattice span, strains, stress
+//! ratio), and the stage progress carried in the solver state.
+//!
+//! Every wall driven by state (a servo wall, or any wall of a staged scene) moves along
+//! its normal by the displacement s in its `ServoState`; a stage sets its speed for the
+//! next step: 0 (fixed), a constant (velocity, strain rate × L0) or the servo law. All
+//! inputs are global (wall forces summed over ranks), so every rank takes the same
+//! decisions at the same step without further communication.
+
+use super::servo::{servo_control, ServoControl, ServoState};
+use crate::scene::stages::{wall_pairs, StageSpec, WallModeSpec};
+use crate::scene::{normal_axis, Scene};
+use serde::{Deserialize, Serialize};
+
+/// How one wall moves during a stage.
+#[derive(Debug, Clone, PartialEq)]
+pub enum WallMode {
+    /// By its prescribed history (walls of an unstaged scene without servo).
+    Prescribed,
+    Fixed,
+    /// Constant speed towards the grains (m/s).
+    Velocity(f64),
+    /// Stress control; with `lattice_area` the target force is σ × the current
+    /// lattice-span area of the cell, so that the servo holds the σ the cell measures.
+    Servo {
+        control: ServoControl,
+        lattice_area: bool,
+    },
+}
+
+/// End conditions of a stage (see `crate::scene::stages::UntilSpec`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Until {
+    pub max_time: f64,
+    /// (tolerance, hold time in s).
+    pub stress_held: Option<(f64, f64)>,
+    pub axial_strain: Option<f64>,
+    /// (relative drop, strain margin).
+    pub failure: Option<(f64, f64)>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stage {
+    pub name: String,
+    /// Mode of every wall, in scene order.
+    pub modes: Vec<WallMode>,
+    pub until: Until,
+}
+
+/// A closed box of walls: one opposite pair per axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cell {
+    /// (lower wall, upper wall) of each axis: normals +eₖ and −eₖ.
+    pub pairs: [(usize, usize); 3],
+    /// Sphere radius R of the packing: the lattice span is wall to wall − 2R.
+    pub radius: Option<f64>,
+    /// Wall-to-wall distances at t = 0 (m).
+    pub distance0: [f64; 3],
+}
+
+/// The static wall-control plan of a model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StagePlan {
+    pub stages: Vec<Stage>,
+    /// Whether the scene listed `[[stages]]` (otherwise one implicit stage).
+    pub staged: bool,
+    /// Each wall's point at t = 0 and unit normal.
+    pub walls: Vec<([f64; 3], [f64; 3])>,
+    pub cell: Option<Cell>,
+    /// Axis of σ1 in the stress ratio: the axis of the moving walls of the last stage
+    /// that has some (z otherwise).
+    pub axial: usize,
+}
+
+/// Cell measurements at one step (stresses compression positive, Pa; strains –).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CellMeasure {
+    /// Mean normal force of each axis' two walls over the lattice-span area.
+    pub stress: [f64; 3],
+    /// The same over the wall-to-wall area.
+    pub stress_wall_to_wall: [f64; 3],
+    /// Wall-to-wall distance (m).
+    pub distance: [f64; 3],
+    /// Nominal strain of each axis since t = 0, (L0 − L)/L0.
+    pub strain: [f64; 3],
+    /// 1 − V/V0 of the wall box.
+    pub volumetric_strain: f64,
+    /// σ_axial / mean lateral σ, lattice span and wall to wall.
+    pub ratio: f64,
+    pub ratio_wall_to_wall: f64,
+}
+
+/// Why a stage ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum StageEnd {
+    MaxTime,
+    StressHeld,
+    AxialStrain,
+    Failure,
+}
+
+impl StageEnd {
+    pub fn describe(self) -> &'static str {
+        match self {
+            StageEnd::MaxTime => "max_time reached",
+            StageEnd::StressHeld => "stress held",
+            StageEnd::AxialStrain => "axial strain reached",
+            StageEnd::Failure => "failure + margin",
+        }
+    }
+}
+
+/// A finished stage, as reported at the end of the run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageRecord {
+    pub name: String,
+    pub start: f64,
+    pub end: f64,
+    pub reason: StageEnd,
+    /// Peak stress ratio in the stage with its time and axial strain (since the stage
+    /// start), when the cell measures one.
+    pub peak: Option<RatioPoint>,
+    /// Time and axial strain at which failure was detected.
+    pub failure: Option<RatioPoint>,
+}
+
+/// A point of the stress-ratio curve.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RatioPoint {
+    pub ratio: f64,
+    pub time: f64,
+    pub axial_strain: f64,
+}
+
+/// Where the run is in its stages (part of the solver state).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageProgress {
+    pub index: usize,
+    pub started_at: f64,
+    /// Wall-to-wall distances when the stage started (m).
+    pub distance_at_start: [f64; 3],
+    /// Since when every servo wall is within tolerance.
+    pub held_since: Option<f64>,
+    pub peak: Option<RatioPoint>,
+    pub failure: Option<RatioPoint>,
+    /// All stages done: the run stops.
+    pub finished: bool,
+    /// Normal force of every wall at the last step, summed over ranks (N).
+    pub wall_forces: Vec<f64>,
+    /// Wall displacements at that step (m).
+    pub wall_displacements: Vec<[f64; 3]>,
+    pub done: Vec<StageRecord>,
+}
+
+impl StagePlan {
+    /// The plan of a scene: its `[[stages]]`, or, when it has servo walls, one implicit
+    /// stage with the walls' own settings; `None` when no wall is driven by state.
+    pub fn build(scene: &Scene) -> Option<Self> {
+        let staged = !scene.stages.is_empty();
+        if !staged && scene.walls.iter().all(|w| w.servo.is_none()) {
+            return None;
+        }
+        let walls: Vec<([f64; 3], [f64; 3])> = scene
+            .walls
+            .iter()
+            .map(|w| {
+                let l = w.normal.iter().map(|c| c * c).sum::<f64>().sqrt();
+                (w.point, w.normal.map(|c| c / l))
+            })
+            .collect();
+        let pairs = wall_pairs(scene);
+        let cell = match pairs {
+            [Some(x), Some(y), Some(z)] => {
+                let pairs = [x, y, z];
+                Some(Cell {
+                    pairs,
+                    radius: cell_radius(scene),
+                    distance0: [0, 1, 2].map(|k| walls[pairs[k].1].0[k] - walls[pairs[k].0].0[k]),
+                })
+            }
+            _ => None,
+        };
+        let lattice_area = |spec: &crate::scene::ServoSpec| {
+            spec.area_of.is_some() && cell.as_ref().is_some_and(|c| c.radius.is_some())
+        };
+        let stages = if staged {
+            scene
+                .stages
+                .iter()
+                .map(|st| build_stage(scene, st, &walls, cell.as_ref(), &lattice_area))
+                .collect()
+        } else {
+            vec![Stage {
+                name: "run".into(),
+                modes: scene
+                    .walls
+                    .iter()
+                    .map(|w| match &w.servo {
+                        Some(s) => WallMode::Servo {
+                            control: servo_control(scene, w, s),
+                            lattice_area: lattice_area(s),
+                        },
+                        None => WallMode::Prescribed,
+                    })
+                    .collect(),
+                until: Until {
+                    max_time: f64::INFINITY,
+                    stress_held: None,
+                    axial_strain: None,
+                    failure: None,
+                },
+            }]
+        };
+        let axial = stages
+            .iter()
+            .rev()
+            .find_map(|st: &Stage| {
+                st.modes
+                    .iter()
+                    .position(|m| matches!(m, WallMode::Velocity(_)))
+                    .and_then(|w| normal_axis(walls[w].1))
+            })
+            .unwrap_or(2);
+        Some(Self {
+            stages,
+            staged,
+            walls,
+            cell,
+            axial,
+        })
+    }
+
+    /// Whether wall `w` moves by its state (servo or staged) rather than a history.
+    pub fn drives_wall(&self, w: usize) -> bool {
+        self.staged || matches!(self.stages[0].modes[w], WallMode::Servo { .. })
+    }
+
+    /// The first state of the progress (before step 0).
+    pub fn start(&self) -> StageProgress {
+        StageProgress {
+            distance_at_start: self.cell.as_ref().map_or([0.0; 3], |c| c.distance0),
+            wall_forces: vec![0.0; self.walls.len()],
+            wall_displacements: vec![[0.0; 3]; self.walls.len()],
+            ..Default::default()
+        }
+    }
+
+    /// The stage in force (the last one once all are done).
+    pub fn current(&self, p: &StageProgress) -> &Stage {
+        &self.stages[p.index.min(self.stages.len() - 1)]
+    }
+
+    /// Cell measurements from wall displacements `u` (m) and normal forces `f` (N).
+    pub fn measure(&self, u: &[[f64; 3]], f: &[f64]) -> Option<CellMeasure> {
+        let c = self.cell.as_ref()?;
+        let distance = [0, 1, 2].map(|k| {
+            let (lo, hi) = c.pairs[k];
+            (self.walls[hi].0[k] + u[hi][k]) - (self.walls[lo].0[k] + u[lo][k])
+        });
+        let lattice = distance.map(|d| d - 2.0 * c.radius.unwrap_or(0.0));
+        let force = [0, 1, 2].map(|k| 0.5 * (f[c.pairs[k].0] + f[c.pairs[k].1]));
+        let across = |l: &[f64; 3], k: usize| l[(k + 1) % 3] * l[(k + 2) % 3];
+        let stress = [0, 1, 2].map(|k| force[k] / across(&lattice, k));
+        let stress_wall_to_wall = [0, 1, 2].map(|k| force[k] / across(&distance, k));
+        let a = self.axial;
+        let ratio_of = |s: &[f64; 3]| {
+            let lateral = 0.5 * (s[(a + 1) % 3] + s[(a + 2) % 3]);
+            if lateral > 0.0 {
+                s[a] / lateral
+            } else {
+                0.0
+            }
+        };
+        Some(CellMeasure {
+            stress,
+            stress_wall_to_wall,
+            distance,
+            strain: [0, 1, 2].map(|k| 1.0 - distance[k] / c.distance0[k]),
+            volumetric_strain: 1.0
+                - distance.iter().product::<f64>() / c.distance0.iter().product::<f64>(),
+            ratio: ratio_of(&stress),
+            ratio_wall_to_wall: ratio_of(&stress_wall_to_wall),
+        })
+    }
+
+    /// Target force (N) of servo wall `w` in mode `mode` with the cell as measured.
+    pub fn target_force(&self, w: usize, mode: &WallMode, m: Option<&CellMeasure>) -> f64 {
+        match (mode, m, &self.cell) {
+            (
+                WallMode::Servo {
+                    control,
+                    lattice_area: true,
+                },
+                Some(m),
+                Some(c),
+            ) => {
+                let k = normal_axis(self.walls[w].1).unwrap_or(2);
+                let r2 = 2.0 * c.radius.unwrap_or(0.0);
+                control.target_stress
+                    * (m.distance[(k + 1) % 3] - r2)
+                    * (m.distance[(k + 2) % 3] - r2)
+            }
+            (WallMode::Servo { control, .. }, _, _) => control.target_force,
+            _ => 0.0,
+        }
+    }
+
+    /// After the wall forces of step n (`forces`, summed over ranks, every wall; the
+    /// walls' displacements at t_n already in `p.wall_displacements`): moves every
+    /// state-driven wall (`kinematics`, in wall order) to t_{n+1}, sets its next speed
+    /// from the stage's mode, and checks the stage's end at t_{n+1}.
+    pub fn advance<'a>(
+        &self,
+        p: &mut StageProgress,
+        kinematics: impl Iterator<Item = &'a mut Option<ServoState>>,
+        forces: &[f64],
+        t_next: f64,
+        dt: f64,
+    ) {
+        p.wall_forces.clear();
+        p.wall_forces.extend_from_slice(forces);
+        let measure = self.measure(&p.wall_displacements, forces);
+        let stage = self.current(p);
+        let mut all_held = true;
+        for (w, (mode, s)) in stage.modes.iter().zip(kinematics).enumerate() {
+            let Some(s) = s else { continue };
+            match mode {
+                WallMode::Prescribed | WallMode::Fixed => s.move_on(dt, 0.0),
+                WallMode::Velocity(v) => s.move_on(dt, *v),
+                WallMode::Servo { control, .. } => {
+                    let target = self.target_force(w, mode, measure.as_ref());
+                    control.advance_to(s, forces[w], target, dt);
+                    if let Some((tol, _)) = stage.until.stress_held {
+                        all_held &= (s.filtered_force - target).abs() <= tol * target;
+                    }
+                }
+            }
+        }
+        if p.finished {
+            return;
+        }
+        let axial = measure.map(|m| {
+            let k = self.axial;
+            (1.0 - m.distance[k] / p.distance_at_start[k], m.ratio)
+        });
+        let until = &stage.until;
+        let mut end = None;
+        if let Some((_, hold)) = until.stress_held {
+            if all_held {
+                let since = *p.held_since.get_or_insert(t_next);
+                if t_next - since >= hold {
+                    end = Some(StageEnd::StressHeld);
+                }
+            } else {
+                p.held_since = None;
+            }
+        }
+        if let Some((strain, ratio)) = axial {
+            let point = RatioPoint {
+                ratio,
+                time: t_next,
+                axial_strain: strain,
+            };
+            if p.peak.is_none_or(|pk| ratio > pk.ratio) {
+                p.peak = Some(point);
+            }
+            if until.axial_strain.is_some_and(|e| strain >= e) {
+                end = Some(StageEnd::AxialStrain);
+            }
+            if let Some((drop, margin)) = until.failure {
+                let peak = p.peak.map_or(0.0, |pk| pk.ratio);
+                if p.failure.is_none() && peak > 0.0 && ratio < (1.0 - drop) * peak {
+                    p.failure = Some(point);
+                }
+                if p.failure.is_some_and(|f| strain >= f.axial_strain + margin) {
+                    end = Some(StageEnd::Failure);
+                }
+            }
+        }
+        if end.is_none() && t_next - p.started_at >= until.max_time * (1.0 - 1e-12) {
+            end = Some(StageEnd::MaxTime);
+        }
+        if let Some(reason) = end {
+            p.done.push(StageRecord {
+                name: stage.name.clone(),
+                start: p.started_at,
+                end: t_next,
+                reason,
+                peak: p.peak.filter(|_| axial.is_some()),
+                failure: p.failure,
+            });
+            p.index += 1;
+            p.finished = p.index >= self.stages.len();
+            p.started_at = t_next;
+            if let Some(m) = measure {
+                p.distance_at_start = m.distance;
+            }
+            p.held_since = None;
+            p.peak = None;
+            p.failure = None;
+        }
+    }
+
+    /// Fraction (0..1) of the current stage done, by its time or strain bound.
+    pub fn stage_fraction(&self, p: &StageProgress, t: f64) -> f64 {
+        let until = &self.current(p).until;
+        let by_time = (t - p.started_at) / until.max_time;
+        let by_strain = match (
+            until.axial_strain,
+            self.measure(&p.wall_displacements, &p.wall_forces),
+        ) {
+            (Some(e), Some(m)) => {
+                (1.0 - m.distance[self.axial] / p.distance_at_start[self.axial]) / e
+            }
+            _ => 0.0,
+        };
+        by_time.max(by_strain).clamp(0.0, 1.0)
+    }
+}
+
+/// Radius of the spheres of the packing the servo areas refer to (the first `area_of` in
+/// the scene's walls or stages), or of the first packing.
+fn cell_radius(scene: &Scene) -> Option<f64> {
+    let named = scene
+        .walls
+        .iter()
+        .filter_map(|w| w.servo.as_ref())
+        .chain(scene.stages.iter().flat_map(|st| {
+            st.walls.values().filter_map(|m| match m {
+                WallModeSpec::Servo(s) => Some(s),
+                _ => None,
+            })
+        }))
+        .find_map(|s| s.area_of.as_ref());
+    let packing = match named {
+        Some(name) => scene.packings.iter().find(|p| &p.name == name),
+        None => scene.packings.first(),
+    }?;
+    Some(packing.sphere.radius)
+}
+
+fn build_stage(
+    scene: &Scene,
+    st: &StageSpec,
+    walls: &[([f64; 3], [f64; 3])],
+    cell: Option<&Cell>,
+    lattice_area: &dyn Fn(&crate::scene::ServoSpec) -> bool,
+) -> Stage {
+    let modes: Vec<WallMode> = scene
+        .walls
+        .iter()
+        .enumerate()
+        .map(|(w, wall)| match st.walls.get(&wall.name) {
+            None | Some(WallModeSpec::Fixed) => WallMode::Fixed,
+            Some(WallModeSpec::Velocity(v)) => WallMode::Velocity(*v),
+            Some(WallModeSpec::StrainRate(r)) => {
+                let k = normal_axis(walls[w].1).unwrap_or(2);
+                let l0 = cell.map_or_else(|| opposite_distance(walls, w), |c| c.distance0[k]);
+                WallMode::Velocity(r * l0)
+            }
+            Some(WallModeSpec::Servo(s)) => WallMode::Servo {
+                control: servo_control(scene, wall, s),
+                lattice_area: lattice_area(s),
+            },
+        })
+        .collect();
+    let u = &st.until;
+    let tau = modes
+        .iter()
+        .filter_map(|m| match m {
+            WallMode::Servo { control, .. } => Some(control.time_constant),
+            _ => None,
+        })
+        .fold(0.0, f64::max);
+    Stage {
+        name: st.name.clone(),
+        modes,
+        until: Until {
+            max_time: u.max_time,
+            stress_held: u
+                .stress_held
+                .as_ref()
+                .map(|h| (h.tolerance, h.time_constants * tau)),
+            axial_strain: u.axial_strain,
+            failure: u.failure.as_ref().map(|f| (f.drop, f.strain_margin)),
+        },
+    }
+}
+
+/// Distance at t = 0 from wall `w` to the wall facing it on its axis (m).
+fn opposite_distance(walls: &[([f64; 3], [f64; 3])], w: usize) -> f64 {
+    let (p, n) = walls[w];
+    walls
+        .iter()
+        .filter(|(_, m)| (0..3).all(|k| m[k] == -n[k]))
+        .map(|(q, _)| (0..3).map(|k| (q[k] - p[k]) * n[k]).sum::<f64>())
+        .fold(0.0, f64::max)
+}

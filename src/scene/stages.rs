@@ -1,0 +1,213 @@
+//! `[[stages]]`: a run as a sequence of loading stages, each with its wall modes and the
+//! condition that ends it (the walled triaxial test: isotropic compression, then axial
+//! strain at constant lateral stress).
+//!
+//! ```toml
+//! [[stages]]
+//! name = "isotropic"
+//! walls = { top = { servo = { stress = 5.0e4, area_of = "cell" } }, x_min = ... }
+//! until = { stress_held = { tolerance = 0.01, time_constants = 3.0 }, max_time = 2.0e-3 }
+//!
+//! [[stages]]
+//! name = "shear"
+//! walls = { top = { strain_rate = 20.0 }, x_min = { servo = { stress = 5.0e4, area_of = "cell" } }, ... }
+//! until = { failure = { drop = 0.05, strain_margin = 2.0e-3 }, axial_strain = 0.02, max_time = 2.0e-3 }
+//! ```
+//! Walls not listed in a stage are fixed. The run ends when the last stage ends (or at
+//! `simulation.duration`, whichever comes first).
+
+use super::validate::{validate_servo, Checker};
+use super::{normal_axis, Scene, ServoSpec};
+use crate::error::{echo, InputError};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// One loading stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StageSpec {
+    /// Shown in the progress line and the summary; an identifier.
+    pub name: String,
+    /// Mode of each wall by wall name; walls not listed are fixed during the stage.
+    #[serde(default)]
+    pub walls: BTreeMap<String, WallModeSpec>,
+    /// What ends the stage.
+    pub until: UntilSpec,
+}
+
+/// How a wall moves during a stage (along its normal; positive = towards the grains).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum WallModeSpec {
+    /// Held where it is.
+    Fixed,
+    /// Stress-controlled, as a wall's own `servo` (see `crate::boundary::servo`).
+    Servo(ServoSpec),
+    /// Constant speed towards the grains (m/s).
+    Velocity(f64),
+    /// Constant speed towards the grains of `rate × L0` (1/s), L0 the wall's distance at
+    /// t = 0 to the opposite wall (the wall on the same axis facing it): with one moving
+    /// wall on an axis, `rate` is that axis' nominal strain rate.
+    StrainRate(f64),
+}
+
+/// End conditions of a stage: it ends when any given condition is met, and at the
+/// latest after `max_time`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UntilSpec {
+    /// Longest duration of the stage (s).
+    pub max_time: f64,
+    /// Every stress-controlled wall of the stage within `tolerance` of its target,
+    /// continuously for `time_constants` × the largest servo time constant of the stage.
+    #[serde(default)]
+    pub stress_held: Option<HeldSpec>,
+    /// Nominal strain (–, compression positive) of the axis of the stage's moving walls,
+    /// counted from the start of the stage.
+    #[serde(default)]
+    pub axial_strain: Option<f64>,
+    /// Failure: the stress ratio σ_axial/σ_lateral has fallen `drop` (relative) below its
+    /// peak in this stage; the stage then goes on for `strain_margin` more axial strain.
+    #[serde(default)]
+    pub failure: Option<FailureSpec>,
+}
+
+/// See [`UntilSpec::stress_held`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HeldSpec {
+    /// Relative stress error bound (–), e.g. 0.01.
+    pub tolerance: f64,
+    /// Hold time in servo time constants (–).
+    #[serde(default = "default_hold_time_constants")]
+    pub time_constants: f64,
+}
+
+fn default_hold_time_constants() -> f64 {
+    2.0
+}
+
+/// See [`UntilSpec::failure`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FailureSpec {
+    /// Relative drop of the stress ratio below its peak that counts as failure (–).
+    pub drop: f64,
+    /// Axial strain run on after failure is detected (–).
+    #[serde(default)]
+    pub strain_margin: f64,
+}
+
+/// The lower and upper wall of each coordinate axis: the wall whose normal is +eₖ and the
+/// one whose normal is −eₖ (indices into `scene.walls`), when both exist.
+pub fn wall_pairs(scene: &Scene) -> [Option<(usize, usize)>; 3] {
+    let along = |k: usize, sign: f64| {
+        scene
+            .walls
+            .iter()
+            .position(|w| normal_axis(w.normal) == Some(k) && w.normal[k].signum() == sign)
+    };
+    [0, 1, 2].map(|k| along(k, 1.0).zip(along(k, -1.0)))
+}
+
+/// Axis (0..3) a wall's normal lies along, and whether the axis has an opposite wall.
+fn opposite_exists(scene: &Scene, wall: usize) -> bool {
+    normal_axis(scene.walls[wall].normal)
+        .is_some_and(|k| wall_pairs(scene)[k].is_some_and(|(lo, hi)| lo == wall || hi == wall))
+}
+
+pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputError> {
+    let pairs = wall_pairs(scene);
+    let cell = pairs.iter().all(|p| p.is_some());
+    for (i, st) in scene.stages.iter().enumerate() {
+        let f = |x: &str| format!("stages[{i}].{x}");
+        c.identifier(&f("name"), &st.name)?;
+        if scene.stages[..i].iter().any(|o| o.name == st.name) {
+            return Err(c.err(
+                f("name"),
+                format!("duplicate stage name '{}'", echo(&st.name)),
+            ));
+        }
+        let mut moving_axes = Vec::new();
+        for (name, mode) in &st.walls {
+            let field = f(&format!("walls.{name}"));
+            let Some(w) = scene.walls.iter().position(|w| &w.name == name) else {
+                return Err(c.err(field, format!("no wall named '{}'", echo(name))));
+            };
+            let wall = &scene.walls[w];
+            match mode {
+                WallModeSpec::Fixed => {}
+                WallModeSpec::Servo(s) => {
+                    validate_servo(c, scene, &format!("{field}.servo"), wall, s)?
+                }
+                WallModeSpec::Velocity(v) => {
+                    c.finite(&format!("{field}.velocity"), *v)?;
+                    moving_axes.push((normal_axis(wall.normal), field.clone()));
+                }
+                WallModeSpec::StrainRate(r) => {
+                    c.finite(&format!("{field}.strain_rate"), *r)?;
+                    if !opposite_exists(scene, w) {
+                        return Err(c.err(
+                            format!("{field}.strain_rate"),
+                            "needs the wall's normal along a coordinate axis and an opposite wall (normal reversed) to measure L0 against; use velocity instead",
+                        ));
+                    }
+                    moving_axes.push((normal_axis(wall.normal), field.clone()));
+                }
+            }
+        }
+        let u = &st.until;
+        c.positive(&f("until.max_time"), u.max_time)?;
+        if let Some(h) = &u.stress_held {
+            c.positive(&f("until.stress_held.tolerance"), h.tolerance)?;
+            c.non_negative(&f("until.stress_held.time_constants"), h.time_constants)?;
+            if !st
+                .walls
+                .values()
+                .any(|m| matches!(m, WallModeSpec::Servo(_)))
+            {
+                return Err(c.err(
+                    f("until.stress_held"),
+                    "the stage has no servo wall whose stress could be held",
+                ));
+            }
+        }
+        let axis_needed = u.axial_strain.is_some() || u.failure.is_some();
+        if axis_needed {
+            let axes: Vec<Option<usize>> = moving_axes.iter().map(|(a, _)| *a).collect();
+            if axes.is_empty() || axes.iter().any(|a| a.is_none() || *a != axes[0]) {
+                return Err(c.err(
+                    f("until"),
+                    "axial_strain and failure need the stage's moving walls (velocity or strain_rate) on one coordinate axis, which is then the axial direction",
+                ));
+            }
+            let k = axes[0].unwrap_or(2);
+            if pairs[k].is_none() {
+                return Err(c.err(
+                    f("until"),
+                    "axial_strain and failure need a pair of opposite walls on the axial axis to measure the strain",
+                ));
+            }
+        }
+        if let Some(e) = u.axial_strain {
+            c.positive(&f("until.axial_strain"), e)?;
+        }
+        if let Some(fl) = &u.failure {
+            c.positive(&f("until.failure.drop"), fl.drop)?;
+            c.non_negative(&f("until.failure.strain_margin"), fl.strain_margin)?;
+            if fl.drop >= 1.0 {
+                return Err(c.err(
+                    f("until.failure.drop"),
+                    "must be < 1 (a fraction of the peak)",
+                ));
+            }
+            if !cell {
+                return Err(c.err(
+                    f("until.failure"),
+                    "needs a closed box of walls (a pair of opposite walls on each coordinate axis) to measure the stress ratio",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
