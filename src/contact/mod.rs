@@ -89,6 +89,7 @@
 //!    [`ContactStats::energy`] and [`ContactState::wall_external_work`].
 
 pub mod broad;
+pub mod fabric;
 pub mod friction;
 pub mod narrow;
 mod overlap;

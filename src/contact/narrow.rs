@@ -358,6 +358,8 @@ pub struct PointResult {
     pub dissipation: f64,
     /// Tangential traction to remember (Pa).
     pub traction: [f64; 3],
+    /// On the Coulomb cone at this step (slipping).
+    pub sliding: bool,
 }
 
 /// Weight of each of the two passes.
@@ -530,6 +532,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
     let mut energy = 0.5 * pressure * gap * area;
     let mut dissipation = 0.0;
     let mut traction = [0.0; 3];
+    let mut sliding = false;
     if ctx.friction {
         let key = ContactKey {
             grain: sg.global_id,
@@ -548,6 +551,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
         force = add(force, scale(traction, area));
         energy += 0.5 * dot(traction, traction) / eps_t * area;
         dissipation = rm.dissipation * area;
+        sliding = !rm.sticking;
     }
     r.active = true;
     r.tunnel = gap > 0.5 * h_s;
@@ -563,6 +567,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
     r.energy = energy;
     r.dissipation = dissipation;
     r.traction = traction;
+    r.sliding = sliding;
     r
 }
 

@@ -1,10 +1,12 @@
 //! The `/history` series of a run: column definitions (names, units, Abaqus names),
 //! one row per output step, and how each column combines over ranks.
 
-use crate::boundary::stages::WallMode;
+use super::grain_motion::grain_motion;
+use crate::boundary::stages::{StagePlan, WallMode};
 use crate::domain::Domain;
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::io::results::HistoryColumn;
+use crate::math::norm;
 use crate::solver::Solver;
 
 /// The `/history` columns of a solver: energies, then one group per prescribed motion.
@@ -174,8 +176,33 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
     for (name, units, desc) in stage_columns(solver) {
         c.push(HistoryColumn::new(&name, units, None, desc));
     }
+    if cm.grain_contact {
+        for (name, units, desc) in FABRIC_COLUMNS {
+            c.push(HistoryColumn::new(name, units, None, desc));
+        }
+    }
     c
 }
+
+/// The last columns when grains touch grains (see `crate::contact::fabric`); the two
+/// counts are filled in by the output after a gather over ranks.
+pub const FABRIC_COLUMNS: [(&str, &str, &str); 3] = [
+    (
+        "grain_pair_contacts",
+        "",
+        "grain pairs in contact (any active contact point of either pass)",
+    ),
+    (
+        "sliding_grain_pair_contacts",
+        "",
+        "grain pairs in gross sliding (every active point of the pair on the Coulomb cone)",
+    ),
+    (
+        "mean_grain_rotation",
+        "rad",
+        "mean over grains of the angle of each grain's best-fitting rigid rotation since t = 0",
+    ),
+];
 
 /// How each column of [`history_columns`] combines over ranks.
 pub fn history_reductions(solver: &Solver) -> Vec<Reduce> {
@@ -196,6 +223,10 @@ pub fn history_reductions(solver: &Solver) -> Vec<Reduce> {
     // from the wall forces already summed over ranks in the step
     let same = 3 * servo_walls(solver).count() + stage_columns(solver).len();
     k.extend(std::iter::repeat_n(Reduce::Same, same));
+    if solver.model.contact.grain_contact {
+        // counts from rank 0 (zero elsewhere); each rank's share of the mean rotation
+        k.extend([Reduce::Sum; FABRIC_COLUMNS.len()]);
+    }
     k
 }
 
@@ -246,9 +277,24 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
         row.extend_from_slice(&w.force);
         row.extend_from_slice(&w.displacement);
     }
-    let Some(plan) = &solver.model.stages else {
-        return;
-    };
+    if let Some(plan) = &solver.model.stages {
+        push_stage_values(solver, plan, row);
+    }
+    if solver.model.contact.grain_contact {
+        let m = &solver.model;
+        // every grain of the scene has an owner: the mean over ranks is the sum of shares
+        let grains = s.partition.owner.len().max(1) as f64;
+        let rotation_share: f64 = (0..m.owned_grains)
+            .map(|g| norm(grain_motion(m, &s.x, g).rotation))
+            .sum::<f64>()
+            / grains;
+        row.extend_from_slice(&[0.0, 0.0, rotation_share]);
+    }
+}
+
+/// Stage, servo and cell values of a history row.
+fn push_stage_values(solver: &Solver, plan: &StagePlan, row: &mut Vec<f64>) {
+    let s = &solver.state;
     let p = &s.stages;
     let measure = plan.measure(&p.wall_displacements, &p.wall_forces);
     let stage = plan.current(p);

@@ -12,8 +12,10 @@
 //! `State`. MPI is reached only through [`crate::domain::Domain`].
 
 pub mod balance;
+pub mod contact_watch;
 pub mod energy_plot;
 pub mod frames;
+pub mod grain_motion;
 pub mod history;
 pub mod migration;
 pub mod output;
@@ -74,6 +76,8 @@ pub struct RunSummary {
     pub rebuilds: u64,
     /// Contact points at the end (summed over ranks).
     pub contacts_now: usize,
+    /// First gap opening between grains touching when the watched stage began (rank 0).
+    pub first_opening: Option<contact_watch::GapOpening>,
 }
 
 /// Runs a scene to its duration (or `max_steps`) and writes the results: serially, or
@@ -240,7 +244,7 @@ impl Run<'_, '_> {
         wall0: Instant,
     ) -> Result<RunSummary> {
         let solver = &self.solver;
-        output.close(solver, failure.is_some(), &opts.out)?;
+        let first_opening = output.close(solver, failure.is_some(), &opts.out)?;
         let domain = self.domain;
         let energy = history::global_ledger(domain, &solver.state.energy);
         let stats = &solver.state.contact.stats;
@@ -269,6 +273,7 @@ impl Run<'_, '_> {
             contact_share: solver.timers.share(Stage::Contact),
             rebuilds: now[1] as u64,
             contacts_now: now[0] as usize,
+            first_opening,
         })
     }
 }

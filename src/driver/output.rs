@@ -1,6 +1,7 @@
 //! The output of a run: `DIR/results.h5` (mesh, history rows, frames) and
 //! `DIR/energy.png`, on the schedule the scene's `[output]` sets.
 
+use super::contact_watch::{ContactWatch, GapOpening};
 use super::energy_plot::EnergyPlot;
 use super::frames::write_frame;
 use super::history::{history_columns, history_reductions, history_row, reduce_row, Reduce};
@@ -34,6 +35,8 @@ pub struct Output<'a, 'd> {
     /// Wall-clock time of the last history flush, and the scene's interval between them.
     last_flush: Instant,
     flush_interval: f64,
+    /// Grain-pair contact counts and the failure watch (rank 0).
+    contacts: ContactWatch,
 }
 
 impl<'a, 'd> Output<'a, 'd> {
@@ -88,6 +91,7 @@ impl<'a, 'd> Output<'a, 'd> {
             row: Vec::new(),
             last_flush: Instant::now(),
             flush_interval: scene.output.flush_interval,
+            contacts: ContactWatch::new(solver),
         };
         if output.frames {
             output.write_frame(solver)?;
@@ -116,7 +120,13 @@ impl<'a, 'd> Output<'a, 'd> {
     /// Writes what a finished (or failed) run leaves: a last history row when the loop
     /// wrote none for this state, the last frame, then closes the file and draws
     /// `DIR/energy.png`. All ranks must call.
-    pub fn close(mut self, solver: &Solver, failed: bool, dir: &Path) -> Result<()> {
+    /// Returns the first gap opening the contact watch saw (rank 0).
+    pub fn close(
+        mut self,
+        solver: &Solver,
+        failed: bool,
+        dir: &Path,
+    ) -> Result<Option<GapOpening>> {
         // Keep what was computed up to a failure: history and a last frame help diagnose it.
         if failed || solver.state.step == 0 {
             self.push_history_row(solver)?;
@@ -128,7 +138,7 @@ impl<'a, 'd> Output<'a, 'd> {
         if self.domain.is_root() {
             self.energy_plot.draw(&dir.join("energy.png"))?;
         }
-        Ok(())
+        Ok(self.contacts.first_opening)
     }
 
     /// Flushes the buffered history rows once `flush_interval` seconds of wall time have
@@ -146,6 +156,7 @@ impl<'a, 'd> Output<'a, 'd> {
 
     fn push_history_row(&mut self, solver: &Solver) -> Result<()> {
         history_row(solver, &mut self.row);
+        self.contacts.fill_row(self.domain, solver, &mut self.row);
         reduce_row(self.domain, &self.reductions, &mut self.row);
         self.writer.push_history(&self.row)?;
         self.energy_plot.push(&self.row);

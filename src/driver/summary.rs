@@ -176,6 +176,12 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
         for r in &stages.done {
             println!("{}", describe_stage(r));
         }
+        if let Some(g) = summary.first_opening {
+            println!(
+                "first gap opening between initially touching grains {} and {}: t = {:.4e} s, axial strain {:.4e} (since the stage start; to one history interval)",
+                g.a, g.b, g.time, g.axial_strain
+            );
+        }
         if !stages.finished {
             println!(
                 "stages: ended in stage {} of {} at simulation.duration (or --max-steps)",

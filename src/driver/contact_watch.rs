@@ -1,0 +1,105 @@
+//! Grain-pair contact counts for the history rows, and the failure watch of a staged
+//! run: the first gap opening between grains that touched when the watched stage began
+//! (the last stage ending on failure, else the last stage). Sampled at history rows, so
+//! the opening time is known to one history interval.
+
+use super::history::FABRIC_COLUMNS;
+use crate::contact::fabric::{merge_pairs, pair_partials, PairContact, PairPartial};
+use crate::domain::Domain;
+use crate::solver::Solver;
+
+/// A pair that stopped touching.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GapOpening {
+    pub a: u32,
+    pub b: u32,
+    /// Time of the first history row without the contact (s).
+    pub time: f64,
+    /// Axial strain since the start of the watched stage (–).
+    pub axial_strain: f64,
+}
+
+/// What rank 0 keeps between history rows.
+#[derive(Debug, Default)]
+pub struct ContactWatch {
+    partials: Vec<PairPartial>,
+    encoded: Vec<f64>,
+    /// Stage whose start defines "initially touching" (staged runs with a cell only).
+    watched_stage: Option<usize>,
+    /// Pairs touching at the first row of the watched stage, by (a, b).
+    touching: Option<Vec<(u32, u32)>>,
+    pub first_opening: Option<GapOpening>,
+}
+
+impl ContactWatch {
+    pub fn new(solver: &Solver) -> Self {
+        let watched_stage = solver
+            .model
+            .stages
+            .as_ref()
+            .filter(|p| p.staged && p.cell.is_some())
+            .map(|p| {
+                (p.stages.iter())
+                    .rposition(|s| s.until.failure.is_some())
+                    .unwrap_or(p.stages.len() - 1)
+            });
+        Self {
+            watched_stage,
+            ..Default::default()
+        }
+    }
+
+    /// Fills the contact counts of a history row (its last [`FABRIC_COLUMNS`]) on rank 0
+    /// and updates the watch. All ranks must call.
+    pub fn fill_row(&mut self, domain: &Domain, solver: &Solver, row: &mut [f64]) {
+        if !solver.model.contact.grain_contact {
+            return;
+        }
+        pair_partials(
+            &solver.model,
+            &solver.state.x,
+            &solver.scratch.contact,
+            &mut self.partials,
+        );
+        self.encoded.clear();
+        for p in &self.partials {
+            p.encode(&mut self.encoded);
+        }
+        let Some(all) = domain.gather_f64_to_root(&self.encoded) else {
+            return;
+        };
+        let pairs = merge_pairs(&all);
+        let at = row.len() - FABRIC_COLUMNS.len();
+        row[at] = pairs.len() as f64;
+        row[at + 1] = pairs.iter().filter(|p| p.sliding).count() as f64;
+        self.watch(solver, &pairs, row[0]);
+    }
+
+    fn watch(&mut self, solver: &Solver, pairs: &[PairContact], time: f64) {
+        let (Some(stage), Some(plan)) = (self.watched_stage, &solver.model.stages) else {
+            return;
+        };
+        let progress = &solver.state.stages;
+        if progress.index != stage || progress.finished || self.first_opening.is_some() {
+            return;
+        }
+        let now: Vec<(u32, u32)> = pairs.iter().map(|p| (p.a, p.b)).collect();
+        let Some(before) = &self.touching else {
+            self.touching = Some(now);
+            return;
+        };
+        if let Some(&(a, b)) = before.iter().find(|k| now.binary_search(k).is_err()) {
+            let axial_strain = plan
+                .measure(&progress.wall_displacements, &progress.wall_forces)
+                .map_or(0.0, |m| {
+                    1.0 - m.distance[plan.axial] / progress.distance_at_start[plan.axial]
+                });
+            self.first_opening = Some(GapOpening {
+                a,
+                b,
+                time,
+                axial_strain,
+            });
+        }
+    }
+}
