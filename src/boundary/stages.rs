@@ -497,3 +497,192 @@ fn opposite_distance(walls: &[([f64; 3], [f64; 3])], w: usize) -> f64 {
         .map(|(q, _)| (0..3).map(|k| (q[k] - p[k]) * n[k]).sum::<f64>())
         .fold(0.0, f64::max)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::parse_scene;
+
+    /// One closed FCC cell (R = 1 mm, a = 2√2 mm) in a box of six walls touching it.
+    fn cell_scene(stages: &str) -> Scene {
+        let r = 1.0e-3;
+        let a = 2.0 * std::f64::consts::SQRT_2 * r;
+        let (lo, hi) = (-r, a + r);
+        let mut text = format!(
+            r#"
+[simulation]
+duration = 1.0
+[materials.glass]
+youngs_modulus = 63e9
+poisson_ratio = 0.22
+density = 2500.0
+[[packings]]
+name = "cell"
+lattice = "fcc"
+cells = [1, 1, 1]
+faces = "closed"
+material = "glass"
+sphere = {{ radius = {r:e}, seeding = 5e-4 }}
+"#
+        );
+        for (name, k, sign, p) in [
+            ("x_min", 0, 1.0, lo),
+            ("x_max", 0, -1.0, hi),
+            ("y_min", 1, 1.0, lo),
+            ("y_max", 1, -1.0, hi),
+            ("bottom", 2, 1.0, lo),
+            ("top", 2, -1.0, hi),
+        ] {
+            let mut point = [0.0; 3];
+            let mut normal = [0.0; 3];
+            point[k] = p;
+            normal[k] = sign;
+            text +=
+                &format!("[[walls]]\nname = \"{name}\"\npoint = {point:?}\nnormal = {normal:?}\n");
+        }
+        text += stages;
+        parse_scene("cell.toml", &text, &[])
+            .expect("scene parses")
+            .scene
+    }
+
+    const SERVO: &str = r#"{ servo = { stress = 5.0e4, area_of = "cell" } }"#;
+
+    /// Advances the plan with wall forces from `forces(step, measure)` until it finishes
+    /// or `steps` pass; returns the progress.
+    fn drive(
+        plan: &StagePlan,
+        dt: f64,
+        steps: usize,
+        forces: impl Fn(usize, Option<&CellMeasure>) -> Vec<f64>,
+    ) -> StageProgress {
+        let mut p = plan.start();
+        let mut kin: Vec<Option<ServoState>> = vec![Some(ServoState::default()); 6];
+        for n in 0..steps {
+            p.wall_displacements = (kin.iter().zip(&plan.walls))
+                .map(|(k, (_, normal))| normal.map(|c| c * k.unwrap().displacement))
+                .collect();
+            let m = plan.measure(&p.wall_displacements, &p.wall_forces);
+            let f = forces(n, m.as_ref());
+            plan.advance(&mut p, kin.iter_mut(), &f, (n + 1) as f64 * dt, dt);
+            if p.finished {
+                break;
+            }
+        }
+        p
+    }
+
+    #[test]
+    fn a_strain_rate_wall_ends_its_stage_at_the_axial_strain() {
+        let scene = cell_scene(
+            r#"
+[[stages]]
+name = "shear"
+walls = { top = { strain_rate = 10.0 } }
+until = { axial_strain = 0.01, max_time = 1.0 }
+"#,
+        );
+        let plan = StagePlan::build(&scene).expect("staged");
+        assert_eq!(plan.axial, 2);
+        let dt = 1e-6;
+        let p = drive(&plan, dt, 10_000, |_, _| vec![0.0; 6]);
+        assert!(p.finished);
+        let r = &p.done[0];
+        assert_eq!(r.reason, StageEnd::AxialStrain);
+        // ε = r t: 0.01 at t = 1 ms (the first step moves nothing: the speed is set after it)
+        assert!((r.end - 1.0e-3).abs() <= 2.0 * dt, "ended at {}", r.end);
+    }
+
+    #[test]
+    fn failure_is_detected_after_the_peak_and_the_stage_runs_on_for_the_margin() {
+        let scene = cell_scene(&format!(
+            r#"
+[[stages]]
+name = "shear"
+walls = {{ top = {{ strain_rate = 10.0 }}, x_min = {SERVO}, x_max = {SERVO}, y_min = {SERVO}, y_max = {SERVO} }}
+until = {{ failure = {{ drop = 0.05, strain_margin = 0.002 }}, max_time = 1.0 }}
+"#
+        ));
+        let plan = StagePlan::build(&scene).expect("staged");
+        // σ_axial/σ_lateral (forces on equal areas at the start) rises to 3 at ε = 0.004
+        // then falls linearly; the lateral walls carry 1 N
+        let curve = |eps: f64| {
+            if eps < 0.004 {
+                1.0 + 500.0 * eps
+            } else {
+                3.0 - 200.0 * (eps - 0.004)
+            }
+        };
+        let p = drive(&plan, 1e-6, 100_000, |_, m| {
+            let eps = m.map_or(0.0, |m| m.strain[2]);
+            let area = |k: usize| {
+                m.map_or(1.0, |m| {
+                    let l = m.distance.map(|d| d - 2.0e-3);
+                    l[(k + 1) % 3] * l[(k + 2) % 3]
+                })
+            };
+            // lateral stress 1 Pa·(1/area) normalised: forces ∝ area so σ_lat = const
+            let lat = |k: usize| area(k) / area(0);
+            let ax = curve(eps) * area(2) / area(0);
+            vec![lat(0), lat(0), lat(1), lat(1), ax, ax]
+        });
+        let r = &p.done[0];
+        assert_eq!(r.reason, StageEnd::Failure);
+        let peak = r.peak.expect("peak");
+        assert!((peak.ratio - 3.0).abs() < 0.01, "peak {}", peak.ratio);
+        assert!((peak.axial_strain - 0.004).abs() < 2e-5);
+        let fail = r.failure.expect("failure");
+        // 5 % below the peak: 2.85 at ε = 0.004 + 0.15/200
+        assert!((fail.axial_strain - 0.00475).abs() < 2e-5, "{fail:?}");
+        // the strain measured at the end lags r·t by the step before the wall starts
+        let end_strain = 10.0 * r.end;
+        assert!(
+            (end_strain - (fail.axial_strain + 0.002)).abs() < 3e-5,
+            "ended at ε = {end_strain}, failure at {}",
+            fail.axial_strain
+        );
+    }
+
+    #[test]
+    fn stress_held_ends_the_stage_after_the_hold_time_and_the_next_stage_starts() {
+        let scene = cell_scene(&format!(
+            r#"
+[[stages]]
+name = "hold"
+walls = {{ top = {SERVO} }}
+until = {{ stress_held = {{ tolerance = 0.01, time_constants = 1.0 }}, max_time = 1.0 }}
+[[stages]]
+name = "rest"
+until = {{ max_time = 1.0e-4 }}
+"#
+        ));
+        let plan = StagePlan::build(&scene).expect("staged");
+        let (control, tau) = match &plan.stages[0].modes[5] {
+            WallMode::Servo { control, .. } => (control.clone(), control.time_constant),
+            m => panic!("top is {m:?}"),
+        };
+        let dt = tau / 1000.0;
+        // the top wall pressing a spring of the servo's design stiffness: F = k s
+        let mut p = plan.start();
+        let mut kin: Vec<Option<ServoState>> = vec![Some(ServoState::default()); 6];
+        let mut n = 0;
+        while p.index == 0 && n < 100_000 {
+            let s = kin[5].unwrap().displacement;
+            let mut f = vec![0.0; 6];
+            f[5] = control.stiffness * s;
+            p.wall_displacements = vec![[0.0; 3]; 6];
+            plan.advance(&mut p, kin.iter_mut(), &f, (n + 1) as f64 * dt, dt);
+            n += 1;
+        }
+        let r = &p.done[0];
+        assert_eq!(r.reason, StageEnd::StressHeld);
+        // the loop settles within 1 % in a few τ, then holds for one τ
+        assert!(
+            r.end > tau && r.end < 10.0 * tau,
+            "ended at {} (τ = {tau})",
+            r.end
+        );
+        assert_eq!(p.index, 1);
+        assert!((p.started_at - r.end).abs() < 1e-15);
+    }
+}
