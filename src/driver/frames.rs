@@ -2,10 +2,13 @@
 //! von Mises stress and equivalent plastic strain of the owned grains, gathered in global
 //! order.
 
+use super::grain_motion::grain_motion;
+use crate::contact::fabric::{merge_pairs, pair_partials};
 use crate::domain::Domain;
 use crate::error::Result;
 use crate::io::results::{FieldPart, ResultsWriter};
 use crate::material::{cauchy_from_first_piola, von_mises};
+use crate::math::{cross, dot, sub};
 use crate::model::global::GlobalMesh;
 use crate::solver::{element_response, Solver};
 
@@ -75,6 +78,16 @@ pub fn write_frame(
     );
     // the rank that advanced each element at this frame (migration moves grains)
     let owner_rank = gather(&vec![domain.rank() as f64; ne], &global.element_offset, 1);
+    let grains = grain_records(solver, &fields.stress);
+    let grain_offset: Vec<usize> = (0..=owner.len()).collect();
+    let grain_disp = gather(&grains.displacement, &grain_offset, 3);
+    let grain_rot = gather(&grains.rotation, &grain_offset, 3);
+    let grain_stress = gather(&grains.stress, &grain_offset, 6);
+    let contacts = contact_records(domain, solver);
+    // rank 0 holds the contacts; every rank must state the same dataset sizes
+    let mut count = [contacts.sliding.len() as f64];
+    domain.sum_in_place(&mut count);
+    let (g, c) = (owner.len() as u64, count[0] as u64);
     let (n, e) = (global.total_nodes() as u64, global.total_elements() as u64);
     let fields = [
         FieldPart {
@@ -125,8 +138,164 @@ pub fn write_frame(
             offset: 0,
             total: e,
         },
+        FieldPart {
+            name: "grain_displacement",
+            units: "m",
+            components: 3,
+            data: &grain_disp,
+            offset: 0,
+            total: g,
+        },
+        FieldPart {
+            name: "grain_rotation",
+            units: "rad",
+            components: 3,
+            data: &grain_rot,
+            offset: 0,
+            total: g,
+        },
+        FieldPart {
+            name: "grain_stress",
+            units: "Pa",
+            components: 6,
+            data: &grain_stress,
+            offset: 0,
+            total: g,
+        },
+        FieldPart {
+            name: "contact_grains",
+            units: "",
+            components: 2,
+            data: &contacts.grains,
+            offset: 0,
+            total: c,
+        },
+        FieldPart {
+            name: "contact_point",
+            units: "m",
+            components: 3,
+            data: &contacts.point,
+            offset: 0,
+            total: c,
+        },
+        FieldPart {
+            name: "contact_normal",
+            units: "1",
+            components: 3,
+            data: &contacts.normal,
+            offset: 0,
+            total: c,
+        },
+        FieldPart {
+            name: "contact_normal_force",
+            units: "N",
+            components: 1,
+            data: &contacts.normal_force,
+            offset: 0,
+            total: c,
+        },
+        FieldPart {
+            name: "contact_tangential_force",
+            units: "N",
+            components: 1,
+            data: &contacts.tangential_force,
+            offset: 0,
+            total: c,
+        },
+        FieldPart {
+            name: "contact_sliding",
+            units: "",
+            components: 1,
+            data: &contacts.sliding,
+            offset: 0,
+            total: c,
+        },
     ];
     writer.write_frame(index, solver.state.time, &fields)
+}
+
+/// Per-grain records of a frame, owned grains in model order: centroid displacement and
+/// rotation vector (`super::grain_motion`), and the volume average of the Cauchy stress
+/// (xx, yy, zz, yz, xz, xy; Σ σₑ vₑ / Σ vₑ over the grain's elements, vₑ current volumes).
+struct GrainRecords {
+    displacement: Vec<f64>,
+    rotation: Vec<f64>,
+    stress: Vec<f64>,
+}
+
+fn grain_records(solver: &Solver, element_stress: &[f64]) -> GrainRecords {
+    let m = &solver.model;
+    let mut r = GrainRecords {
+        displacement: Vec::with_capacity(3 * m.owned_grains),
+        rotation: Vec::with_capacity(3 * m.owned_grains),
+        stress: Vec::with_capacity(6 * m.owned_grains),
+    };
+    for g in 0..m.owned_grains {
+        let motion = grain_motion(m, &solver.state.x, g);
+        r.displacement.extend_from_slice(&motion.displacement);
+        r.rotation.extend_from_slice(&motion.rotation);
+        let (mut sum, mut volume) = ([0.0; 6], 0.0);
+        for e in m.grains[g].elements.clone() {
+            let v = current_volume(m, &solver.state.x, e);
+            volume += v;
+            for k in 0..6 {
+                sum[k] += v * element_stress[6 * e + k];
+            }
+        }
+        r.stress.extend(sum.map(|s| s / volume));
+    }
+    r
+}
+
+fn current_volume(m: &crate::model::Model, x: &[[f64; 3]], e: usize) -> f64 {
+    let [a, b, c, d] = m.tets[e].map(|i| x[i as usize]);
+    let (u, v, w) = (sub(b, a), sub(c, a), sub(d, a));
+    dot(u, cross(v, w)) / 6.0
+}
+
+/// Per-contact records of a frame (grain pairs, `crate::contact::fabric`): all on rank 0,
+/// empty elsewhere. Grain ids are scene indices (stored as f64, exact).
+struct ContactRecords {
+    grains: Vec<f64>,
+    point: Vec<f64>,
+    normal: Vec<f64>,
+    normal_force: Vec<f64>,
+    tangential_force: Vec<f64>,
+    sliding: Vec<f64>,
+}
+
+fn contact_records(domain: &Domain, solver: &Solver) -> ContactRecords {
+    let mut partials = Vec::new();
+    let mut encoded = Vec::new();
+    if solver.model.contact.grain_contact {
+        pair_partials(
+            &solver.model,
+            &solver.state.x,
+            &solver.scratch.contact,
+            &mut partials,
+        );
+        for p in &partials {
+            p.encode(&mut encoded);
+        }
+    }
+    let pairs = domain
+        .gather_f64_to_root(&encoded)
+        .map(|all| merge_pairs(&all))
+        .unwrap_or_default();
+    ContactRecords {
+        grains: pairs
+            .iter()
+            .flat_map(|p| [p.a as f64, p.b as f64])
+            .collect(),
+        point: pairs.iter().flat_map(|p| p.point).collect(),
+        normal: pairs.iter().flat_map(|p| p.normal).collect(),
+        normal_force: pairs.iter().map(|p| p.normal_force).collect(),
+        tangential_force: pairs.iter().map(|p| p.tangential_force).collect(),
+        sliding: pairs
+            .iter()
+            .map(|p| f64::from(u8::from(p.sliding)))
+            .collect(),
+    }
 }
 
 /// Gathers a per-node (or per-element) field of the owned grains to rank 0 in global
