@@ -21,7 +21,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::surface_refine::triangulate_sphere;
+use super::surface_refine::{triangulate_sphere, Pin};
 use super::tetgen::{tetrahedralize, Region};
 use super::{validate, MeshError, TetMesh};
 use crate::error::num;
@@ -109,6 +109,12 @@ pub struct LocalRefinement {
     /// zone (default 0.3).
     #[serde(default = "default_growth")]
     pub growth: f64,
+    /// Put a surface node exactly at the patch centre (default false). Without it the
+    /// nearest node lies up to about half an edge away and the surface there is a facet
+    /// sagging up to h²/(8R) inside the sphere, so a sphere or a wall placed to touch at
+    /// the centre starts that far away (more than the Hertz overlap at low loads).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub node: bool,
 }
 
 /// Smallest meaningful growth of a refinement patch: at 0.01 the size has grown by only
@@ -172,7 +178,17 @@ impl SphereMeshSpec {
             seeding,
             radius,
             growth: default_growth(),
+            node: false,
         });
+        self
+    }
+
+    /// Adds a local refinement patch (growth 0.3) with a surface node at its centre.
+    pub fn with_node_refinement(mut self, direction: [f64; 3], seeding: f64, radius: f64) -> Self {
+        self = self.with_refinement(direction, seeding, radius);
+        if let Some(r) = self.refine.last_mut() {
+            r.node = true;
+        }
         self
     }
 
@@ -462,7 +478,17 @@ pub(crate) fn unit_surface(
 ) -> Result<super::surface_refine::SphereSurface, MeshError> {
     let patches = unit_patches(spec);
     let s = spec.seeding / spec.radius;
-    triangulate_sphere(1.0, s, |x| s.min(patch_size(&patches, x)), "seeding")
+    let pins: Vec<Pin> = spec
+        .refine
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.node)
+        .map(|(i, r)| Pin {
+            direction: r.direction,
+            field: format!("refine[{i}].node"),
+        })
+        .collect();
+    triangulate_sphere(1.0, s, |x| s.min(patch_size(&patches, x)), &pins, "seeding")
 }
 
 /// The diametral balls of the surface triangles (circumscribed balls centred in the
@@ -809,6 +835,83 @@ mod tests {
         );
         // Two calls give bitwise identical meshes.
         assert_eq!(mesh_sphere(&spec).unwrap(), m);
+    }
+
+    #[test]
+    fn node_patches_put_a_surface_node_exactly_at_their_centres() {
+        // The FCC cell's sphere: patches at the 12 ⟨110⟩ contacts and the 6 ⟨100⟩ wall points.
+        let mut dirs: Vec<[f64; 3]> = Vec::new();
+        for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+            for (sa, sb) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+                let mut d = [0.0; 3];
+                (d[a], d[b]) = (sa, sb);
+                dirs.push(d);
+            }
+        }
+        for k in 0..3 {
+            for sign in [1.0, -1.0] {
+                let mut d = [0.0; 3];
+                d[k] = sign;
+                dirs.push(d);
+            }
+        }
+        let (plain, pinned) = dirs.iter().fold(
+            (
+                SphereMeshSpec::uniform(R, 4.5e-4),
+                SphereMeshSpec::uniform(R, 4.5e-4),
+            ),
+            |(a, b), &d| {
+                (
+                    a.with_refinement(d, 2e-4, 0.0),
+                    b.with_node_refinement(d, 2e-4, 0.0),
+                )
+            },
+        );
+        let nearest_surface_node = |m: &TetMesh, s: &SurfaceMesh, x: [f64; 3]| {
+            s.nodes
+                .iter()
+                .map(|&n| norm(sub(m.nodes[n as usize], x)))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let m = mesh_sphere(&pinned).unwrap();
+        validate(&m).unwrap();
+        let surf = extract_surface(&m);
+        assert_closed(&surf);
+        let m0 = mesh_sphere(&plain).unwrap();
+        let surf0 = extract_surface(&m0);
+        let mut missed_without = 0;
+        for d in &dirs {
+            let centre = scale(*d, R / norm(*d));
+            let off = nearest_surface_node(&m, &surf, centre);
+            assert!(off <= 1e-12 * R, "{d:?}: nearest node {off} m away");
+            if nearest_surface_node(&m0, &surf0, centre) > 1e-3 * R {
+                missed_without += 1;
+            }
+        }
+        assert!(missed_without > 0, "the plain mesh already has every node");
+        let q = quality(&m);
+        assert!(q.min_dihedral_deg > 5.0, "{q}");
+        // Acute surface: TetGen had no surface edge to split.
+        assert_eq!(
+            q.surface_facets,
+            unit_surface(&pinned).unwrap().triangles.len()
+        );
+        assert_eq!(mesh_sphere(&pinned).unwrap(), m);
+        // Plain patches serialise as before the option existed.
+        assert!(!serde_json::to_string(&plain).unwrap().contains("node"));
+        let text = "radius = 1.0\nseeding = 0.1\nrefine = [ { direction = [0, 0, 1], seeding = 0.05, radius = 0.0, node = true } ]";
+        assert!(toml::from_str::<SphereMeshSpec>(text).unwrap().refine[0].node);
+    }
+
+    #[test]
+    fn two_node_patches_closer_than_an_edge_are_refused_naming_the_second() {
+        let spec = SphereMeshSpec::uniform(R, 4.5e-4)
+            .with_node_refinement([0.0, 0.0, 1.0], 2e-4, 0.0)
+            .with_node_refinement([0.0, 0.02, 1.0], 2e-4, 0.0);
+        match mesh_sphere(&spec) {
+            Err(MeshError::InvalidSpec { field, .. }) => assert_eq!(field, "refine[1].node"),
+            other => panic!("expected an InvalidSpec error, got {other:?}"),
+        }
     }
 
     #[test]

@@ -10,9 +10,13 @@
 //!    that pair together (midpoint projected onto the sphere). No hanging nodes.
 //! 3. **Edge flips** until every edge is convex: the triangulation becomes the convex hull
 //!    of its vertices, which for points on a sphere is the spherical Delaunay triangulation.
-//! 4. Where bisection happened, **make the triangles acute** (`Refiner::make_acute`):
-//!    removal of valence-3/4 vertices, Lloyd relaxation with density h⁻⁴, and local vertex
-//!    moves, until no angle exceeds [`MAX_ANGLE_DEG`]. TetGen treats every surface edge as
+//! 4. **Pins** ([`Pin`]): the vertex nearest each pinned point is moved exactly onto it
+//!    (`Refiner::pin`), so that a contact or a wall meets the mesh at a node rather than at
+//!    a facet lying the faceting sag inside the sphere.
+//! 5. Where bisection happened or a vertex was pinned, **make the triangles acute**
+//!    (`Refiner::make_acute`): removal of valence-3/4 vertices, Lloyd relaxation with density
+//!    h⁻⁴, and local vertex moves, until no angle exceeds [`MAX_ANGLE_DEG`]; pinned vertices
+//!    never move. TetGen treats every surface edge as
 //!    a segment and splits any whose diametral ball holds a vertex — every edge opposite an
 //!    angle ≥ 90° — and such splits cascade into edges several times shorter than
 //!    requested, which would set the explicit time step.
@@ -63,6 +67,17 @@ pub struct SphereSurface {
     pub triangles: Vec<[u32; 3]>,
 }
 
+/// A point of the sphere that must be a vertex of the triangulation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pin {
+    /// Direction from the centre (any length > 0): the vertex is put at
+    /// `radius · direction/|direction|`.
+    pub direction: [f64; 3],
+    /// The spec field that asked for the pin, named by the error when two pins would need
+    /// the same vertex.
+    pub field: String,
+}
+
 /// Triangle with neighbour links: `n[i]` is the triangle across the edge opposite `v[i]`,
 /// i.e. across edge `(v[i+1], v[i+2])`.
 #[derive(Clone, Copy, Debug)]
@@ -81,19 +96,22 @@ struct Refiner {
 /// `size` (edge length as a function of a point on the sphere, positive and finite, at most
 /// `base_size`): the geodesic base has mean edge ≈ `base_size`; where `size` is smaller,
 /// triangles are bisected until their longest edge is ≤ [`LONGEST_EDGE_FACTOR`]`·size` at
-/// their centroid, then relaxed to acute shapes. All vertices lie exactly on the sphere.
-/// `field` names the spec field for the error returned if the triangle count would exceed
-/// [`MAX_SURFACE_TRIANGLES`].
+/// their centroid, then relaxed to acute shapes. All vertices lie exactly on the sphere, and
+/// each of `pins` is exactly a vertex. `field` names the spec field for the error returned
+/// if the triangle count would exceed [`MAX_SURFACE_TRIANGLES`]; two pins that would need
+/// the same vertex (closer than the local edge length) are an
+/// [`MeshError::InvalidSpec`] naming the second pin's field.
 pub fn triangulate_sphere<F>(
     radius: f64,
     base_size: f64,
     size: F,
+    pins: &[Pin],
     field: &str,
 ) -> Result<SphereSurface, MeshError>
 where
     F: Fn([f64; 3]) -> f64,
 {
-    triangulate_sphere_limited(radius, base_size, size, field, MAX_SURFACE_TRIANGLES)
+    triangulate_sphere_limited(radius, base_size, size, pins, field, MAX_SURFACE_TRIANGLES)
 }
 
 /// Frequency of the geodesic base mesh whose mean edge is closest to `base_size`.
@@ -111,6 +129,7 @@ pub(crate) fn triangulate_sphere_limited<F>(
     radius: f64,
     base_size: f64,
     size: F,
+    pins: &[Pin],
     field: &str,
     limit: usize,
 ) -> Result<SphereSurface, MeshError>
@@ -128,8 +147,10 @@ where
     let base_vertices = r.pts.len();
     r.refine(&size, field, limit)?;
     r.flip_to_convex();
-    if r.pts.len() > base_vertices {
-        r.make_acute(&size, base_vertices);
+    let pinned = r.pin(pins)?;
+    // Snapping distorts the pins' fans even where nothing was bisected.
+    if r.pts.len() > base_vertices || !pins.is_empty() {
+        r.make_acute(&size, base_vertices, &pinned);
     }
     Ok(SphereSurface {
         points: r.pts,
@@ -534,21 +555,8 @@ impl Refiner {
             bad.retain(|&v| movable[v as usize]);
             bad.sort_unstable();
             bad.dedup();
-            let mut fan: Vec<u32> = Vec::new();
             for &v in &bad {
-                // Fan of v.
-                fan.clear();
-                let start = vt[v as usize];
-                let mut cur = start;
-                loop {
-                    fan.push(cur);
-                    let tv = self.tris[cur as usize];
-                    let k = tv.v.iter().position(|&x| x == v).unwrap();
-                    cur = tv.n[(k + 1) % 3];
-                    if cur == start {
-                        break;
-                    }
-                }
+                let fan = self.fan(v, vt[v as usize]);
                 let x0 = self.pts[v as usize];
                 let nrm = scale(x0, 1.0 / norm(x0));
                 let a = if nrm[0].abs() < 0.9 {
@@ -617,9 +625,9 @@ impl Refiner {
         n
     }
 
-    /// Vertices with index ≥ `first`, dilated by `rings` rings of neighbours.
-    fn zone(&self, first: usize, rings: usize) -> Vec<bool> {
-        let mut m: Vec<bool> = (0..self.pts.len()).map(|i| i >= first).collect();
+    /// The vertices of `seed`, dilated by `rings` rings of neighbours.
+    fn dilate(&self, seed: Vec<bool>, rings: usize) -> Vec<bool> {
+        let mut m = seed;
         for _ in 0..rings {
             let prev = m.clone();
             for t in &self.tris {
@@ -752,14 +760,27 @@ impl Refiner {
     }
 
     /// Makes a bisection-refined triangulation acute where it was refined: removes
-    /// valence-3/4 vertices, relaxes the refined zone (plus two rings of the base mesh) by
-    /// Lloyd iterations, and moves the vertices of any remaining angle above `MAX_ANGLE_DEG`.
+    /// valence-3/4 vertices, relaxes the refined zone (plus two rings of the base mesh) and
+    /// two rings around each pinned vertex by Lloyd iterations, and moves the vertices of any
+    /// remaining angle above `MAX_ANGLE_DEG`. Vertices with `pinned` set stay where they are
+    /// (and, not being movable, are never removed).
     /// TetGen treats every surface edge as a segment and splits any whose diametral ball
     /// holds a vertex, i.e. every edge opposite an angle ≥ 90°; such splits cascade through
     /// the neighbouring segments into edges many times shorter than requested, so the surface
     /// handed to TetGen must be acute. Returns the number of angles still above 90°.
-    fn make_acute<F: Fn([f64; 3]) -> f64>(&mut self, size: &F, first_new_vertex: usize) -> usize {
-        let mut movable = self.zone(first_new_vertex, 2);
+    fn make_acute<F: Fn([f64; 3]) -> f64>(
+        &mut self,
+        size: &F,
+        first_new_vertex: usize,
+        pinned: &[bool],
+    ) -> usize {
+        let seed = (0..self.pts.len())
+            .map(|i| i >= first_new_vertex || pinned[i])
+            .collect();
+        let mut movable = self.dilate(seed, 2);
+        for (m, &p) in movable.iter_mut().zip(pinned) {
+            *m &= !p;
+        }
         for _ in 0..ACUTE_PASSES {
             self.remove_low_valence(&mut movable);
             self.lloyd(size, LLOYD_ITERATIONS, &movable);
@@ -772,6 +793,94 @@ impl Refiner {
             }
         }
         self.count_angles_above(90.0)
+    }
+
+    /// Triangles around vertex `v` in fan order, starting at `start` (which contains `v`).
+    fn fan(&self, v: u32, start: u32) -> Vec<u32> {
+        let mut fan = Vec::new();
+        let mut cur = start;
+        loop {
+            fan.push(cur);
+            let tv = self.tris[cur as usize];
+            let k = tv.v.iter().position(|&x| x == v).expect("vertex not in its fan");
+            cur = tv.n[(k + 1) % 3];
+            if cur == start {
+                return fan;
+            }
+        }
+    }
+
+    /// Moves, pin by pin, the vertex nearest to each pinned point exactly onto it and
+    /// restores convexity by flips; returns the mask of pinned vertices. The nearest vertex
+    /// owns the Voronoi cell holding the point, so it moves by about half the local edge at
+    /// most, but where one of its triangles is obtuse at it that cell reaches past the
+    /// opposite edge and the move would fold the triangle over: then the nearest vertex of
+    /// its ring whose fan stays outward is moved instead. Two pins whose nearest vertex is
+    /// the same would give one node to two points closer than an edge: an error naming the
+    /// second pin's field.
+    fn pin(&mut self, pins: &[Pin]) -> Result<Vec<bool>, MeshError> {
+        let mut owner: Vec<Option<usize>> = vec![None; self.pts.len()];
+        for (k, pin) in pins.iter().enumerate() {
+            let target = scale(pin.direction, self.radius / norm(pin.direction));
+            let dist2 = |x: [f64; 3]| {
+                let d = sub(x, target);
+                dot(d, d)
+            };
+            // Strict comparison: ties go to the lowest id, so the choice is reproducible.
+            let mut nearest = 0u32;
+            let mut best = f64::INFINITY;
+            for (i, &x) in self.pts.iter().enumerate() {
+                let d2 = dist2(x);
+                if d2 < best {
+                    best = d2;
+                    nearest = i as u32;
+                }
+            }
+            if let Some(other) = owner[nearest as usize] {
+                return Err(MeshError::InvalidSpec {
+                    field: pin.field.clone(),
+                    message: format!(
+                        "its node would be the surface vertex already pinned for {}: the two points are closer than the local edge length (refine there, or pin one of them)",
+                        pins[other].field
+                    ),
+                });
+            }
+            let mut first_tri = vec![u32::MAX; self.pts.len()];
+            for (t, tri) in self.tris.iter().enumerate() {
+                for &v in &tri.v {
+                    first_tri[v as usize] = t as u32;
+                }
+            }
+            let nearest_fan = self.fan(nearest, first_tri[nearest as usize]);
+            let mut ring: Vec<u32> = nearest_fan
+                .iter()
+                .map(|&t| {
+                    let tv = self.tris[t as usize].v;
+                    let j = tv.iter().position(|&x| x == nearest).expect("fan");
+                    tv[(j + 1) % 3]
+                })
+                .filter(|&v| owner[v as usize].is_none())
+                .collect();
+            ring.sort_by(|&a, &b| {
+                dist2(self.pts[a as usize])
+                    .total_cmp(&dist2(self.pts[b as usize]))
+                    .then(a.cmp(&b))
+            });
+            let chosen = std::iter::once(nearest).chain(ring).find_map(|v| {
+                let fan = self.fan(v, first_tri[v as usize]);
+                self.fan_worst(&fan, v, target).map(|_| (v, fan))
+            });
+            let Some((v, fan)) = chosen else {
+                return Err(MeshError::InvalidSpec {
+                    field: pin.field.clone(),
+                    message: "no surface vertex near the point can be moved onto it without folding the surface over".into(),
+                });
+            };
+            self.pts[v as usize] = target;
+            owner[v as usize] = Some(k);
+            self.flip_from(&fan);
+        }
+        Ok(owner.iter().map(Option::is_some).collect())
     }
 
     /// True if vertex `target` is adjacent to `a` (walks the triangle fan of `a` starting at

@@ -74,7 +74,7 @@ fn geodesic_base_is_closed_regular_and_calibrated() {
 
 #[test]
 fn icosahedron_is_closed_and_outward() {
-    let s = triangulate_sphere(2.0, 100.0, |_| 100.0, "seeding").unwrap();
+    let s = triangulate_sphere(2.0, 100.0, |_| 100.0, &[], "seeding").unwrap();
     assert_eq!(s.triangles.len(), 20);
     assert_eq!(s.points.len(), 12);
     check_closed_outward(&s);
@@ -113,7 +113,7 @@ fn assert_convex(s: &SphereSurface) {
 #[test]
 fn uniform_sizing_hits_mean_edge_and_is_convex() {
     for h in [0.05, 0.083, 0.17, 0.21] {
-        let s = triangulate_sphere(1.0, h, |_| h, "seeding").unwrap();
+        let s = triangulate_sphere(1.0, h, |_| h, &[], "seeding").unwrap();
         check_closed_outward(&s);
         let (mean, lo, hi, min_angle) = edge_stats(&s);
         assert!((mean / h - 1.0).abs() < 0.1, "h {h}: mean edge {mean}");
@@ -164,7 +164,7 @@ fn refined_patch_is_acute_convex_and_fine_near_the_point() {
     let (coarse, fine, zone): (f64, f64, f64) = (0.1, 0.02, 0.05);
     let pole = [0.0, 0.0, 1.0];
     let size = |x: [f64; 3]| coarse.min(fine + 0.3 * (norm(sub(x, pole)) - zone).max(0.0));
-    let s = triangulate_sphere(1.0, coarse, size, "seeding").unwrap();
+    let s = triangulate_sphere(1.0, coarse, size, &[], "seeding").unwrap();
     check_closed_outward(&s);
     assert_convex(&s);
     // Acute everywhere, so TetGen has no encroached segment to split.
@@ -200,14 +200,14 @@ fn deterministic_and_fast() {
     let size =
         |x: [f64; 3]| 0.01f64.min(0.002 + 0.3 * (norm(sub(x, [0.0, 0.0, 1.0])) - 0.05).max(0.0));
     let t0 = std::time::Instant::now();
-    let a = triangulate_sphere(1.0, 0.01, size, "seeding").unwrap();
+    let a = triangulate_sphere(1.0, 0.01, size, &[], "seeding").unwrap();
     let dt = t0.elapsed();
-    let b = triangulate_sphere(1.0, 0.01, size, "seeding").unwrap();
+    let b = triangulate_sphere(1.0, 0.01, size, &[], "seeding").unwrap();
     assert_eq!(a, b);
     check_closed_outward(&a);
     // Uniform h = 0.012 on the unit sphere → 2×10⁵ triangles.
     let t0 = std::time::Instant::now();
-    let big = triangulate_sphere(1.0, 0.012, |_| 0.012, "seeding").unwrap();
+    let big = triangulate_sphere(1.0, 0.012, |_| 0.012, &[], "seeding").unwrap();
     let dt_big = t0.elapsed();
     assert!(big.triangles.len() > 150_000, "{}", big.triangles.len());
     eprintln!(
@@ -220,7 +220,99 @@ fn deterministic_and_fast() {
 
 #[test]
 fn too_many_triangles_is_an_error() {
-    let e = triangulate_sphere_limited(1.0, 1e-3, |_| 1e-3, "seeding", 10_000).unwrap_err();
+    let e = triangulate_sphere_limited(1.0, 1e-3, |_| 1e-3, &[], "seeding", 10_000).unwrap_err();
     assert!(matches!(e, MeshError::TooLarge { .. }));
     assert!(e.to_string().starts_with("seeding: "));
+}
+
+/// The 12 ⟨110⟩ and 6 ⟨100⟩ directions (an FCC sphere's contacts and wall points).
+fn lattice_directions() -> Vec<[f64; 3]> {
+    let mut dirs = Vec::new();
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        for (sa, sb) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+            let mut d = [0.0; 3];
+            (d[a], d[b]) = (sa, sb);
+            dirs.push(d);
+        }
+    }
+    for k in 0..3 {
+        for sign in [1.0, -1.0] {
+            let mut d = [0.0; 3];
+            d[k] = sign;
+            dirs.push(d);
+        }
+    }
+    dirs
+}
+
+fn distance_to_nearest_vertex(s: &SphereSurface, x: [f64; 3]) -> f64 {
+    s.points
+        .iter()
+        .map(|&p| norm(sub(p, x)))
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn pinned_points_are_vertices_of_an_acute_convex_surface() {
+    let dirs = lattice_directions();
+    let pins: Vec<Pin> = dirs
+        .iter()
+        .enumerate()
+        .map(|(i, &direction)| Pin {
+            direction,
+            field: format!("refine[{i}].node"),
+        })
+        .collect();
+    // The FCC cell's sphere at unit radius (seeding 0.41, patches 0.18), and a uniform
+    // sphere, where only the pins call for relaxation.
+    let (coarse, fine) = (0.41, 0.18);
+    let patched = |x: [f64; 3]| {
+        dirs.iter().fold(coarse, |h: f64, d| {
+            h.min(fine + 0.3 * norm(sub(x, scale(*d, 1.0 / norm(*d)))))
+        })
+    };
+    let uniform = |_: [f64; 3]| 0.15;
+    let cases: [(f64, &dyn Fn([f64; 3]) -> f64); 2] = [(coarse, &patched), (0.15, &uniform)];
+    for (base, size) in cases {
+        let unpinned = triangulate_sphere(1.0, base, size, &[], "seeding").unwrap();
+        let s = triangulate_sphere(1.0, base, size, &pins, "seeding").unwrap();
+        check_closed_outward(&s);
+        assert_convex(&s);
+        assert!(
+            max_angle_deg(&s) < MAX_ANGLE_DEG + 3.0,
+            "base {base}: max angle {}",
+            max_angle_deg(&s)
+        );
+        let mut missed_without_pins = 0;
+        for d in &dirs {
+            let point = scale(*d, 1.0 / norm(*d));
+            assert!(distance_to_nearest_vertex(&s, point) <= 1e-15, "{d:?}");
+            if distance_to_nearest_vertex(&unpinned, point) > 1e-3 {
+                missed_without_pins += 1;
+            }
+        }
+        assert!(missed_without_pins > 0, "base {base}: nothing to pin");
+        for p in &s.points {
+            assert!((norm(*p) - 1.0).abs() < 1e-14);
+        }
+        assert_eq!(
+            triangulate_sphere(1.0, base, size, &pins, "seeding").unwrap(),
+            s
+        );
+    }
+}
+
+#[test]
+fn two_pins_on_one_vertex_are_an_error_naming_the_second() {
+    let pins = [[0.0, 0.0, 1.0], [0.0, 0.01, 1.0]].map(|direction| Pin {
+        direction,
+        field: format!("refine[{}].node", (direction[1] > 0.0) as usize),
+    });
+    match triangulate_sphere(1.0, 0.2, |_| 0.2, &pins, "seeding") {
+        Err(MeshError::InvalidSpec { field, message }) => {
+            assert_eq!(field, "refine[1].node");
+            assert!(message.contains("refine[0].node"), "{message}");
+        }
+        other => panic!("expected an InvalidSpec error, got {other:?}"),
+    }
 }
