@@ -7,8 +7,9 @@
 //! positive along the inward normal n, i.e. into the grains) advances with
 //!
 //! ```text
-//! s_{n+1} = s_n + Δt v_{n+½},     v_{n+½} = clamp(G (F* − F̄_{n−1}), ±v_max),
-//! F̄_n     = F̄_{n−1} + Δt/(τ_f + Δt) (F_n − F̄_{n−1}),      G = 1/(k τ),  τ_f = τ/32,
+//! s_{n+1} = s_n + Δt v_{n+½},     v_{n+½} = clamp(G (e_n + I_n/τ_I), ±v_max),
+//! e_n = F* − F̄_n,   I_n = Σ Δt e (only while F̄ > 0 and v is not clamped),
+//! F̄_n     = F̄_{n−1} + Δt/(τ_f + Δt) (F_n − F̄_{n−1}),   G = 1/(k τ),  τ_f = τ/32,  τ_I = 8τ,
 //! ```
 //!
 //! where F_n = f_n·n is the measured normal force of step n summed over all ranks (the
@@ -17,6 +18,15 @@
 //! step to step, and an unfiltered integral controller would feed that noise into the
 //! wall's motion), k an estimate of the stiffness dF/ds the wall sees at the target load
 //! and τ the time constant of the closed loop.
+//!
+//! In a stage where other walls strain the specimen at a prescribed speed (`tracking`),
+//! an integral term is added; without it (isotropic compression, a lone servo wall) the
+//! law is the proportional one above, with I = 0. The integral term makes the loop follow a specimen that keeps yielding at a steady
+//! rate (the lateral walls of a triaxial test while the axial wall advances: the wall must
+//! keep moving at the speed v the specimen needs) with no steady error; with the
+//! proportional term alone the error would stay at v/(G F*) = v k τ/F*. It learns that
+//! speed over τ_I; it is frozen while the wall has nothing to push against (the approach)
+//! and while the speed is clamped, so that it cannot wind up.
 //!
 //! # Stability
 //! Quasi-statically the packing answers F = F(s) with tangent stiffness k_true. Writing
@@ -31,7 +41,10 @@
 //! than Hertz). The estimate also leans high: for a Hertzian packing the tangent stiffness
 //! grows with the load as F^{1/3}, and k is taken *at the target load*, so below the target
 //! (the whole approach from first contact) the loop is more damped still. τ_f = τ/32 is
-//! still hundreds of steps, enough to average the single-node arrests.
+//! still hundreds of steps, enough to average the single-node arrests. Without the filter
+//! the PI loop is ë + (k_true G) ė + (k_true G/τ_I) e = 0, damping ratio
+//! ζ = √(k_true τ_I/(k τ))/2 = √(2 k_true/k): overdamped at k_true = k (ζ = 1.4), critical
+//! at k_true = k/2, and more damped the more k is underestimated.
 //!
 //! The quasi-static assumption needs τ well above the period of the specimen's lowest
 //! mode on that stiffness, T = 2π√(M/k) (M the mass of all grains), and above the time a
@@ -60,6 +73,8 @@ pub const FILTER_FRACTION: f64 = 1.0 / 32.0;
 pub const DEFAULT_PERIODS: f64 = 2.0;
 /// Lower bound of the default τ in P-wave transits across the specimen.
 pub const DEFAULT_TRANSITS: f64 = 20.0;
+/// Integral time of the PI law in loop time constants (τ_I = 8τ; see module docs).
+pub const INTEGRAL_TIME_CONSTANTS: f64 = 8.0;
 /// Default `max_speed` as a fraction of the largest P-wave speed of the scene.
 pub const DEFAULT_SPEED_FRACTION: f64 = 1e-4;
 
@@ -82,6 +97,8 @@ pub struct ServoControl {
     pub max_speed: f64,
     /// G = 1/(k τ) (m/s per N).
     pub gain: f64,
+    /// τ_I = [`INTEGRAL_TIME_CONSTANTS`]·τ (s).
+    pub integral_time: f64,
 }
 
 /// What a servo wall carries between steps (part of the wall's state in `State`).
@@ -95,6 +112,9 @@ pub struct ServoState {
     pub velocity: f64,
     /// Filtered normal force F̄ (N), global over ranks.
     pub filtered_force: f64,
+    /// ∫ (F* − F̄) dt while the wall touches the grains (N·s): the integral action.
+    #[serde(default)]
+    pub error_integral: f64,
 }
 
 impl ServoState {
@@ -137,6 +157,7 @@ impl ServoControl {
             filter_time: FILTER_FRACTION * time_constant,
             max_speed,
             gain: 1.0 / (stiffness * time_constant),
+            integral_time: INTEGRAL_TIME_CONSTANTS * time_constant,
         }
     }
 
@@ -144,18 +165,32 @@ impl ServoControl {
     /// the wall to s_{n+1} and sets the speed of the next step.
     #[inline]
     pub fn advance(&self, s: &mut ServoState, force: f64, dt: f64) {
-        self.advance_to(s, force, self.target_force, dt);
+        self.advance_to(s, force, self.target_force, false, dt);
     }
 
-    /// [`Self::advance`] towards `target_force` (N) instead of the fixed one: a stress
-    /// held on an area that changes as the walls move.
+    /// [`Self::advance`] towards `target_force` (N) instead of the fixed one (a stress
+    /// held on an area that changes as the walls move), with the integral action when
+    /// `tracking` (the specimen is being strained by other walls).
     #[inline]
-    pub fn advance_to(&self, s: &mut ServoState, force: f64, target_force: f64, dt: f64) {
+    pub fn advance_to(
+        &self,
+        s: &mut ServoState,
+        force: f64,
+        target_force: f64,
+        tracking: bool,
+        dt: f64,
+    ) {
         s.filtered_force += dt / (self.filter_time + dt) * (force - s.filtered_force);
-        s.move_on(
-            dt,
-            (self.gain * (target_force - s.filtered_force)).clamp(-self.max_speed, self.max_speed),
-        );
+        let error = target_force - s.filtered_force;
+        let mut speed = self.gain * error;
+        if tracking {
+            speed += self.gain * s.error_integral / self.integral_time;
+            // no wind-up while the wall approaches (nothing to push against) or is saturated
+            if s.filtered_force > 0.0 && speed.abs() < self.max_speed {
+                s.error_integral += dt * error;
+            }
+        }
+        s.move_on(dt, speed.clamp(-self.max_speed, self.max_speed));
     }
 
     /// Filtered normal stress F̄/A (Pa).
@@ -359,6 +394,35 @@ mod tests {
         check(&SOFT_ROCK, 8.0, 0.10);
         check(&GLASS, 20.0, 0.30);
         check(&SOFT_ROCK, 20.0, 0.30);
+    }
+
+    #[test]
+    fn integral_action_follows_a_steadily_yielding_specimen() {
+        // F = k (s − v_y t): the specimen gives way at v_y; the wall must keep up
+        let (k, tau, target) = (1.0e6, 1.0e-4, 0.5);
+        let control = ServoControl::new(target / 1.0e-5, 1.0e-5, k, tau, 1.0);
+        let v_y = 0.2 * target / (k * tau); // P law alone: 20 % error
+        let dt = tau / 2000.0;
+        let run = |tracking: bool| {
+            let mut s = ServoState {
+                displacement: target / k,
+                previous: target / k,
+                filtered_force: target,
+                ..Default::default()
+            };
+            let steps = (6.0 * control.integral_time / dt) as usize;
+            for n in 0..steps {
+                let force = k * (s.displacement - v_y * n as f64 * dt);
+                control.advance_to(&mut s, force, target, tracking, dt);
+            }
+            (s.filtered_force - target) / target
+        };
+        let (p_only, pi) = (run(false), run(true));
+        assert!((p_only + 0.2).abs() < 0.01, "P law: steady error {p_only}");
+        assert!(
+            pi.abs() < 0.01 * p_only.abs(),
+            "PI law: error {pi} after 6 τ_I"
+        );
     }
 
     #[test]

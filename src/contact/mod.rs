@@ -100,6 +100,7 @@ pub use crate::model::contact_layout::{
     DEFAULT_MARGIN_FRACTION, DEFAULT_PENALTY_FACTOR, NONE,
 };
 pub use overlap::check_initial_overlap;
+pub use walls::GrainWallForces;
 
 use crate::boundary::servo::ServoState;
 use crate::boundary::stages::{StagePlan, StageProgress};
@@ -244,6 +245,8 @@ pub struct ContactScratch {
     history_old: Vec<FrictionPoint>,
     wall_now: Vec<[f64; 3]>,
     wall_next: Vec<[f64; 3]>,
+    /// Normal force of each wall on each local grain at the last step.
+    pub wall_grain_force: GrainWallForces,
 }
 
 /// Stage 1 of the step: detection and grain–grain contact forces at x_n (velocities
@@ -497,11 +500,14 @@ pub fn enforce_walls(
     t: f64,
     dt: f64,
     state: &mut ContactState,
-    scratch: &ContactScratch,
+    scratch: &mut ContactScratch,
 ) {
     let cm = &model.contact;
     if cm.walls.is_empty() {
         return;
+    }
+    if scratch.wall_grain_force.values.is_empty() {
+        scratch.wall_grain_force = GrainWallForces::new(&model.node_grain, model.grains.len());
     }
     walls::enforce(
         cm,
@@ -514,18 +520,37 @@ pub fn enforce_walls(
         dt,
         &scratch.lists.wall_nodes,
         state,
+        &mut scratch.wall_grain_force,
     );
     let c = state.contacts();
     state.stats.max_contacts_run = state.stats.max_contacts_run.max(c);
 }
 
-/// This rank's normal force F = f·n on every wall (N), in wall order, into `out`
-/// (cleared first); the caller sums it over ranks before [`advance_walls`].
-pub fn wall_normal_forces(model: &Model, state: &ContactState, out: &mut Vec<f64>) {
+/// This rank's share of the normal force F = f·n of every wall on every grain of the
+/// scene (N), `[wall × grains + global id]`, zero for grains it does not own, into `out`;
+/// the caller sums it over ranks (exactly: each entry has one non-zero term) and then
+/// [`wall_totals`] adds the grains in global order, as a serial run does.
+pub fn wall_normal_forces(
+    model: &Model,
+    scratch: &ContactScratch,
+    grains: usize,
+    out: &mut Vec<f64>,
+) {
+    let walls = model.contact.walls.len();
     out.clear();
-    for (w, ws) in model.contact.walls.iter().zip(&state.walls) {
-        out.push(dot(ws.force, w.normal));
+    out.resize(walls * grains, 0.0);
+    for w in 0..walls {
+        for (g, grain) in model.grains[..model.owned_grains].iter().enumerate() {
+            out[w * grains + grain.global_id as usize] = scratch.wall_grain_force.get(w, g);
+        }
     }
+}
+
+/// Per-wall totals (N) of the summed [`wall_normal_forces`], in `totals`.
+pub fn wall_totals(per_grain: &[f64], walls: usize, totals: &mut Vec<f64>) {
+    totals.clear();
+    let grains = per_grain.len() / walls.max(1);
+    totals.extend((0..walls).map(|w| per_grain[w * grains..(w + 1) * grains].iter().sum::<f64>()));
 }
 
 /// Stage 3b: moves each state-driven wall to t_{n+1} and sets its next speed by the

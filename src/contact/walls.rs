@@ -20,6 +20,44 @@
 //! two walls is corrected wall after wall, in scene order.
 
 use super::{ContactModel, ContactState, Wall, WallState};
+
+/// Normal force of each wall on each grain of this rank at the last step (N): summed
+/// per grain in node order, so that the walls' total, summed over grains in global order
+/// after an exchange, is bitwise the same on any number of ranks (a servo wall then moves
+/// identically, and so does everything it pushes).
+#[derive(Debug, Default, Clone)]
+pub struct GrainWallForces {
+    /// Local grain of every model node.
+    node_grain: Vec<u32>,
+    grains: usize,
+    /// `[wall × grains + grain]`.
+    pub values: Vec<f64>,
+}
+
+impl GrainWallForces {
+    pub fn new(node_grain: &[u32], grains: usize) -> Self {
+        Self {
+            node_grain: node_grain.to_vec(),
+            grains,
+            values: Vec::new(),
+        }
+    }
+
+    fn clear(&mut self, walls: usize) {
+        self.values.clear();
+        self.values.resize(walls * self.grains, 0.0);
+    }
+
+    #[inline]
+    fn add(&mut self, wall: usize, node: usize, f_n: f64) {
+        self.values[wall * self.grains + self.node_grain[node] as usize] += f_n;
+    }
+
+    /// The force of wall `w` on local grain `g` (N).
+    pub fn get(&self, w: usize, g: usize) -> f64 {
+        self.values.get(w * self.grains + g).copied().unwrap_or(0.0)
+    }
+}
 use crate::math::{add, dot, norm, scale, sub};
 
 /// Displacement of a wall from t = 0 (m) at t_{n−1}, t_n and t_{n+1} (`t` = t_n): from its
@@ -51,7 +89,9 @@ pub fn enforce(
     dt: f64,
     wall_nodes: &[(u32, u32)],
     state: &mut ContactState,
+    grain_normal_force: &mut GrainWallForces,
 ) {
+    grain_normal_force.clear(cm.walls.len());
     let mut cursor = 0;
     for (w, wall) in cm.walls.iter().enumerate() {
         let [u_prev, u_now, u_next] = displacements(wall, &state.walls[w], t, dt);
@@ -95,6 +135,7 @@ pub fn enforce(
                 }
             }
             let f = add(scale(n, f_n), f_t);
+            grain_normal_force.add(w, node, f_n);
             v_next[node] = v_new;
             force = add(force, f);
             p_before += dot(f, v[node]);

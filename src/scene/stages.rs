@@ -49,6 +49,11 @@ pub enum WallModeSpec {
     /// t = 0 to the opposite wall (the wall on the same axis facing it): with one moving
     /// wall on an axis, `rate` is that axis' nominal strain rate.
     StrainRate(f64),
+    /// Strain rate given by the inertial number I = ε̇ d √(ρ/p) (–): d the diameter and ρ
+    /// the density of the spheres of the cell's packing, p the largest servo stress of
+    /// the stage. I ≲ 10⁻³ is the quasi-static regime of granular flow; the same I
+    /// loads any material and grain size alike.
+    InertialNumber(f64),
 }
 
 /// End conditions of a stage: it ends when any given condition is met, and at the
@@ -142,6 +147,22 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
                 }
                 WallModeSpec::Velocity(v) => {
                     c.finite(&format!("{field}.velocity"), *v)?;
+                    moving_axes.push((normal_axis(wall.normal), field.clone()));
+                }
+                WallModeSpec::InertialNumber(i) => {
+                    c.positive(&format!("{field}.inertial_number"), *i)?;
+                    if scene.packings.is_empty()
+                        || !st
+                            .walls
+                            .values()
+                            .any(|m| matches!(m, WallModeSpec::Servo(_)))
+                        || !opposite_exists(scene, w)
+                    {
+                        return Err(c.err(
+                            format!("{field}.inertial_number"),
+                            "needs a packing (for d and ρ), a servo wall in the stage (for p) and an opposite wall (for L0); use strain_rate instead",
+                        ));
+                    }
                     moving_axes.push((normal_axis(wall.normal), field.clone()));
                 }
                 WallModeSpec::StrainRate(r) => {

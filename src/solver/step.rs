@@ -53,7 +53,9 @@ pub struct Scratch {
     pub elements: ElementScratch,
     /// Cached contact candidate lists and per-point results.
     pub contact: ContactScratch,
-    /// Normal force of each wall, this rank's share then summed over ranks (N).
+    /// Normal force of each wall on each grain of the scene, this rank's share then
+    /// summed over ranks (N), and each wall's total (`crate::contact::wall_normal_forces`).
+    wall_grain_forces: Vec<f64>,
     wall_forces: Vec<f64>,
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
@@ -124,6 +126,7 @@ impl Solver {
             v_next: vec![[0.0; 3]; n],
             elements: ElementScratch::new(&model),
             contact: ContactScratch::default(),
+            wall_grain_forces: Vec::new(),
             wall_forces: Vec::new(),
             node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
@@ -268,7 +271,7 @@ impl Solver {
                 state.time,
                 dt,
                 &mut state.contact,
-                &scratch.contact,
+                &mut scratch.contact,
             )
         });
         if let Some(plan) = &model.stages {
@@ -276,8 +279,19 @@ impl Solver {
             // the same step everywhere: one small sum of the walls' normal forces (serial
             // runs: the local forces as they are).
             timers.time(Stage::Contact, || {
-                crate::contact::wall_normal_forces(model, &state.contact, &mut scratch.wall_forces);
-                hooks.sum(&mut scratch.wall_forces);
+                let grains = state.partition.owner.len();
+                crate::contact::wall_normal_forces(
+                    model,
+                    &scratch.contact,
+                    grains,
+                    &mut scratch.wall_grain_forces,
+                );
+                hooks.sum(&mut scratch.wall_grain_forces);
+                crate::contact::wall_totals(
+                    &scratch.wall_grain_forces,
+                    model.contact.walls.len(),
+                    &mut scratch.wall_forces,
+                );
                 crate::contact::advance_walls(
                     plan,
                     &mut state.contact,

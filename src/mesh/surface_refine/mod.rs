@@ -802,7 +802,10 @@ impl Refiner {
         loop {
             fan.push(cur);
             let tv = self.tris[cur as usize];
-            let k = tv.v.iter().position(|&x| x == v).expect("vertex not in its fan");
+            let k =
+                tv.v.iter()
+                    .position(|&x| x == v)
+                    .expect("vertex not in its fan");
             cur = tv.n[(k + 1) % 3];
             if cur == start {
                 return fan;

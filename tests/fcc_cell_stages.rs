@@ -1,0 +1,198 @@
+//! The walled triaxial test in miniature (issue 11, item 8): `jobs/tests/fcc_cell_stages.toml`,
+//! one closed FCC cell of 14 spheres in six walls, isotropic compression to σ3 = 50 kPa
+//! then axial strain at a constant inertial number with the lateral walls servo-held.
+//! - both stages run and end as they should: stage 1 by holding the stress, stage 2 by
+//!   failure (+ margin), with the peak stress ratio above the frictionless bound 2 and not
+//!   above Thornton's 2(1+μ)/(1−μ);
+//! - the servos hold σ3 within 1 % at the end of stage 1 and within 20 % while the cell
+//!   fails (the stress ratio divides by the measured lateral stress, so this tolerance is
+//!   on the loading path, not on the ratio);
+//! - the cell's 36 lattice contacts all carry load after stage 1;
+//! - Love–Weber: at the last frame the grains' volume-averaged stresses add up to the wall
+//!   forces times the wall distances (Σ V σ̄ = −F L per axis) within 2 %;
+//! - `/history` is the same on 2 ranks as on 1 (1e-10 of each series' scale).
+
+#[path = "common/mpi_launch.rs"]
+mod mpi_launch;
+#[path = "common/results.rs"]
+mod results;
+
+use results::history;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+const SCENE: &str = "jobs/tests/fcc_cell_stages.toml";
+const MU: f64 = 0.22;
+const SIGMA3: f64 = 5.0e4;
+const RADIUS: f64 = 1.1e-3;
+
+fn run(ranks: usize, name: &str) -> (PathBuf, String) {
+    let out = std::env::temp_dir().join(format!("mufe_fcc_stages_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join(SCENE);
+    let o = mpi_launch::run_under_mpirun(
+        ranks,
+        Path::new(env!("CARGO_BIN_EXE_mufe")),
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            "1",
+        ],
+        &[],
+        Duration::from_secs(300),
+    );
+    mpi_launch::assert_success(&o);
+    (out, String::from_utf8_lossy(&o.stdout).into_owned())
+}
+
+fn column<'a>(h: &'a [(String, Vec<f64>)], name: &str) -> &'a [f64] {
+    &h.iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| panic!("no /history/{name}"))
+        .1
+}
+
+#[test]
+fn both_stages_run_hold_fail_and_agree_on_two_ranks() {
+    let (serial_dir, stdout) = run(1, "r1");
+    let serial = history(&serial_dir.join("results.h5"));
+    assert!(
+        stdout.contains("stage 'isotropic' done") && stdout.contains("ended by stress held"),
+        "stage 1 did not hold the stress:\n{stdout}"
+    );
+    assert!(
+        stdout.contains("stage 'shear' done") && stdout.contains("ended by failure + margin"),
+        "no failure detected in stage 2:\n{stdout}"
+    );
+    assert!(stdout.contains("first gap opening between initially touching grains"));
+
+    let stage = column(&serial, "stage");
+    let end1 = stage.iter().rposition(|&s| s == 1.0).unwrap();
+    let lateral = ["x_min", "x_max", "y_min", "y_max"];
+    for w in lateral.iter().chain(&["top"]) {
+        let e = column(&serial, &format!("{w}_stress_error"))[end1];
+        assert!(e.abs() <= 0.01, "{w}: {e:+.4} at the end of stage 1");
+    }
+    assert_eq!(column(&serial, "grain_pair_contacts")[end1], 36.0);
+    for (i, _) in stage.iter().enumerate().filter(|(_, &s)| s == 2.0) {
+        for a in ["sigma_x", "sigma_y"] {
+            let s = column(&serial, a)[i];
+            assert!(
+                (s / SIGMA3 - 1.0).abs() <= 0.2,
+                "{a} = {s:.4e} Pa at row {i}"
+            );
+        }
+    }
+    let ratio = column(&serial, "stress_ratio");
+    let peak = (ratio.iter().zip(stage))
+        .filter(|(_, &s)| s == 2.0)
+        .map(|(r, _)| *r)
+        .fold(0.0, f64::max);
+    let thornton = 2.0 * (1.0 + MU) / (1.0 - MU);
+    assert!(
+        peak > 2.0 && peak <= thornton,
+        "peak σ1/σ3 = {peak:.4} (Thornton {thornton:.4})"
+    );
+
+    love_weber_balances_the_walls(&serial_dir.join("results.h5"), &serial);
+
+    let (parallel_dir, _) = run(2, "r2");
+    let parallel = history(&parallel_dir.join("results.h5"));
+    assert_eq!(serial.len(), parallel.len(), "same columns");
+    for ((name, a), (name_b, b)) in serial.iter().zip(&parallel) {
+        assert_eq!(name, name_b);
+        assert_eq!(a.len(), b.len(), "{name}: rows");
+        let scale = a.iter().map(|v| v.abs()).fold(0.0, f64::max).max(1e-300);
+        let scale = if name == "energy_balance" {
+            scale.max(
+                column(&serial, "external_work")
+                    .iter()
+                    .fold(0.0, |m, v| m.max(v.abs())),
+            )
+        } else {
+            scale
+        };
+        for (i, (x, y)) in a.iter().zip(b).enumerate() {
+            assert!(
+                (x - y).abs() <= 1e-10 * scale,
+                "/history/{name}[{i}]: 2 ranks {y:e}, 1 rank {x:e}"
+            );
+        }
+    }
+    for d in [serial_dir, parallel_dir] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+/// Σ_g V_g σ̄_g (the frame's grain stresses over the grains' current volumes) against
+/// −F_k L_k per axis (mean force of the axis' walls times their distance).
+fn love_weber_balances_the_walls(path: &Path, h: &[(String, Vec<f64>)]) {
+    let f = hdf5::File::open(path).unwrap();
+    let mut frames = f.group("frames").unwrap().member_names().unwrap();
+    frames.sort();
+    let last = f
+        .group(&format!("frames/{}", frames.last().unwrap()))
+        .unwrap();
+    let time: f64 = last.attr("time").unwrap().read_scalar().unwrap();
+    let read = |g: &hdf5::Group, n: &str| g.dataset(n).unwrap().read_raw::<f64>().unwrap();
+    let x0 = f.dataset("mesh/nodes").unwrap().read_raw::<f64>().unwrap();
+    let u = read(&last, "displacement");
+    let tets = f
+        .dataset("mesh/tetrahedra")
+        .unwrap()
+        .read_raw::<u64>()
+        .unwrap();
+    let grain = f
+        .dataset("mesh/grain_of_element")
+        .unwrap()
+        .read_raw::<u32>()
+        .unwrap();
+    let stress = read(&last, "grain_stress");
+    let mut volume = vec![0.0; stress.len() / 6];
+    for (e, t) in tets.chunks_exact(4).enumerate() {
+        let p = |i: usize| {
+            let n = t[i] as usize;
+            [0, 1, 2].map(|k| x0[3 * n + k] + u[3 * n + k])
+        };
+        let (a, b, c, d) = (p(0), p(1), p(2), p(3));
+        let (e1, e2, e3) = (
+            [0, 1, 2].map(|k| b[k] - a[k]),
+            [0, 1, 2].map(|k| c[k] - a[k]),
+            [0, 1, 2].map(|k| d[k] - a[k]),
+        );
+        volume[grain[e] as usize] += (e1[0] * (e2[1] * e3[2] - e2[2] * e3[1])
+            - e1[1] * (e2[0] * e3[2] - e2[2] * e3[0])
+            + e1[2] * (e2[0] * e3[1] - e2[1] * e3[0]))
+            / 6.0;
+    }
+    let times = column(h, "time");
+    let row = (0..times.len())
+        .min_by(|&i, &j| (times[i] - time).abs().total_cmp(&(times[j] - time).abs()))
+        .unwrap();
+    let lattice = 2.0 * std::f64::consts::SQRT_2 * RADIUS;
+    for (k, axis, lo, hi) in [
+        (0, "x", "x_min", "x_max"),
+        (1, "y", "y_min", "y_max"),
+        (2, "z", "bottom", "top"),
+    ] {
+        let sum: f64 = volume
+            .iter()
+            .enumerate()
+            .map(|(g, v)| v * stress[6 * g + k])
+            .sum();
+        let force = 0.5
+            * (column(h, &format!("{lo}_force_{axis}"))[row]
+                - column(h, &format!("{hi}_force_{axis}"))[row]);
+        let distance =
+            lattice + 2.0 * RADIUS + column(h, &format!("{hi}_displacement_{axis}"))[row]
+                - column(h, &format!("{lo}_displacement_{axis}"))[row];
+        let walls = -force * distance;
+        assert!(
+            (sum / walls - 1.0).abs() < 0.02,
+            "axis {axis}: Σ V σ̄ = {sum:.5e} N·m, walls −F L = {walls:.5e} N·m"
+        );
+    }
+}
