@@ -15,11 +15,12 @@
 //!    a facet lying the faceting sag inside the sphere.
 //! 5. Where bisection happened or a vertex was pinned, **make the triangles acute**
 //!    (`Refiner::make_acute`): removal of valence-3/4 vertices, Lloyd relaxation with density
-//!    h⁻⁴, and local vertex moves, until no angle exceeds [`MAX_ANGLE_DEG`]; pinned vertices
-//!    never move. TetGen treats every surface edge as
-//!    a segment and splits any whose diametral ball holds a vertex — every edge opposite an
-//!    angle ≥ 90° — and such splits cascade into edges several times shorter than
-//!    requested, which would set the explicit time step.
+//!    h⁻⁴ (flattened within one edge of a pin, `PIN_PLATEAU`), a bisection next to any pin
+//!    left at valence 4, and local vertex moves, until no angle exceeds [`MAX_ANGLE_DEG`];
+//!    pinned vertices never move. TetGen treats every surface edge as a segment and splits
+//!    any whose diametral ball holds a vertex — every edge opposite an angle ≥ 90° — and
+//!    such splits cascade into edges several times shorter than requested, which would set
+//!    the explicit time step.
 //!
 //! Adjacency is kept as per-triangle neighbour arrays (O(1) updates per bisection or flip,
 //! no hashing or allocation per step); a directed-edge hash map is used only to (re)build
@@ -47,6 +48,25 @@ const LLOYD_ITERATIONS: usize = 40;
 const REPAIR_ROUNDS: usize = 10;
 /// Passes of (vertex removal, Lloyd, local moves) at most.
 const ACUTE_PASSES: usize = 3;
+
+/// Rings of neighbours around each pinned vertex that `Refiner::make_acute` relaxes. The
+/// snap moves a vertex by up to about half an edge, and with the 2 rings of the bisected
+/// zone's margin the distortion piles up at the fixed rim. Measured with
+/// `tests::pin_sweep` (seed 777, 392 random specs): 2 rings leave 9 surfaces with an angle
+/// above 85.5° and 2 above 90°, 6 rings 6 and 0, the same specs without pins 7 and 0.
+const PIN_RINGS: usize = 6;
+
+/// Radius, in units of the size at the pin, within which the relaxation density around a
+/// pin is flattened (the size field is read on that circle instead). A pin usually sits at
+/// the finest point of the size field (a patch centre), where the Lloyd density h⁻⁴
+/// peaks: a free vertex drifts off the peak, but a fixed one draws its neighbours in until
+/// it has only 4, whose angles then sum to just under 360° (the sphere's angle defect),
+/// ~90° each, which no vertex move makes acute. With the plateau the pins keep valence
+/// 5–7 like the vertices around them. `tests::pin_sweep` (seed 777) without the plateau:
+/// 17 surfaces above 85.5° and 3 above 90°; with it 6 and 0. Over its four seeds (1 519
+/// specs) pinned surfaces have 20 above 85.5° and 1 above 90°, the same specs without pins
+/// 39 and 2.
+const PIN_PLATEAU: f64 = 1.0;
 
 /// Mean edge of the frequency-n geodesic sphere of unit radius, times n (measured; the
 /// continuum estimate is √(4π/(5√3)) ≈ 1.2046; 1.203 within 0.3 % for n ≥ 5).
@@ -150,7 +170,30 @@ where
     let pinned = r.pin(pins)?;
     // Snapping distorts the pins' fans even where nothing was bisected.
     if r.pts.len() > base_vertices || !pins.is_empty() {
-        r.make_acute(&size, base_vertices, &pinned);
+        let np = r.pts.len();
+        let near_refined = r.dilate((0..np).map(|i| i >= base_vertices).collect(), 2);
+        let near_pins = r.dilate(pinned.clone(), PIN_RINGS);
+        let movable = (0..np)
+            .map(|i| (near_refined[i] || near_pins[i]) && !pinned[i])
+            .collect();
+        let plateaus: Vec<([f64; 3], f64)> = pins
+            .iter()
+            .map(|p| {
+                let centre = scale(p.direction, radius / norm(p.direction));
+                (centre, PIN_PLATEAU * size(centre))
+            })
+            .collect();
+        let relaxation_size = |x: [f64; 3]| {
+            let inside = plateaus.iter().find_map(|&(c, reach)| {
+                let d = norm(sub(x, c));
+                (d > 0.0 && d < reach).then(|| add(c, scale(sub(x, c), reach / d)))
+            });
+            match inside {
+                None => size(x),
+                Some(y) => size(scale(y, radius / norm(y))),
+            }
+        };
+        r.make_acute(&relaxation_size, movable, pinned);
     }
     Ok(SphereSurface {
         points: r.pts,
@@ -643,10 +686,11 @@ impl Refiner {
 
     /// Removes movable vertices of valence 3 or 4 (no two adjacent ones in one pass): their
     /// angles average ≥ 90°, so no smoothing can make their triangles acute. The hole is
-    /// re-triangulated from the ring (flips restore convexity afterwards), and the structure
-    /// is rebuilt with compacted vertex ids; `movable` is compacted alongside. Returns the
-    /// number of vertices removed.
-    fn remove_low_valence(&mut self, movable: &mut Vec<bool>) -> usize {
+    /// re-triangulated from the ring (flips restore convexity afterwards), never leaving a
+    /// `pinned` vertex (which cannot go itself) at valence 4, and the structure is rebuilt
+    /// with compacted vertex ids; `movable` and `pinned` are compacted alongside. Returns
+    /// the number of vertices removed.
+    fn remove_low_valence(&mut self, movable: &mut Vec<bool>, pinned: &mut Vec<bool>) -> usize {
         let np = self.pts.len();
         let mut valence = vec![0u32; np];
         let mut vt = vec![u32::MAX; np];
@@ -697,16 +741,30 @@ impl Refiner {
                 continue;
             }
             // Valence 4: split the quadrilateral along a diagonal that is not yet an edge;
-            // valence 3: the ring triangle must not duplicate one (closed tetrahedron).
+            // valence 3: the ring triangle must not duplicate one (closed tetrahedron). The
+            // ring vertices off the new diagonal lose an edge.
+            let drops_pin = |r: u32| pinned[r as usize] && valence[r as usize] <= 5;
             if ring.len() == 4 {
-                if edges.contains(&key(ring[0], ring[2])) {
-                    if edges.contains(&key(ring[1], ring[3])) {
+                let diagonal_ok = |a: u32, b: u32, off: [u32; 2]| {
+                    !edges.contains(&key(a, b)) && !off.iter().any(|&r| drops_pin(r))
+                };
+                if !diagonal_ok(ring[0], ring[2], [ring[1], ring[3]]) {
+                    if !diagonal_ok(ring[1], ring[3], [ring[0], ring[2]]) {
                         continue;
                     }
                     ring.rotate_left(1);
                 }
                 edges.insert(key(ring[0], ring[2]));
-            } else if ring.len() != 3 {
+                valence[ring[1] as usize] -= 1;
+                valence[ring[3] as usize] -= 1;
+            } else if ring.len() == 3 {
+                if ring.iter().any(|&r| drops_pin(r)) {
+                    continue;
+                }
+                for &r in &ring {
+                    valence[r as usize] -= 1;
+                }
+            } else {
                 continue;
             }
             removed[v] = true;
@@ -737,11 +795,13 @@ impl Refiner {
         let mut new_id = vec![u32::MAX; np];
         let mut pts = Vec::with_capacity(np - count);
         let mut mov = Vec::with_capacity(np - count);
+        let mut pin = Vec::with_capacity(np - count);
         for v in 0..np {
             if !removed[v] {
                 new_id[v] = pts.len() as u32;
                 pts.push(self.pts[v]);
                 mov.push(movable[v]);
+                pin.push(pinned[v]);
             }
         }
         let tri_v: Vec<[u32; 3]> = self
@@ -755,15 +815,17 @@ impl Refiner {
             .collect();
         *self = Self::from_triangles(self.radius, pts, &tri_v);
         *movable = mov;
+        *pinned = pin;
         self.flip_to_convex();
         count
     }
 
-    /// Makes a bisection-refined triangulation acute where it was refined: removes
-    /// valence-3/4 vertices, relaxes the refined zone (plus two rings of the base mesh) and
-    /// two rings around each pinned vertex by Lloyd iterations, and moves the vertices of any
-    /// remaining angle above `MAX_ANGLE_DEG`. Vertices with `pinned` set stay where they are
-    /// (and, not being movable, are never removed).
+    /// Makes a triangulation acute in the zone `movable` (the refined vertices plus two rings
+    /// of the base mesh, and `PIN_RINGS` rings around each pinned vertex): removes
+    /// valence-3/4 vertices, relaxes the zone by Lloyd iterations with density `size`⁻⁴,
+    /// gives pins left at valence 4 a fifth neighbour, and moves the vertices of any
+    /// remaining angle above `MAX_ANGLE_DEG`. Vertices outside the zone, and the `pinned`
+    /// ones, neither move nor go.
     /// TetGen treats every surface edge as a segment and splits any whose diametral ball
     /// holds a vertex, i.e. every edge opposite an angle ≥ 90°; such splits cascade through
     /// the neighbouring segments into edges many times shorter than requested, so the surface
@@ -771,28 +833,69 @@ impl Refiner {
     fn make_acute<F: Fn([f64; 3]) -> f64>(
         &mut self,
         size: &F,
-        first_new_vertex: usize,
-        pinned: &[bool],
+        mut movable: Vec<bool>,
+        mut pinned: Vec<bool>,
     ) -> usize {
-        let seed = (0..self.pts.len())
-            .map(|i| i >= first_new_vertex || pinned[i])
-            .collect();
-        let mut movable = self.dilate(seed, 2);
-        for (m, &p) in movable.iter_mut().zip(pinned) {
-            *m &= !p;
-        }
         for _ in 0..ACUTE_PASSES {
-            self.remove_low_valence(&mut movable);
+            self.remove_low_valence(&mut movable, &mut pinned);
             self.lloyd(size, LLOYD_ITERATIONS, &movable);
-            while self.remove_low_valence(&mut movable) > 0 {
+            while self.remove_low_valence(&mut movable, &mut pinned) > 0 {
                 self.lloyd(size, 5, &movable);
             }
+            self.raise_pinned_valence(&mut movable, &mut pinned);
             self.repair_obtuse(MAX_ANGLE_DEG, REPAIR_ROUNDS, &movable);
             if self.count_angles_above(MAX_ANGLE_DEG + 3.0) == 0 {
                 break;
             }
         }
         self.count_angles_above(90.0)
+    }
+
+    /// Gives every pinned vertex of valence 3–4 one more neighbour by bisecting the edge
+    /// opposite its largest angle: its angles sum to just under 360° (the sphere's angle
+    /// defect), so at valence 4 they are all ~90° however its neighbours move. The density
+    /// plateau (`PIN_PLATEAU`) makes this rare; the new vertex is movable. Returns the
+    /// number of bisections.
+    fn raise_pinned_valence(&mut self, movable: &mut Vec<bool>, pinned: &mut Vec<bool>) -> usize {
+        let mut count = 0;
+        for p in 0..self.pts.len() as u32 {
+            if !pinned[p as usize] {
+                continue;
+            }
+            let Some(start) = self.tris.iter().position(|t| t.v.contains(&p)) else {
+                continue;
+            };
+            let fan = self.fan(p, start as u32);
+            if fan.len() > 4 {
+                continue;
+            }
+            let x = self.pts[p as usize];
+            let (_, t, k) = fan
+                .iter()
+                .map(|&t| {
+                    let v = self.tris[t as usize].v;
+                    let k = v.iter().position(|&w| w == p).expect("fan");
+                    let e1 = sub(self.pts[v[(k + 1) % 3] as usize], x);
+                    let e2 = sub(self.pts[v[(k + 2) % 3] as usize], x);
+                    (dot(e1, e2) / (norm(e1) * norm(e2)), t, k)
+                })
+                .fold(
+                    (f64::INFINITY, 0, 0),
+                    |best, c| if c.0 < best.0 { c } else { best },
+                );
+            let u = self.tris[t as usize].n[k];
+            let j = self.tris[u as usize]
+                .n
+                .iter()
+                .position(|&w| w == t)
+                .expect("broken adjacency");
+            let (t2, u2) = self.bisect_pair(t, k, u, j);
+            movable.push(true);
+            pinned.push(false);
+            self.flip_from(&[t, t2, u, u2]);
+            count += 1;
+        }
+        count
     }
 
     /// Triangles around vertex `v` in fan order, starting at `start` (which contains `v`).
@@ -813,14 +916,16 @@ impl Refiner {
         }
     }
 
-    /// Moves, pin by pin, the vertex nearest to each pinned point exactly onto it and
-    /// restores convexity by flips; returns the mask of pinned vertices. The nearest vertex
-    /// owns the Voronoi cell holding the point, so it moves by about half the local edge at
-    /// most, but where one of its triangles is obtuse at it that cell reaches past the
-    /// opposite edge and the move would fold the triangle over: then the nearest vertex of
-    /// its ring whose fan stays outward is moved instead. Two pins whose nearest vertex is
-    /// the same would give one node to two points closer than an edge: an error naming the
-    /// second pin's field.
+    /// Moves, pin by pin, a vertex exactly onto each pinned point and restores convexity by
+    /// flips; returns the mask of pinned vertices. The vertex is the nearest one (it owns the
+    /// Voronoi cell holding the point, so it moves by about half the local edge at most)
+    /// unless it has valence 3–4 (a pinned vertex is never removed, and at valence 4 its
+    /// angles cannot all become acute, see `PIN_PLATEAU`) or the move would fold one of its
+    /// triangles over (where a triangle is obtuse at the vertex its cell reaches past the
+    /// opposite edge); then the nearest vertex of its ring that qualifies is moved instead,
+    /// or failing that the nearest whose fan at least stays outward. Two pins whose nearest
+    /// vertex is the same would give one node to two points closer than an edge: an error
+    /// naming the second pin's field.
     fn pin(&mut self, pins: &[Pin]) -> Result<Vec<bool>, MeshError> {
         let mut owner: Vec<Option<usize>> = vec![None; self.pts.len()];
         for (k, pin) in pins.iter().enumerate() {
@@ -869,10 +974,16 @@ impl Refiner {
                     .total_cmp(&dist2(self.pts[b as usize]))
                     .then(a.cmp(&b))
             });
-            let chosen = std::iter::once(nearest).chain(ring).find_map(|v| {
-                let fan = self.fan(v, first_tri[v as usize]);
-                self.fan_worst(&fan, v, target).map(|_| (v, fan))
-            });
+            let outward: Vec<(u32, Vec<u32>)> = std::iter::once(nearest)
+                .chain(ring)
+                .map(|v| (v, self.fan(v, first_tri[v as usize])))
+                .filter(|(v, fan)| self.fan_worst(fan, *v, target).is_some())
+                .collect();
+            let chosen = outward
+                .iter()
+                .find(|(_, fan)| fan.len() >= 5)
+                .or(outward.first())
+                .cloned();
             let Some((v, fan)) = chosen else {
                 return Err(MeshError::InvalidSpec {
                     field: pin.field.clone(),

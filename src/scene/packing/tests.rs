@@ -223,3 +223,70 @@ fn touching_spheres_at_zero_gap_pass_the_overlap_check() {
     let s = scene("[1, 1, 1]", "closed", 0.0);
     assert_eq!(s.grains.len(), 14);
 }
+
+/// Smallest distance between the surface nodes of two copies of `mesh` centred at `a`
+/// and `b`: an upper bound on the gap between the two convex meshes, 0 where they share
+/// a contact point.
+fn node_gap(mesh: &crate::mesh::TetMesh, surface: &[u32], a: [f64; 3], b: [f64; 3]) -> f64 {
+    let at = |c: [f64; 3], n: u32| {
+        let x = mesh.nodes[n as usize];
+        [c[0] + x[0], c[1] + x[1], c[2] + x[2]]
+    };
+    let mut gap = f64::INFINITY;
+    for &i in surface {
+        for &j in surface {
+            gap = gap.min(dist(at(a, i), at(b, j)));
+        }
+    }
+    gap
+}
+
+#[test]
+fn touching_spheres_start_in_contact_at_every_lattice_contact_and_wall() {
+    let s = scene("[1, 1, 1]", "closed", 0.0);
+    let ShapeSpec::Sphere(spec) = &s.grains[0].shape else {
+        panic!("not a sphere")
+    };
+    assert!(spec.refine.iter().all(|r| r.node));
+    let mesh = crate::mesh::mesh_sphere(spec).unwrap();
+    let surface = crate::mesh::extract_surface(&mesh).nodes;
+    let mut plain_spec = spec.clone();
+    plain_spec.refine.iter_mut().for_each(|r| r.node = false);
+    let plain = crate::mesh::mesh_sphere(&plain_spec).unwrap();
+    let plain_surface = crate::mesh::extract_surface(&plain).nodes;
+
+    // every neighbour pair of the cell, covering all 12 ⟨110⟩ directions
+    let g = &s.grains;
+    let mut directions = std::collections::BTreeSet::new();
+    let mut largest_plain_gap: f64 = 0.0;
+    for i in 0..g.len() {
+        for j in 0..g.len() {
+            let (a, b) = (g[i].centre, g[j].centre);
+            if i == j || (dist(a, b) - 2.0 * R).abs() > 1e-12 * R {
+                continue;
+            }
+            directions.insert([0, 1, 2].map(|k| ((b[k] - a[k]) / R).round() as i64));
+            let gap = node_gap(&mesh, &surface, a, b);
+            assert!(gap <= 1e-12 * R, "grains {i} and {j}: gap {gap} m");
+            largest_plain_gap = largest_plain_gap.max(node_gap(&plain, &plain_surface, a, b));
+        }
+    }
+    assert_eq!(directions.len(), 12, "{directions:?}");
+    // without contact nodes the meshes start apart by up to their faceting sag
+    assert!(largest_plain_gap > 1e-3 * R, "{largest_plain_gap}");
+
+    // walls at the lattice span ± R touch the outer spheres' axis nodes
+    let geo = &s.packing_geometry()[0];
+    for axis in 0..3 {
+        for (side, wall) in [(0, geo.bounds_min[axis]), (1, geo.bounds_max[axis])] {
+            let set = s.grain_set(&format!("fcc.{}", FACES[axis][side])).unwrap();
+            for gi in set {
+                let reach = surface
+                    .iter()
+                    .map(|&n| (g[gi].centre[axis] + mesh.nodes[n as usize][axis] - wall).abs())
+                    .fold(f64::INFINITY, f64::min);
+                assert!(reach <= 1e-12 * R, "grain {gi}: {reach} m from its wall");
+            }
+        }
+    }
+}
