@@ -3,7 +3,7 @@
 //! (the last stage ending on failure, else the last stage). Sampled at history rows, so
 //! the opening time is known to one history interval.
 
-use super::history::FABRIC_COLUMNS;
+use super::history::{FABRIC_COLUMNS, INTERNAL, KINETIC};
 use crate::contact::fabric::{merge_pairs, pair_partials, PairContact, PairPartial};
 use crate::domain::Domain;
 use crate::solver::Solver;
@@ -29,6 +29,8 @@ pub struct ContactWatch {
     /// Pairs touching at the first row of the watched stage, by (a, b).
     touching: Option<Vec<(u32, u32)>>,
     pub first_opening: Option<GapOpening>,
+    /// Largest ALLKE/ALLIE seen at the history rows of each stage (quasi-static check).
+    pub max_kinetic_ratio: Vec<f64>,
 }
 
 impl ContactWatch {
@@ -73,6 +75,18 @@ impl ContactWatch {
         row[at] = pairs.len() as f64;
         row[at + 1] = pairs.iter().filter(|p| p.sliding).count() as f64;
         self.watch(solver, &pairs, row[0]);
+    }
+
+    /// Records ALLKE/ALLIE of a reduced history row against the stage in force.
+    pub fn observe_reduced(&mut self, solver: &Solver, row: &[f64]) {
+        let stage = solver.state.stages.index;
+        if self.max_kinetic_ratio.len() <= stage {
+            self.max_kinetic_ratio.resize(stage + 1, 0.0);
+        }
+        if row[INTERNAL] > 0.0 {
+            let r = &mut self.max_kinetic_ratio[stage];
+            *r = r.max(row[KINETIC] / row[INTERNAL]);
+        }
     }
 
     fn watch(&mut self, solver: &Solver, pairs: &[PairContact], time: f64) {

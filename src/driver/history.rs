@@ -416,7 +416,9 @@ pub fn reduce_row(domain: &Domain, kinds: &[Reduce], row: &mut [f64]) {
     derive_indices(row);
 }
 
-/// Positions of the energy columns the indices are made of (see [`history_columns`]).
+/// Positions of energy columns (see [`history_columns`]).
+pub const KINETIC: usize = 2;
+pub const INTERNAL: usize = 5;
 const RECOVERABLE: usize = 4;
 const PLASTIC: usize = 6;
 const FRICTION: usize = 7;

@@ -22,6 +22,7 @@ pub mod output;
 pub mod progress;
 pub mod rank;
 pub mod summary;
+pub mod triaxial_plot;
 
 use crate::domain::halo::Halo;
 use crate::domain::Domain;
@@ -78,6 +79,8 @@ pub struct RunSummary {
     pub contacts_now: usize,
     /// First gap opening between grains touching when the watched stage began (rank 0).
     pub first_opening: Option<contact_watch::GapOpening>,
+    /// Largest ALLKE/ALLIE at the history rows of each stage.
+    pub max_kinetic_ratio: Vec<f64>,
 }
 
 /// Runs a scene to its duration (or `max_steps`) and writes the results: serially, or
@@ -244,7 +247,7 @@ impl Run<'_, '_> {
         wall0: Instant,
     ) -> Result<RunSummary> {
         let solver = &self.solver;
-        let first_opening = output.close(solver, failure.is_some(), &opts.out)?;
+        let watched = output.close(solver, failure.is_some(), &opts.out)?;
         let domain = self.domain;
         let energy = history::global_ledger(domain, &solver.state.energy);
         let stats = &solver.state.contact.stats;
@@ -273,7 +276,8 @@ impl Run<'_, '_> {
             contact_share: solver.timers.share(Stage::Contact),
             rebuilds: now[1] as u64,
             contacts_now: now[0] as usize,
-            first_opening,
+            first_opening: watched.first_opening,
+            max_kinetic_ratio: watched.max_kinetic_ratio,
         })
     }
 }

@@ -1,8 +1,9 @@
 //! The output of a run: `DIR/results.h5` (mesh, history rows, frames) and
 //! `DIR/energy.png`, on the schedule the scene's `[output]` sets.
 
-use super::contact_watch::{ContactWatch, GapOpening};
+use super::contact_watch::ContactWatch;
 use super::energy_plot::EnergyPlot;
+use super::triaxial_plot::TriaxialPlot;
 use super::frames::write_frame;
 use super::history::{history_columns, history_reductions, history_row, reduce_row, Reduce};
 use super::RunOptions;
@@ -37,6 +38,8 @@ pub struct Output<'a, 'd> {
     flush_interval: f64,
     /// Grain-pair contact counts and the failure watch (rank 0).
     contacts: ContactWatch,
+    /// `DIR/stress_ratio.png` of a staged cell.
+    triaxial_plot: Option<TriaxialPlot>,
 }
 
 impl<'a, 'd> Output<'a, 'd> {
@@ -65,7 +68,8 @@ impl<'a, 'd> Output<'a, 'd> {
             global,
             &solver.state.partition.owner,
         )?;
-        writer.define_history(&history_columns(solver))?;
+        let columns = history_columns(solver);
+        writer.define_history(&columns)?;
 
         let scene = &loaded.scene;
         let dt = solver.model.dt;
@@ -92,6 +96,7 @@ impl<'a, 'd> Output<'a, 'd> {
             last_flush: Instant::now(),
             flush_interval: scene.output.flush_interval,
             contacts: ContactWatch::new(solver),
+            triaxial_plot: TriaxialPlot::new(solver, &columns),
         };
         if output.frames {
             output.write_frame(solver)?;
@@ -120,13 +125,8 @@ impl<'a, 'd> Output<'a, 'd> {
     /// Writes what a finished (or failed) run leaves: a last history row when the loop
     /// wrote none for this state, the last frame, then closes the file and draws
     /// `DIR/energy.png`. All ranks must call.
-    /// Returns the first gap opening the contact watch saw (rank 0).
-    pub fn close(
-        mut self,
-        solver: &Solver,
-        failed: bool,
-        dir: &Path,
-    ) -> Result<Option<GapOpening>> {
+    /// Returns what the contact watch saw (gap opening on rank 0; kinetic ratios).
+    pub fn close(mut self, solver: &Solver, failed: bool, dir: &Path) -> Result<ContactWatch> {
         // Keep what was computed up to a failure: history and a last frame help diagnose it.
         if failed || solver.state.step == 0 {
             self.push_history_row(solver)?;
@@ -137,8 +137,11 @@ impl<'a, 'd> Output<'a, 'd> {
         self.writer.close()?;
         if self.domain.is_root() {
             self.energy_plot.draw(&dir.join("energy.png"))?;
+            if let Some(p) = &self.triaxial_plot {
+                p.draw(&dir.join("stress_ratio.png"))?;
+            }
         }
-        Ok(self.contacts.first_opening)
+        Ok(self.contacts)
     }
 
     /// Flushes the buffered history rows once `flush_interval` seconds of wall time have
@@ -158,6 +161,10 @@ impl<'a, 'd> Output<'a, 'd> {
         history_row(solver, &mut self.row);
         self.contacts.fill_row(self.domain, solver, &mut self.row);
         reduce_row(self.domain, &self.reductions, &mut self.row);
+        self.contacts.observe_reduced(solver, &self.row);
+        if let Some(p) = &mut self.triaxial_plot {
+            p.push(&self.row);
+        }
         self.writer.push_history(&self.row)?;
         self.energy_plot.push(&self.row);
         Ok(())

@@ -173,8 +173,9 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
     );
     let stages = &solver.state.stages;
     if solver.model.stages.as_ref().is_some_and(|p| p.staged) {
-        for r in &stages.done {
-            println!("{}", describe_stage(r));
+        for (i, r) in stages.done.iter().enumerate() {
+            let ke = summary.max_kinetic_ratio.get(i).copied().unwrap_or(0.0);
+            println!("{}; max ALLKE/ALLIE {ke:.2e}", describe_stage(r));
         }
         if let Some(g) = summary.first_opening {
             println!(
