@@ -44,6 +44,14 @@ pub enum Command {
         /// or needs more than a billion steps.
         #[arg(long)]
         force: bool,
+        /// Write a checkpoint into OUT/checkpoints/ every N steps (replaces the scene's
+        /// output.checkpoint_every).
+        #[arg(long, value_name = "N")]
+        checkpoint_every: Option<u64>,
+        /// Continue from a checkpoint (OUT/checkpoints/step_N.h5) written for this scene
+        /// with the same --set values and rank count; OUT/results.h5 is continued.
+        #[arg(long, value_name = "CHECKPOINT")]
+        restart: Option<PathBuf>,
     },
     /// Validate a scene without running: grains, elements, nodes, stable Δt, mass scaling, memory.
     Check {
@@ -411,7 +419,17 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             max_steps,
             quiet,
             force,
+            checkpoint_every,
+            restart,
         } => {
+            if checkpoint_every == Some(0) {
+                return Err(InputError::new(
+                    "<command line>",
+                    "--checkpoint-every",
+                    "must be ≥ 1 step",
+                )
+                .into());
+            }
             if threads == Some(0) {
                 return Err(InputError::new("<command line>", "--threads", "must be ≥ 1").into());
             }
@@ -447,6 +465,8 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     max_steps,
                     quiet,
                     force,
+                    checkpoint_every,
+                    restart,
                 },
             )
             .map(|_| ())

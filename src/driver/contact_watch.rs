@@ -77,9 +77,9 @@ impl ContactWatch {
         self.watch(solver, &pairs, row[0]);
     }
 
-    /// Records ALLKE/ALLIE of a reduced history row against the stage in force.
-    pub fn observe_reduced(&mut self, solver: &Solver, row: &[f64]) {
-        let stage = solver.state.stages.index;
+    /// Records ALLKE/ALLIE of a reduced history row against `stage` (0-based), the
+    /// stage in force when the row was written.
+    pub fn observe_reduced(&mut self, stage: usize, row: &[f64]) {
         if self.max_kinetic_ratio.len() <= stage {
             self.max_kinetic_ratio.resize(stage + 1, 0.0);
         }

@@ -12,6 +12,7 @@
 //! `State`. MPI is reached only through [`crate::domain::Domain`].
 
 pub mod balance;
+pub mod checkpoints;
 pub mod contact_watch;
 pub mod energy_plot;
 pub mod frames;
@@ -53,12 +54,18 @@ pub struct RunOptions {
     pub quiet: bool,
     /// Run even when the step count exceeds the scale guard's limit.
     pub force: bool,
+    /// Write a checkpoint every this many steps (replaces `output.checkpoint_every`).
+    pub checkpoint_every: Option<u64>,
+    /// Continue from this checkpoint.
+    pub restart: Option<PathBuf>,
 }
 
 /// What a finished run reports.
 #[derive(Debug, Clone)]
 pub struct RunSummary {
     pub steps: u64,
+    /// Steps taken by this run (fewer than `steps` after a restart).
+    pub steps_run: u64,
     pub time: f64,
     pub dt: f64,
     pub wall_s: f64,
@@ -88,9 +95,37 @@ pub struct RunSummary {
 pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<RunSummary> {
     let wall0 = Instant::now();
     let global = GlobalMesh::build(loaded)?;
-    let owner = partition_grains(domain, loaded, &global)?;
-    let (solver, plan, halo_plan) =
-        build_rank_solver(domain, loaded, &global, &owner, &global.bounds)?;
+    let restart = (opts.restart.as_deref())
+        .map(|p| checkpoints::load_restart(domain, loaded, p))
+        .transpose()?;
+    // a restart continues with the grains where the checkpoint had them
+    let (owner, bounds) = match &restart {
+        Some(r) => {
+            let p = &r.state.partition;
+            let bounds = if p.planned_bounds.is_empty() {
+                global.bounds.clone()
+            } else {
+                p.planned_bounds.clone()
+            };
+            (p.owner.clone(), bounds)
+        }
+        None => (
+            partition_grains(domain, loaded, &global)?,
+            global.bounds.clone(),
+        ),
+    };
+    let (mut solver, plan, halo_plan) =
+        build_rank_solver(domain, loaded, &global, &owner, &bounds)?;
+    let restarted = restart.is_some();
+    if let Some(r) = restart {
+        solver.restore(r.state)?;
+        if domain.is_root() && !opts.quiet {
+            println!(
+                "restart from step {} (t = {:.6e} s)",
+                r.info.step, r.info.time
+            );
+        }
+    }
     let mut run = Run {
         domain,
         loaded,
@@ -101,7 +136,11 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         },
         solver,
         talk: domain.is_root() && !opts.quiet,
+        out: opts.out.clone(),
+        checkpoint_every: opts.checkpoint_every,
+        first_step: 0,
     };
+    run.first_step = run.solver.state.step;
     let total_steps = step_count(loaded, run.solver.model.dt, opts)?;
     let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     if run.talk {
@@ -116,7 +155,12 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
             );
         }
     }
-    let mut output = Output::open(domain, loaded, opts, &global, &run.solver)?;
+    if restarted {
+        // the ghosts' values in flight when the checkpoint was written
+        let s = &run.solver.state;
+        run.hooks.halo.begin(&s.x, &s.v)?;
+    }
+    let mut output = Output::open(domain, loaded, opts, &global, &run.solver, restarted)?;
     let failure = run.advance_to(last_step, &mut output)?;
     let summary = run.finish(output, failure, opts, wall0)?;
     if run.talk {
@@ -156,6 +200,11 @@ struct Run<'a, 'd> {
     solver: Solver,
     /// This rank prints progress and summaries.
     talk: bool,
+    /// Output directory (checkpoints go into its `checkpoints/`).
+    out: PathBuf,
+    checkpoint_every: Option<u64>,
+    /// The step the run started from (0, or the checkpoint's).
+    first_step: u64,
 }
 
 impl Run<'_, '_> {
@@ -166,6 +215,8 @@ impl Run<'_, '_> {
         let mut progress = Progress::new(self.talk, "run");
         let check_interval = self.loaded.scene.parallel.check_interval;
         let mut reported_stages = self.solver.state.stages.done.len();
+        let mut checkpoints =
+            checkpoints::CheckpointSchedule::new(self.loaded, self.checkpoint_every);
         while self.solver.state.step < last_step && !self.solver.state.stages.finished {
             if let Err(e) = self.solver.step_with(&mut self.hooks) {
                 if self.domain.size() > 1 {
@@ -178,6 +229,7 @@ impl Run<'_, '_> {
             let t_out = Instant::now();
             let last = n == last_step || self.solver.state.stages.finished;
             output.after_step(&self.solver, last)?;
+            checkpoints.after_step(self.domain, &self.out, self.loaded, &self.solver)?;
             self.solver.timers.add(Stage::Output, t_out.elapsed());
             match self.solver.model.stages.as_ref().filter(|p| p.staged) {
                 Some(plan) => {
@@ -263,13 +315,14 @@ impl Run<'_, '_> {
         }
         Ok(RunSummary {
             steps: solver.state.step,
+            steps_run: solver.state.step - self.first_step,
             time: solver.state.time,
             dt: solver.model.dt,
             wall_s: wall0.elapsed().as_secs_f64(),
             elements: solver.model.num_elements(),
             nodes: solver.model.num_nodes(),
             energy,
-            timing_table: solver.timers.table(solver.state.step),
+            timing_table: solver.timers.table(solver.state.step - self.first_step),
             results: opts.out.join(crate::io::results::RESULTS_FILE_NAME),
             max_contacts: maxima[1] as usize,
             max_penetration: maxima[0],

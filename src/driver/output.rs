@@ -3,9 +3,9 @@
 
 use super::contact_watch::ContactWatch;
 use super::energy_plot::EnergyPlot;
-use super::triaxial_plot::TriaxialPlot;
 use super::frames::write_frame;
 use super::history::{history_columns, history_reductions, history_row, reduce_row, Reduce};
+use super::triaxial_plot::TriaxialPlot;
 use super::RunOptions;
 use crate::domain::Domain;
 use crate::error::{MufeError, Result};
@@ -44,13 +44,16 @@ pub struct Output<'a, 'd> {
 
 impl<'a, 'd> Output<'a, 'd> {
     /// Creates the output directory and `results.h5` with `/scene`, `/provenance`,
-    /// `/mesh`, the history columns and the first frame. All ranks must call.
+    /// `/mesh`, the history columns and the first frame; after a restart (`restarted`,
+    /// the solver holding the checkpoint's state) an existing `results.h5` is reopened
+    /// and continued instead. All ranks must call.
     pub fn open(
         domain: &'d Domain,
         loaded: &LoadedScene,
         opts: &RunOptions,
         global: &'a GlobalMesh,
         solver: &Solver,
+        restarted: bool,
     ) -> Result<Self> {
         std::fs::create_dir_all(&opts.out).map_err(|e| {
             MufeError::Io(format!(
@@ -59,17 +62,32 @@ impl<'a, 'd> Output<'a, 'd> {
             ))
         })?;
         let results = opts.out.join(RESULTS_FILE_NAME);
-        let provenance = Provenance::collect(domain, opts.threads);
-        let mut writer = ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
-        write_mesh(
-            &mut writer,
-            domain,
-            loaded,
-            global,
-            &solver.state.partition.owner,
-        )?;
         let columns = history_columns(solver);
-        writer.define_history(&columns)?;
+        let resumed = if restarted && results.is_file() {
+            let s = &solver.state;
+            Some(ResultsWriter::resume(
+                domain, &results, &columns, s.step, s.time,
+            )?)
+        } else {
+            None
+        };
+        let (writer, kept_rows, kept_frames) = match resumed {
+            Some(r) => (r.writer, r.rows, r.frames),
+            None => {
+                let provenance = Provenance::collect(domain, opts.threads);
+                let mut writer =
+                    ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
+                write_mesh(
+                    &mut writer,
+                    domain,
+                    loaded,
+                    global,
+                    &solver.state.partition.owner,
+                )?;
+                writer.define_history(&columns)?;
+                (writer, Vec::new(), Vec::new())
+            }
+        };
 
         let scene = &loaded.scene;
         let dt = solver.model.dt;
@@ -88,8 +106,8 @@ impl<'a, 'd> Output<'a, 'd> {
                 .frame_interval
                 .map(|f| ((f / dt).round() as u64).max(1)),
             frames: scene.output.frames,
-            frame_index: 0,
-            frame_times: Vec::new(),
+            frame_index: kept_frames.iter().map(|f| f.0 + 1).max().unwrap_or(0),
+            frame_times: kept_frames,
             dir: opts.out.clone(),
             energy_plot: EnergyPlot::default(),
             row: Vec::new(),
@@ -98,7 +116,17 @@ impl<'a, 'd> Output<'a, 'd> {
             contacts: ContactWatch::new(solver),
             triaxial_plot: TriaxialPlot::new(solver, &columns),
         };
-        if output.frames {
+        // the plots cover the whole run: the rows before a restart come from the file
+        let stage_column = columns.iter().position(|c| c.name == "stage");
+        for row in &kept_rows {
+            let stage = stage_column.map_or(0, |k| (row[k] as usize).saturating_sub(1));
+            output.contacts.observe_reduced(stage, row);
+            output.energy_plot.push(row);
+            if let Some(p) = &mut output.triaxial_plot {
+                p.push(row);
+            }
+        }
+        if output.frames && output.frame_times.is_empty() {
             output.write_frame(solver)?;
         }
         Ok(output)
@@ -161,7 +189,8 @@ impl<'a, 'd> Output<'a, 'd> {
         history_row(solver, &mut self.row);
         self.contacts.fill_row(self.domain, solver, &mut self.row);
         reduce_row(self.domain, &self.reductions, &mut self.row);
-        self.contacts.observe_reduced(solver, &self.row);
+        self.contacts
+            .observe_reduced(solver.state.stages.index, &self.row);
         if let Some(p) = &mut self.triaxial_plot {
             p.push(&self.row);
         }

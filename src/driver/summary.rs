@@ -169,7 +169,8 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
         summary.steps,
         summary.time,
         summary.wall_s,
-        summary.elements as f64 * summary.steps as f64 / solver.timers.total_seconds().max(1e-9)
+        summary.elements as f64 * summary.steps_run as f64
+            / solver.timers.total_seconds().max(1e-9)
     );
     let stages = &solver.state.stages;
     if solver.model.stages.as_ref().is_some_and(|p| p.staged) {

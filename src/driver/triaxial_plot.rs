@@ -54,8 +54,16 @@ impl TriaxialPlot {
         if self.points.is_empty() {
             return Ok(());
         }
-        let lo = self.points.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
-        let hi = self.points.iter().map(|p| p.0).fold(f64::NEG_INFINITY, f64::max);
+        let lo = self
+            .points
+            .iter()
+            .map(|p| p.0)
+            .fold(f64::INFINITY, f64::min);
+        let hi = self
+            .points
+            .iter()
+            .map(|p| p.0)
+            .fold(f64::NEG_INFINITY, f64::max);
         let mu = self.friction;
         let thornton = 2.0 * (1.0 + mu) / (1.0 - mu);
         let line = |label: String, y: f64| Series {
@@ -64,7 +72,10 @@ impl TriaxialPlot {
             theory: true,
         };
         let series = vec![
-            line(format!("Thornton 2(1+μ)/(1−μ) = {thornton:.3} (μ = {mu})"), thornton),
+            line(
+                format!("Thornton 2(1+μ)/(1−μ) = {thornton:.3} (μ = {mu})"),
+                thornton,
+            ),
             line("frictionless FCC: 2".into(), 2.0),
             Series {
                 label: "mufe: σ1/σ3 on the lattice span".into(),

@@ -34,7 +34,7 @@ use hdf5_sys::h5s::{
 use hdf5_sys::h5t::{
     H5Tclose, H5Tcopy, H5Tget_class, H5Tget_size, H5Tis_variable_str, H5Tset_cset, H5Tset_size,
     H5Tset_strpad, H5T_CSET_UTF8, H5T_C_S1, H5T_NATIVE_DOUBLE, H5T_NATIVE_UINT32,
-    H5T_NATIVE_UINT64, H5T_STRING, H5T_STR_NULLPAD,
+    H5T_NATIVE_UINT64, H5T_NATIVE_UINT8, H5T_STRING, H5T_STR_NULLPAD,
 };
 
 // Not declared by hdf5-sys: reports how the last transfer with this dxpl was performed
@@ -90,6 +90,13 @@ mod sealed {
     impl Sealed for f64 {}
     impl Sealed for u32 {}
     impl Sealed for u64 {}
+    impl Sealed for u8 {}
+}
+
+impl Element for u8 {
+    fn native_type() -> hid_t {
+        *H5T_NATIVE_UINT8
+    }
 }
 
 impl Element for f64 {

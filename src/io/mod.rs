@@ -5,6 +5,7 @@
 //! MPI itself stays in [`crate::domain`]; this module only hands the Domain's communicator
 //! to HDF5's MPI-IO driver and relies on the Domain's collectives to keep ranks in step.
 
+pub mod checkpoint;
 pub mod collective;
 pub mod plot;
 pub mod provenance;

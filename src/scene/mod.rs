@@ -362,6 +362,15 @@ pub struct OutputSpec {
     /// (default 5): a run that is killed keeps its history up to the last flush.
     #[serde(default = "default_flush_interval")]
     pub flush_interval: f64,
+    /// Write a checkpoint (`DIR/checkpoints/step_N.h5`) every this many steps.
+    #[serde(default)]
+    pub checkpoint_every: Option<u64>,
+    /// Write a checkpoint every this many seconds of wall time (s).
+    #[serde(default)]
+    pub checkpoint_interval: Option<f64>,
+    /// Checkpoints kept (the newest; default 2).
+    #[serde(default = "default_checkpoints_kept")]
+    pub checkpoints_kept: usize,
 }
 
 impl Default for OutputSpec {
@@ -371,8 +380,15 @@ impl Default for OutputSpec {
             frame_interval: None,
             frames: true,
             flush_interval: default_flush_interval(),
+            checkpoint_every: None,
+            checkpoint_interval: None,
+            checkpoints_kept: default_checkpoints_kept(),
         }
     }
+}
+
+fn default_checkpoints_kept() -> usize {
+    2
 }
 
 fn default_flush_interval() -> f64 {

@@ -232,6 +232,15 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
         return Err(c.err("parallel.check_interval", "must be ≥ 1 step"));
     }
     let o = &scene.output;
+    if o.checkpoint_every == Some(0) {
+        return Err(c.err("output.checkpoint_every", "must be ≥ 1 step"));
+    }
+    if let Some(t) = o.checkpoint_interval {
+        c.positive("output.checkpoint_interval", t)?;
+    }
+    if o.checkpoints_kept == 0 {
+        return Err(c.err("output.checkpoints_kept", "must be ≥ 1"));
+    }
     if let Some(h) = o.history_interval {
         c.positive("output.history_interval", h)?;
     }

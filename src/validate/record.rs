@@ -71,8 +71,10 @@ impl<'a, 'd> CaseOutput<'a, 'd> {
                     max_steps: None,
                     quiet: true,
                     force: true,
+                    checkpoint_every: None,
+                    restart: None,
                 };
-                let out = Output::open(r.domain, loaded, &opts, global, solver)?;
+                let out = Output::open(r.domain, loaded, &opts, global, solver, false)?;
                 Some((out, opts.out))
             }
             _ => None,

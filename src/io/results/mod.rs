@@ -664,14 +664,14 @@ impl<'d> ResultsWriter<'d> {
     }
 }
 
-fn io_error(path: &Path, what: &str, e: impl Display) -> MufeError {
+pub(crate) fn io_error(path: &Path, what: &str, e: impl Display) -> MufeError {
     MufeError::Io(format!("{}: {what}: {e}", path.display()))
 }
 
 /// Turns rank-local outcomes into one outcome on every rank: `Err` everywhere if any rank
 /// failed (a rank's own message where it failed, "failed on rank R" elsewhere), so that no
 /// rank goes on into a collective the others have abandoned. All ranks must call.
-fn agree(
+pub(crate) fn agree(
     domain: &Domain,
     path: &Path,
     what: &str,
@@ -724,7 +724,7 @@ fn new_fixed<T: hdf5::H5Type>(
 }
 
 /// A scalar variable-length UTF-8 string attribute (reads as `str` in h5py).
-fn put_str_attr(loc: &Location, name: &str, value: &str) -> hdf5::Result<()> {
+pub(crate) fn put_str_attr(loc: &Location, name: &str, value: &str) -> hdf5::Result<()> {
     // VarLenUnicode cannot hold NUL; replace it rather than fail on odd input.
     let value: VarLenUnicode = value
         .replace('\0', "\u{FFFD}")
@@ -735,17 +735,20 @@ fn put_str_attr(loc: &Location, name: &str, value: &str) -> hdf5::Result<()> {
         .write_scalar(&value)
 }
 
-fn put_u64_attr(loc: &Location, name: &str, value: u64) -> hdf5::Result<()> {
+pub(crate) fn put_u64_attr(loc: &Location, name: &str, value: u64) -> hdf5::Result<()> {
     loc.new_attr::<u64>().create(name)?.write_scalar(&value)
 }
 
 /// FNV-1a: a stable (process- and platform-independent) hash for comparing metadata
 /// across ranks.
-fn fnv1a(bytes: &[u8]) -> u64 {
+pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
         (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
     })
 }
+
+mod resume;
+pub use resume::Resumed;
 
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,244 @@
+//! Checkpoint and restart (issue 13, item 3) on `jobs/tests/two_spheres_stages.toml`:
+//! - a run stopped after a checkpoint and restarted from it continues `results.h5`
+//!   bitwise as the uninterrupted run wrote it (history, frames), serially and on 2 ranks
+//!   (each rank its own hyperslab of the checkpoint);
+//! - only the newest `output.checkpoints_kept` files remain, no temporary file is left,
+//!   and the file states its format, step, time and rank count;
+//! - a checkpoint of another format version, another rank count or another scene, or
+//!   one whose checksum fails, is refused with exit 2 and one line naming the file and
+//!   what is wrong.
+
+#[path = "common/mpi_launch.rs"]
+mod mpi_launch;
+#[path = "common/results.rs"]
+mod results;
+
+use results::history;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::Duration;
+
+const SCENE: &str = "jobs/tests/two_spheres_stages.toml";
+
+fn scene() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(SCENE)
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("mufe_ckpt_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn mufe(ranks: usize, args: &[&str]) -> Output {
+    let mut all = vec!["run", "--threads", "1", "--quiet"];
+    all.extend_from_slice(args);
+    mpi_launch::run_under_mpirun(
+        ranks,
+        Path::new(env!("CARGO_BIN_EXE_mufe")),
+        &all,
+        &[],
+        Duration::from_secs(120),
+    )
+}
+
+fn frames(path: &Path) -> Vec<(String, Vec<f64>)> {
+    let f = hdf5::File::open(path).unwrap();
+    let g = f.group("frames").unwrap();
+    let mut names = g.member_names().unwrap();
+    names.sort();
+    let mut out = Vec::new();
+    for n in names {
+        for field in ["displacement", "velocity", "stress", "grain_rotation"] {
+            let v = g
+                .dataset(&format!("{n}/{field}"))
+                .unwrap()
+                .read_raw::<f64>()
+                .unwrap();
+            out.push((format!("{n}/{field}"), v));
+        }
+    }
+    out
+}
+
+fn restart_continues_bitwise(ranks: usize) {
+    let s = scene();
+    let whole = dir(&format!("whole{ranks}"));
+    let o = mufe(ranks, &[&s, "--out", whole.to_str().unwrap()]);
+    mpi_launch::assert_success(&o);
+
+    // stopped at step 11000 with checkpoints every 4000 steps: 4000, 8000 written, the
+    // newest 2 kept; restarted from 8000 (in stage 2) it must rewrite steps 8001…11000
+    // exactly as before and go on as the whole run did
+    let part = dir(&format!("part{ranks}"));
+    let out = part.to_str().unwrap();
+    let o = mufe(
+        ranks,
+        &[
+            &s,
+            "--out",
+            out,
+            "--checkpoint-every",
+            "4000",
+            "--max-steps",
+            "11000",
+        ],
+    );
+    mpi_launch::assert_success(&o);
+    let ckpt = part.join("checkpoints");
+    let mut files: Vec<String> = std::fs::read_dir(&ckpt)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(
+        files,
+        ["step_000000004000.h5", "step_000000008000.h5"],
+        "kept files"
+    );
+    let f = hdf5::File::open(ckpt.join(&files[1])).unwrap();
+    let attr = |n: &str| f.attr(n).unwrap().read_scalar::<u64>().unwrap();
+    assert_eq!(
+        (attr("format_version"), attr("step"), attr("ranks")),
+        (1, 8000, ranks as u64)
+    );
+    drop(f);
+
+    let from = ckpt.join(&files[1]);
+    let o = mufe(
+        ranks,
+        &[&s, "--out", out, "--restart", from.to_str().unwrap()],
+    );
+    mpi_launch::assert_success(&o);
+
+    let (a, b) = (
+        history(&whole.join("results.h5")),
+        history(&part.join("results.h5")),
+    );
+    assert_eq!(a.len(), b.len());
+    for ((name, x), (_, y)) in a.iter().zip(&b) {
+        assert_eq!(x.len(), y.len(), "/history/{name}: rows");
+        for (i, (p, q)) in x.iter().zip(y).enumerate() {
+            assert!(
+                p.to_bits() == q.to_bits(),
+                "/history/{name}[{i}]: restarted {q:e}, whole {p:e}"
+            );
+        }
+    }
+    let (fa, fb) = (
+        frames(&whole.join("results.h5")),
+        frames(&part.join("results.h5")),
+    );
+    assert_eq!(fa.len(), fb.len(), "frames");
+    for ((name, x), (_, y)) in fa.iter().zip(&fb) {
+        assert!(x == y, "/frames/{name} differs after the restart");
+    }
+    let _ = std::fs::remove_dir_all(whole);
+    let _ = std::fs::remove_dir_all(part);
+}
+
+#[test]
+fn a_restarted_serial_run_continues_bitwise() {
+    restart_continues_bitwise(1);
+}
+
+#[test]
+fn a_restarted_two_rank_run_continues_bitwise() {
+    restart_continues_bitwise(2);
+}
+
+#[test]
+fn foreign_checkpoints_are_refused_with_one_line() {
+    let s = scene();
+    let d = dir("refuse");
+    let out = d.to_str().unwrap();
+    let o = mufe(
+        1,
+        &[
+            &s,
+            "--out",
+            out,
+            "--checkpoint-every",
+            "3000",
+            "--max-steps",
+            "3000",
+        ],
+    );
+    mpi_launch::assert_success(&o);
+    let ckpt = d.join("checkpoints/step_000000003000.h5");
+    let refused = |o: &Output, what: &str| {
+        let err = String::from_utf8_lossy(&o.stderr);
+        let line = err
+            .lines()
+            .find(|l| l.contains("error"))
+            .unwrap_or_default();
+        assert!(
+            !o.status.success() && line.contains(ckpt.to_str().unwrap()) && line.contains(what),
+            "expected a refusal naming {what}:\n{err}"
+        );
+        assert_eq!(o.status.code(), Some(2), "{err}");
+    };
+    // another rank count
+    let o = mufe(2, &[&s, "--out", out, "--restart", ckpt.to_str().unwrap()]);
+    refused(&o, "ranks");
+    // another scene (a --set value changes the scene as run)
+    let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
+        .args([
+            "run",
+            &s,
+            "--quiet",
+            "--out",
+            out,
+            "--restart",
+            ckpt.to_str().unwrap(),
+        ])
+        .args(["--set", "contact.friction=0.5"])
+        .output()
+        .unwrap();
+    refused(&o, "scene");
+    // a damaged state (one byte changed)
+    {
+        let f = hdf5::File::open_rw(&ckpt).unwrap();
+        let ds = f.dataset("state").unwrap();
+        let byte = ds.read_slice_1d::<u8, _>(100..101).unwrap()[0];
+        ds.write_slice(&[byte ^ 0x01], 100..101).unwrap();
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
+        .args([
+            "run",
+            &s,
+            "--quiet",
+            "--out",
+            out,
+            "--restart",
+            ckpt.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    refused(&o, "damaged");
+    // another format version
+    {
+        let f = hdf5::File::open_rw(&ckpt).unwrap();
+        f.attr("format_version")
+            .unwrap()
+            .write_scalar(&99u64)
+            .unwrap();
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
+        .args([
+            "run",
+            &s,
+            "--quiet",
+            "--out",
+            out,
+            "--restart",
+            ckpt.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    refused(&o, "format");
+    let _ = std::fs::remove_dir_all(d);
+}
