@@ -272,7 +272,8 @@ fn pinned_points_are_vertices_of_an_acute_convex_surface() {
         })
     };
     let uniform = |_: [f64; 3]| 0.15;
-    let cases: [(f64, &dyn Fn([f64; 3]) -> f64); 2] = [(coarse, &patched), (0.15, &uniform)];
+    type Sizing<'a> = &'a dyn Fn([f64; 3]) -> f64;
+    let cases: [(f64, Sizing); 2] = [(coarse, &patched), (0.15, &uniform)];
     for (base, size) in cases {
         let unpinned = triangulate_sphere(1.0, base, size, &[], "seeding").unwrap();
         let s = triangulate_sphere(1.0, base, size, &pins, "seeding").unwrap();
