@@ -242,3 +242,39 @@ fn foreign_checkpoints_are_refused_with_one_line() {
     refused(&o, "format");
     let _ = std::fs::remove_dir_all(d);
 }
+
+#[test]
+fn a_wall_time_interval_writes_checkpoints_and_keeps_the_newest() {
+    // an interval far below a step's wall time: a checkpoint after every step
+    let s = scene();
+    let d = dir("interval");
+    let o = mufe(
+        1,
+        &[
+            &s,
+            "--out",
+            d.to_str().unwrap(),
+            "--max-steps",
+            "5",
+            "--set",
+            "output.checkpoint_interval=1e-9",
+            "--set",
+            "output.checkpoints_kept=3",
+        ],
+    );
+    mpi_launch::assert_success(&o);
+    let mut files: Vec<String> = std::fs::read_dir(d.join("checkpoints"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(
+        files,
+        [
+            "step_000000000003.h5",
+            "step_000000000004.h5",
+            "step_000000000005.h5"
+        ]
+    );
+    let _ = std::fs::remove_dir_all(d);
+}

@@ -227,6 +227,7 @@ pub fn sphere_estimate(s: &SphereMeshSpec) -> Option<ShapeEstimate> {
     let mut min_size = h;
     let mut driver_patch = None;
     let mut largest_patch = 0.0;
+    let (element_overlap, triangle_overlap) = patch_overlap(s);
     for (k, p) in s.refine.iter().enumerate() {
         let (sr, r, g) = (p.seeding, p.radius, p.growth);
         min_size = min_size.min(sr);
@@ -247,9 +248,9 @@ pub fn sphere_estimate(s: &SphereMeshSpec) -> Option<ShapeEstimate> {
             + integrate(r_in, d_max, |d| shell(d) * vol_density(d));
         let dt = integrate(0.0, r_in, |d| 2.0 * PI * d * area_density(d))
             + integrate(r_in, d_max, |d| 2.0 * PI * d * area_density(d));
-        let de = PATCH_ELEMENT_FACTOR * de;
+        let de = PATCH_ELEMENT_FACTOR * de * element_overlap;
         elements += de.max(0.0);
-        triangles += dt.max(0.0);
+        triangles += dt.max(0.0) * triangle_overlap;
         if de > largest_patch {
             largest_patch = de;
             if de > 0.5 * elements {
@@ -271,6 +272,78 @@ pub fn sphere_estimate(s: &SphereMeshSpec) -> Option<ShapeEstimate> {
         driver,
         driver_patch,
     })
+}
+
+/// Share of the patches' summed excess (elements, surface triangles) that remains when
+/// they overlap: the excess of their combined size field (the smallest size wins, as in
+/// the mesher) over the sum of each one's alone, both by the same quadrature (shells ×
+/// Fibonacci directions in the ball, Fibonacci points on the surface). 1 for a single
+/// patch or patches far apart.
+fn patch_overlap(s: &SphereMeshSpec) -> (f64, f64) {
+    const DIRECTIONS: usize = 600;
+    const SHELLS: usize = 48;
+    if s.refine.len() < 2 {
+        return (1.0, 1.0);
+    }
+    let big_r = s.radius;
+    let h = s.seeding;
+    let centres: Vec<[f64; 3]> = s
+        .refine
+        .iter()
+        .map(|p| {
+            let l = p.direction.iter().map(|c| c * c).sum::<f64>().sqrt();
+            p.direction.map(|c| big_r * c / l)
+        })
+        .collect();
+    let size_of = |k: usize, x: [f64; 3]| {
+        let p = &s.refine[k];
+        let d = (0..3)
+            .map(|i| (x[i] - centres[k][i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        (p.seeding + p.growth * (d - p.radius).max(0.0)).min(h)
+    };
+    let golden = PI * (3.0 - 5f64.sqrt());
+    let direction = |j: usize, n: usize| {
+        let z = 1.0 - 2.0 * (j as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let phi = golden * j as f64;
+        [r * phi.cos(), r * phi.sin(), z]
+    };
+    let (mut comb_v, mut sum_v, mut comb_a, mut sum_a) = (0.0, 0.0, 0.0, 0.0);
+    let base_v = 1.0 / regular_tet_volume(h);
+    let base_a = 1.0 / triangle_area(BISECTED_EDGE * h);
+    for j in 0..DIRECTIONS {
+        let u = direction(j, DIRECTIONS);
+        for shell in 0..SHELLS {
+            let r = big_r * (shell as f64 + 0.5) / SHELLS as f64;
+            let x = u.map(|c| c * r);
+            let w = r * r; // ∝ volume of the sample (4π r² Δr / DIRECTIONS)
+            let mut smallest = h;
+            for k in 0..centres.len() {
+                let hk = size_of(k, x);
+                smallest = smallest.min(hk);
+                sum_v += w * (1.0 / regular_tet_volume(hk) - base_v);
+            }
+            comb_v += w * (1.0 / regular_tet_volume(smallest) - base_v);
+        }
+        let x = u.map(|c| c * big_r);
+        let mut smallest = h;
+        for k in 0..centres.len() {
+            let hk = size_of(k, x);
+            smallest = smallest.min(hk);
+            sum_a += 1.0 / triangle_area(BISECTED_EDGE * hk) - base_a;
+        }
+        comb_a += 1.0 / triangle_area(BISECTED_EDGE * smallest) - base_a;
+    }
+    let share = |comb: f64, sum: f64| {
+        if sum > 0.0 {
+            (comb / sum).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    };
+    (share(comb_v, sum_v), share(comb_a, sum_a))
 }
 
 /// Exact counts of a block mesh. `None` on overflow.
@@ -504,6 +577,31 @@ mod tests {
         assert_eq!(e.nodes, 5 * 4 * 3);
         assert!(block_estimate([1.0; 3], [usize::MAX, 2, 2]).is_none());
         assert!(block_estimate([1.0; 3], [1 << 30, 1 << 30, 1 << 30]).is_none());
+    }
+
+    #[test]
+    fn overlapping_patches_are_not_counted_twice() {
+        let one =
+            SphereMeshSpec::uniform(1.1e-3, 3.0e-4).with_refinement([0.0, 0.0, 1.0], 1e-4, 0.0);
+        let twice = one.clone().with_refinement([0.0, 0.0, 1.0], 1e-4, 0.0);
+        let (a, b) = (
+            sphere_estimate(&one).unwrap(),
+            sphere_estimate(&twice).unwrap(),
+        );
+        let rel = |x: u64, y: u64| (x as f64 / y as f64 - 1.0).abs();
+        assert!(
+            rel(b.elements, a.elements) < 0.02,
+            "{} vs {}",
+            b.elements,
+            a.elements
+        );
+        assert!(rel(b.surface_triangles, a.surface_triangles) < 0.02);
+        // far apart (opposite poles), each counts in full
+        let apart = one.clone().with_refinement([0.0, 0.0, -1.0], 1e-4, 0.0);
+        let c = sphere_estimate(&apart).unwrap();
+        let base = sphere_estimate(&SphereMeshSpec::uniform(1.1e-3, 3.0e-4)).unwrap();
+        let excess = |e: &ShapeEstimate| e.elements as f64 - base.elements as f64;
+        assert!((excess(&c) / (2.0 * excess(&a)) - 1.0).abs() < 0.02);
     }
 
     #[test]
