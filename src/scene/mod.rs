@@ -2,6 +2,7 @@
 //! overrides applied to the TOML tree before typing (so they get the same validation),
 //! and semantic checks that name the offending field. SI units throughout.
 
+mod checker;
 pub mod estimate;
 mod overrides;
 pub mod packing;

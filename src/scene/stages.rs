@@ -16,7 +16,7 @@
 //! Walls not listed in a stage are fixed. The run ends when the last stage ends (or at
 //! `simulation.duration`, whichever comes first).
 
-use super::validate::{validate_servo, Checker};
+use super::checker::{validate_servo, Checker};
 use super::{normal_axis, Scene, ServoSpec};
 use crate::error::{echo, InputError};
 use serde::{Deserialize, Serialize};
