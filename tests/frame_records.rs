@@ -113,7 +113,7 @@ fn frames_carry_grain_and_contact_records() {
     // /history: one grain pair in contact exactly while there are contact points
     let points = read(&f, "history/contacts");
     let pairs = read(&f, "history/grain_pair_contacts");
-    assert!(pairs.iter().any(|&p| p == 1.0));
+    assert!(pairs.contains(&1.0));
     for (p, c) in pairs.iter().zip(&points) {
         assert_eq!(*p, if *c > 0.0 { 1.0 } else { 0.0 });
     }

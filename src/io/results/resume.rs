@@ -8,6 +8,9 @@ use crate::error::MufeError;
 use hdf5::File;
 use std::path::Path;
 
+/// The history datasets, their values and how many rows to keep.
+type HistoryRead = (Vec<hdf5::Dataset>, Vec<Vec<f64>>, usize);
+
 /// What a reopened file already holds.
 pub struct Resumed<'d> {
     pub writer: ResultsWriter<'d>,
@@ -42,7 +45,7 @@ impl<'d> ResultsWriter<'d> {
         )?;
         let file = opened.map_err(|e| io_error(path, "reopening results file", e))?;
 
-        let read = (|| -> Result<(Vec<hdf5::Dataset>, Vec<Vec<f64>>, usize), String> {
+        let read = (|| -> Result<HistoryRead, String> {
             let group = file
                 .group("history")
                 .map_err(|e| format!("/history: {e}"))?;
