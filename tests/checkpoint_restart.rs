@@ -184,20 +184,23 @@ fn foreign_checkpoints_are_refused_with_one_line() {
     // another rank count
     let o = mufe(2, &[&s, "--out", out, "--restart", ckpt.to_str().unwrap()]);
     refused(&o, "ranks");
+    let restart_serially = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_mufe"))
+            .args([
+                "run",
+                &s,
+                "--quiet",
+                "--out",
+                out,
+                "--restart",
+                ckpt.to_str().unwrap(),
+            ])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
     // another scene (a --set value changes the scene as run)
-    let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
-        .args([
-            "run",
-            &s,
-            "--quiet",
-            "--out",
-            out,
-            "--restart",
-            ckpt.to_str().unwrap(),
-        ])
-        .args(["--set", "contact.friction=0.5"])
-        .output()
-        .unwrap();
+    let o = restart_serially(&["--set", "contact.friction=0.5"]);
     refused(&o, "scene");
     // a damaged state (one byte changed)
     {
@@ -206,18 +209,7 @@ fn foreign_checkpoints_are_refused_with_one_line() {
         let byte = ds.read_slice_1d::<u8, _>(100..101).unwrap()[0];
         ds.write_slice(&[byte ^ 0x01], 100..101).unwrap();
     }
-    let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
-        .args([
-            "run",
-            &s,
-            "--quiet",
-            "--out",
-            out,
-            "--restart",
-            ckpt.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let o = restart_serially(&[]);
     refused(&o, "damaged");
     // another format version
     {
@@ -227,18 +219,7 @@ fn foreign_checkpoints_are_refused_with_one_line() {
             .write_scalar(&99u64)
             .unwrap();
     }
-    let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
-        .args([
-            "run",
-            &s,
-            "--quiet",
-            "--out",
-            out,
-            "--restart",
-            ckpt.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let o = restart_serially(&[]);
     refused(&o, "format");
     let _ = std::fs::remove_dir_all(d);
 }

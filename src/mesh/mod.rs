@@ -26,7 +26,9 @@ pub mod surface_refine;
 mod tetgen;
 
 pub use quality::{quality, tet_dihedral_angles, tet_volume, validate, QualityReport};
-pub use sphere::{mesh_sphere, GradedBand, LocalRefinement, SphereMeshSpec};
+pub use sphere::{
+    fcc_contact_directions, mesh_sphere, GradedBand, LocalRefinement, SphereMeshSpec,
+};
 pub use surface::{extract_surface, facet_normals, surface_node_geometry, SurfaceNodeGeometry};
 
 /// A linear tetrahedral (tet4) mesh of one grain. Every tet is positively oriented:

@@ -336,6 +336,29 @@ impl SphereMeshSpec {
     }
 }
 
+/// The 12 ⟨110⟩ directions (an FCC sphere's nearest neighbours, cube axes along x, y, z),
+/// then with `axes` the 6 ⟨100⟩ ones (where walls normal to the cube axes touch it).
+pub fn fcc_contact_directions(axes: bool) -> Vec<[f64; 3]> {
+    let mut dirs = Vec::with_capacity(18);
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        for (sa, sb) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+            let mut d = [0.0; 3];
+            (d[a], d[b]) = (sa, sb);
+            dirs.push(d);
+        }
+    }
+    if axes {
+        for k in 0..3 {
+            for sign in [1.0, -1.0] {
+                let mut d = [0.0; 3];
+                d[k] = sign;
+                dirs.push(d);
+            }
+        }
+    }
+    dirs
+}
+
 /// Meshes the sphere described by `spec` (validated first). Deterministic: the same spec
 /// gives a bitwise identical mesh. Tets are positively oriented and pass [`validate`].
 /// See the module documentation for the method.
@@ -840,21 +863,7 @@ mod tests {
     #[test]
     fn node_patches_put_a_surface_node_exactly_at_their_centres() {
         // The FCC cell's sphere: patches at the 12 ⟨110⟩ contacts and the 6 ⟨100⟩ wall points.
-        let mut dirs: Vec<[f64; 3]> = Vec::new();
-        for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-            for (sa, sb) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
-                let mut d = [0.0; 3];
-                (d[a], d[b]) = (sa, sb);
-                dirs.push(d);
-            }
-        }
-        for k in 0..3 {
-            for sign in [1.0, -1.0] {
-                let mut d = [0.0; 3];
-                d[k] = sign;
-                dirs.push(d);
-            }
-        }
+        let dirs = fcc_contact_directions(true);
         let (plain, pinned) = dirs.iter().fold(
             (
                 SphereMeshSpec::uniform(R, 4.5e-4),

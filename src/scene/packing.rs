@@ -176,24 +176,7 @@ impl PackingSpec {
         let s = &self.sphere;
         let mut refine = Vec::new();
         if let Some(seeding) = s.contact_seeding {
-            let mut dirs = Vec::new();
-            for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-                for (sa, sb) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
-                    let mut d = [0.0; 3];
-                    (d[a], d[b]) = (sa, sb);
-                    dirs.push(d);
-                }
-            }
-            if s.axis_patches {
-                for k in 0..3 {
-                    for sign in [1.0, -1.0] {
-                        let mut d = [0.0; 3];
-                        d[k] = sign;
-                        dirs.push(d);
-                    }
-                }
-            }
-            refine = dirs
+            refine = crate::mesh::fcc_contact_directions(s.axis_patches)
                 .into_iter()
                 .map(|direction| LocalRefinement {
                     direction,

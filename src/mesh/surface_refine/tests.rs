@@ -227,22 +227,7 @@ fn too_many_triangles_is_an_error() {
 
 /// The 12 ⟨110⟩ and 6 ⟨100⟩ directions (an FCC sphere's contacts and wall points).
 fn lattice_directions() -> Vec<[f64; 3]> {
-    let mut dirs = Vec::new();
-    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-        for (sa, sb) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
-            let mut d = [0.0; 3];
-            (d[a], d[b]) = (sa, sb);
-            dirs.push(d);
-        }
-    }
-    for k in 0..3 {
-        for sign in [1.0, -1.0] {
-            let mut d = [0.0; 3];
-            d[k] = sign;
-            dirs.push(d);
-        }
-    }
-    dirs
+    crate::mesh::fcc_contact_directions(true)
 }
 
 fn distance_to_nearest_vertex(s: &SphereSurface, x: [f64; 3]) -> f64 {
