@@ -17,7 +17,7 @@ mod mpi_launch;
 #[path = "common/results.rs"]
 mod results;
 
-use results::history;
+use results::{column, history};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -46,13 +46,6 @@ fn run(ranks: usize, name: &str) -> (PathBuf, String) {
     );
     mpi_launch::assert_success(&o);
     (out, String::from_utf8_lossy(&o.stdout).into_owned())
-}
-
-fn column<'a>(h: &'a [(String, Vec<f64>)], name: &str) -> &'a [f64] {
-    &h.iter()
-        .find(|(n, _)| n == name)
-        .unwrap_or_else(|| panic!("no /history/{name}"))
-        .1
 }
 
 #[test]

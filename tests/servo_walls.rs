@@ -13,7 +13,7 @@ mod mpi_launch;
 #[path = "common/results.rs"]
 mod results;
 
-use results::history;
+use results::{column, history};
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -34,13 +34,6 @@ fn out_dir(name: &str) -> PathBuf {
         .join(name);
     let _ = std::fs::remove_dir_all(&d);
     d
-}
-
-fn column<'a>(h: &'a [(String, Vec<f64>)], name: &str) -> &'a [f64] {
-    &h.iter()
-        .find(|(n, _)| n == name)
-        .unwrap_or_else(|| panic!("/history/{name} missing"))
-        .1
 }
 
 #[test]

@@ -16,3 +16,11 @@ pub fn history(path: &Path) -> Vec<(String, Vec<f64>)> {
         .map(|n| (n.clone(), g.dataset(&n).unwrap().read_raw::<f64>().unwrap()))
         .collect()
 }
+
+/// The series `name` of a [`history`] (panics naming it when missing).
+pub fn column<'a>(h: &'a [(String, Vec<f64>)], name: &str) -> &'a [f64] {
+    &h.iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| panic!("/history/{name} missing"))
+        .1
+}
