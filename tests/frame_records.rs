@@ -77,6 +77,23 @@ fn frames_carry_grain_and_contact_records() {
     }
     assert!(rot.iter().all(|r| r.abs() < 1e-12), "{rot:?}");
 
+    // nodes of grain a (grain 0): those of its elements
+    let tets = f
+        .dataset("mesh/tetrahedra")
+        .unwrap()
+        .read_raw::<u64>()
+        .unwrap();
+    let grain_of = f
+        .dataset("mesh/grain_of_element")
+        .unwrap()
+        .read_raw::<u32>()
+        .unwrap();
+    let mut of_a = std::collections::BTreeSet::new();
+    for (t, g) in tets.chunks_exact(4).zip(&grain_of) {
+        if *g == 0 {
+            of_a.extend(t.iter().map(|&n| n as usize));
+        }
+    }
     let mut seen = 0;
     for name in &frames {
         let g = |what: &str| read(&f, &format!("frames/{name}/{what}"));
@@ -104,6 +121,24 @@ fn frames_carry_grain_and_contact_records() {
             "Fn {fn_}, Ft {ft}"
         );
         assert!((point[2] - 0.5 * (centre_a[2] + centre_b[2])).abs() < 0.1 * RADIUS);
+        // the nodal contact forces: they cancel over both grains (action and reaction),
+        // and grain a's add up to the pair record's force on a, −Fn n + tangential
+        let nodal = g("contact_force");
+        let total: Vec<f64> = (0..3)
+            .map(|k| nodal.iter().skip(k).step_by(3).sum())
+            .collect();
+        assert!(
+            total.iter().all(|c| c.abs() < 1e-9 * fn_),
+            "Σ f = {total:?}"
+        );
+        let on_a: Vec<f64> = (0..3)
+            .map(|k| of_a.iter().map(|&node| nodal[3 * node + k]).sum())
+            .collect();
+        let along = (0..3).map(|k| on_a[k] * n[k]).sum::<f64>();
+        assert!(
+            (along + fn_).abs() < 1e-9 * fn_,
+            "nodal {along} vs pair −{fn_}"
+        );
         // mid-impact the stress is dynamic; compressive along the normal all the same
         let s = g("grain_stress");
         assert!(s[2] < 0.0, "σ̄_zz {} Pa", s[2]);

@@ -74,8 +74,9 @@ fn every_path_shape_and_type_resolves_in_results_h5() {
     }
 
     let items = hdf_items(&text);
-    // topology, geometry, 2 node vectors, 6 stress slabs, 3 element scalars, grain
-    assert_eq!(items.len(), 14 * frames.len());
+    // topology, geometry, 3 node vectors (displacement, velocity, contact force), 6 stress
+    // slabs, 3 element scalars, grain
+    assert_eq!(items.len(), 15 * frames.len());
     for (dims, kind, precision, reference) in &items {
         let (file, path) = reference.split_once(':').unwrap();
         assert_eq!(file, "results.h5");

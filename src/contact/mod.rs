@@ -432,22 +432,39 @@ pub fn add_forces(
         if !r.active {
             continue;
         }
+        add_point_force(r, force);
         let f = r.force;
-        let s = r.slave as usize;
-        for i in 0..3 {
-            force[s][i] += f[i];
-        }
-        for (k, &m) in r.masters.iter().enumerate() {
-            let w = r.weights[k];
-            let m = m as usize;
-            for i in 0..3 {
-                force[m][i] -= w * f[i];
-            }
-        }
         let pass = lists.passes[e.pass as usize];
         for i in 0..3 {
             gf[pass.slave as usize][i] += f[i];
             gf[pass.master as usize][i] -= f[i];
+        }
+    }
+}
+
+/// The grain–grain contact force of every node from the last [`evaluate`] (N), into
+/// `force` (zeroed first; one entry per model node): what [`add_forces`] adds, for output.
+pub fn contact_forces_into(scratch: &ContactScratch, force: &mut [[f64; 3]]) {
+    force.iter_mut().for_each(|f| *f = [0.0; 3]);
+    for r in scratch.results.iter().filter(|r| r.active) {
+        add_point_force(r, force);
+    }
+}
+
+/// A contact point's force on its slave node and, weighted, the reaction on the master
+/// facet's corners.
+#[inline]
+fn add_point_force(r: &PointResult, force: &mut [[f64; 3]]) {
+    let f = r.force;
+    let s = r.slave as usize;
+    for i in 0..3 {
+        force[s][i] += f[i];
+    }
+    for (k, &m) in r.masters.iter().enumerate() {
+        let w = r.weights[k];
+        let m = m as usize;
+        for i in 0..3 {
+            force[m][i] -= w * f[i];
         }
     }
 }

@@ -63,12 +63,16 @@ pub fn write_frame(
         .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
         .collect();
     let vel: Vec<f64> = solver.state.v[..nn].iter().flatten().copied().collect();
+    let mut contact = vec![[0.0; 3]; m.num_nodes()];
+    crate::contact::contact_forces_into(&solver.scratch.contact, &mut contact);
+    let contact: Vec<f64> = contact[..nn].iter().flatten().copied().collect();
     let fields = element_fields(solver);
     let gather = |local: &[f64], offsets: &[usize], k: usize| {
         gather_rows(domain, owner, offsets, local, k).unwrap_or_default()
     };
     let disp = gather(&disp, &global.node_offset, 3);
     let vel = gather(&vel, &global.node_offset, 3);
+    let contact = gather(&contact, &global.node_offset, 3);
     let stress = gather(&fields.stress[..6 * ne], &global.element_offset, 6);
     let vm = gather(&fields.von_mises[..ne], &global.element_offset, 1);
     let eqps = gather(
@@ -103,6 +107,14 @@ pub fn write_frame(
             units: "m/s",
             components: 3,
             data: &vel,
+            offset: 0,
+            total: n,
+        },
+        FieldPart {
+            name: "contact_force",
+            units: "N",
+            components: 3,
+            data: &contact,
             offset: 0,
             total: n,
         },

@@ -8,7 +8,8 @@
 //! `displacement` to see the deformed grains. The stress is stored in `results.h5` as
 //! (xx, yy, zz, yz, xz, xy), which is not XDMF's Tensor6 order (xx, xy, xz, yy, yz, zz),
 //! so it is described as six scalar components (`stress_xx`, …) taken by hyperslab.
-//! `owner_rank` is the MPI rank that advanced each element at that frame.
+//! `owner_rank` is the MPI rank that advanced each element at that frame; `contact_force`
+//! the grain–grain contact force on each (surface) node.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -52,7 +53,11 @@ pub fn xdmf_text(layout: &XdmfLayout) -> String {
             "    <Geometry GeometryType=\"XYZ\">\n{}    </Geometry>",
             hdf_item(&format!("{n} 3"), "Float", 8, h5, "/mesh/nodes", 5)
         );
-        for (name, kind) in [("displacement", "Vector"), ("velocity", "Vector")] {
+        for (name, kind) in [
+            ("displacement", "Vector"),
+            ("velocity", "Vector"),
+            ("contact_force", "Vector"),
+        ] {
             attribute(
                 &mut s,
                 name,
@@ -156,7 +161,8 @@ mod tests {
             text.contains("0 5 1 1 7 1"),
             "hyperslab of the 6th stress component"
         );
-        assert_eq!(text.matches("<Attribute").count(), 2 * 12);
+        // per frame: 3 node vectors, 6 stress components, 3 element scalars, grain id
+        assert_eq!(text.matches("<Attribute").count(), 2 * 13);
         assert!(text.trim_end().ends_with("</Xdmf>"));
     }
 }
