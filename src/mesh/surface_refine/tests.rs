@@ -303,75 +303,75 @@ fn two_pins_on_one_vertex_are_an_error_naming_the_second() {
     }
 }
 
-/// The sweep behind `PIN_RINGS` and `PIN_PLATEAU`: random specs (1–18 pins, base size
-/// 0.05–0.45, patch size 0.2–1 × base, growth 0.1–0.6, pins at least 4 patch sizes apart)
-/// triangulated with and without their pins; prints, per seed, how many surfaces have an
-/// angle above 85.5°, 88° and 90°. Run with `--ignored --nocapture`.
+/// The sweep behind `PIN_RINGS` and `PIN_PLATEAU`, on random specs (1–18 pins, base size
+/// 0.05–0.45, patch size 0.2–1 × base, growth 0.1–0.6, pins at least 4 patch sizes apart),
+/// each triangulated with and without its pins: pins never make the surface worse than
+/// the unpinned one at 90° (the angle above which TetGen splits surface edges), and no pin
+/// is left at valence 3 or 4 (whose angles average ≥ 90°, so no relaxation can make them
+/// acute). On 1 519 specs (4 seeds) the counts above 90° were 1 pinned against 2 unpinned.
 #[test]
-#[ignore]
-fn pin_sweep() {
-    for seed in [777u64, 12345, 4242, 99] {
-        let mut state = seed;
-        let mut rnd = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
+fn pins_leave_surfaces_acute_and_pins_at_valence_five_or_more() {
+    let mut state = 777u64;
+    let mut rnd = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (mut cases, mut pinned_over, mut plain_over) = (0, 0, 0);
+    for _ in 0..600 {
+        let np = 1 + (rnd() * 18.0) as usize;
+        let dirs: Vec<[f64; 3]> = (0..np)
+            .map(|_| [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5])
+            .collect();
+        let coarse = 0.05 + 0.4 * rnd();
+        let fine = coarse * (0.2 + 0.8 * rnd());
+        let growth = 0.1 + 0.5 * rnd();
+        let unit: Vec<[f64; 3]> = dirs.iter().map(|d| scale(*d, 1.0 / norm(*d))).collect();
+        let too_close = (0..np).any(|i| (0..i).any(|j| norm(sub(unit[i], unit[j])) < 4.0 * fine));
+        if too_close {
+            continue;
+        }
+        let size = |x: [f64; 3]| {
+            unit.iter()
+                .fold(coarse, |h: f64, u| h.min(fine + growth * norm(sub(x, *u))))
         };
-        let limits = [85.5, 88.0, 90.0];
-        let (mut cases, mut pinned_over, mut plain_over) = (0, [0usize; 3], [0usize; 3]);
-        let mut pin_valences = [0usize; 9];
-        for _ in 0..1200 {
-            let np = 1 + (rnd() * 18.0) as usize;
-            let dirs: Vec<[f64; 3]> = (0..np)
-                .map(|_| [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5])
-                .collect();
-            let coarse = 0.05 + 0.4 * rnd();
-            let fine = coarse * (0.2 + 0.8 * rnd());
-            let growth = 0.1 + 0.5 * rnd();
-            let unit: Vec<[f64; 3]> = dirs.iter().map(|d| scale(*d, 1.0 / norm(*d))).collect();
-            let too_close =
-                (0..np).any(|i| (0..i).any(|j| norm(sub(unit[i], unit[j])) < 4.0 * fine));
-            if too_close {
-                continue;
-            }
-            let size = |x: [f64; 3]| {
-                unit.iter()
-                    .fold(coarse, |h: f64, u| h.min(fine + growth * norm(sub(x, *u))))
-            };
-            let pins: Vec<Pin> = dirs
-                .iter()
-                .enumerate()
-                .map(|(i, &direction)| Pin {
-                    direction,
-                    field: format!("pin {i}"),
-                })
-                .collect();
-            let plain = triangulate_sphere(1.0, coarse, size, &[], "seeding").unwrap();
-            let s = triangulate_sphere(1.0, coarse, size, &pins, "seeding").unwrap();
-            check_closed_outward(&s);
-            cases += 1;
-            for (k, lim) in limits.iter().enumerate() {
-                pinned_over[k] += usize::from(max_angle_deg(&s) > *lim);
-                plain_over[k] += usize::from(max_angle_deg(&plain) > *lim);
-            }
-            let mut valence = vec![0usize; s.points.len()];
-            for t in &s.triangles {
-                for &v in t {
-                    valence[v as usize] += 1;
-                }
-            }
-            for u in &unit {
-                let v = s
-                    .points
-                    .iter()
-                    .position(|p| p == u)
-                    .expect("pin is a vertex");
-                pin_valences[valence[v].min(8)] += 1;
+        let pins: Vec<Pin> = dirs
+            .iter()
+            .enumerate()
+            .map(|(i, &direction)| Pin {
+                direction,
+                field: format!("pin {i}"),
+            })
+            .collect();
+        let plain = triangulate_sphere(1.0, coarse, size, &[], "seeding").unwrap();
+        let s = triangulate_sphere(1.0, coarse, size, &pins, "seeding").unwrap();
+        check_closed_outward(&s);
+        cases += 1;
+        pinned_over += usize::from(max_angle_deg(&s) > 90.0);
+        plain_over += usize::from(max_angle_deg(&plain) > 90.0);
+        let mut valence = vec![0usize; s.points.len()];
+        for t in &s.triangles {
+            for &v in t {
+                valence[v as usize] += 1;
             }
         }
-        eprintln!(
-            "seed {seed}: {cases} specs; surfaces with an angle above {limits:?}°: pinned {pinned_over:?}, without pins {plain_over:?}; pin valences (count by valence 0–8) {pin_valences:?}"
-        );
+        for u in &unit {
+            let v = s
+                .points
+                .iter()
+                .position(|p| p == u)
+                .expect("pin is a vertex");
+            assert!(
+                valence[v] >= 5,
+                "a pin at valence {} ({np} pins)",
+                valence[v]
+            );
+        }
     }
+    assert!(cases > 100, "{cases} specs");
+    assert!(
+        pinned_over <= plain_over,
+        "{pinned_over} pinned surfaces above 90° against {plain_over} unpinned of {cases}"
+    );
 }
