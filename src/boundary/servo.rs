@@ -192,16 +192,6 @@ impl ServoControl {
         }
         s.move_on(dt, speed.clamp(-self.max_speed, self.max_speed));
     }
-
-    /// Filtered normal stress F̄/A (Pa).
-    pub fn stress(&self, s: &ServoState) -> f64 {
-        s.filtered_force / self.area
-    }
-
-    /// Relative error (F̄ − F*)/F* (–).
-    pub fn stress_error(&self, s: &ServoState) -> f64 {
-        (s.filtered_force - self.target_force) / self.target_force
-    }
 }
 
 /// Hertz estimate of the stiffness a wall sees at the target stress (N/m): see the module

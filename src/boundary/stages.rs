@@ -9,6 +9,7 @@
 //! decisions at the same step without further communication.
 
 use super::servo::{servo_control, ServoControl, ServoState};
+use crate::scene::packing::PackingSpec;
 use crate::scene::stages::{wall_pairs, StageSpec, WallModeSpec};
 use crate::scene::{normal_axis, Scene};
 use serde::{Deserialize, Serialize};
@@ -84,7 +85,10 @@ pub struct StagePlan {
 /// Cell measurements at one step (stresses compression positive, Pa; strains –).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct CellMeasure {
-    /// Mean normal force of each axis' two walls over the lattice-span area.
+    /// Lattice-span area across each axis: the product of the other two axes' wall
+    /// distances less 2R (m²); the wall-to-wall area without a packing.
+    pub area: [f64; 3],
+    /// Mean normal force of each axis' two walls over `area`.
     pub stress: [f64; 3],
     /// The same over the wall-to-wall area.
     pub stress_wall_to_wall: [f64; 3],
@@ -184,7 +188,7 @@ impl StagePlan {
                 let pairs = [x, y, z];
                 Some(Cell {
                     pairs,
-                    radius: cell_radius(scene),
+                    radius: cell_packing(scene).map(|p| p.sphere.radius),
                     distance0: [0, 1, 2].map(|k| walls[pairs[k].1].0[k] - walls[pairs[k].0].0[k]),
                 })
             }
@@ -284,7 +288,8 @@ impl StagePlan {
         let lattice = distance.map(|d| d - 2.0 * c.radius.unwrap_or(0.0));
         let force = [0, 1, 2].map(|k| 0.5 * (f[c.pairs[k].0] + f[c.pairs[k].1]));
         let across = |l: &[f64; 3], k: usize| l[(k + 1) % 3] * l[(k + 2) % 3];
-        let stress = [0, 1, 2].map(|k| force[k] / across(&lattice, k));
+        let area = [0, 1, 2].map(|k| across(&lattice, k));
+        let stress = [0, 1, 2].map(|k| force[k] / area[k]);
         let stress_wall_to_wall = [0, 1, 2].map(|k| force[k] / across(&distance, k));
         let a = self.axial;
         let ratio_of = |s: &[f64; 3]| {
@@ -296,6 +301,7 @@ impl StagePlan {
             }
         };
         Some(CellMeasure {
+            area,
             stress,
             stress_wall_to_wall,
             distance,
@@ -309,22 +315,15 @@ impl StagePlan {
 
     /// Target force (N) of servo wall `w` in mode `mode` with the cell as measured.
     pub fn target_force(&self, w: usize, mode: &WallMode, m: Option<&CellMeasure>) -> f64 {
-        match (mode, m, &self.cell) {
+        match (mode, m) {
             (
                 WallMode::Servo {
                     control,
                     lattice_area: true,
                 },
                 Some(m),
-                Some(c),
-            ) => {
-                let k = normal_axis(self.walls[w].1).unwrap_or(2);
-                let r2 = 2.0 * c.radius.unwrap_or(0.0);
-                control.target_stress
-                    * (m.distance[(k + 1) % 3] - r2)
-                    * (m.distance[(k + 2) % 3] - r2)
-            }
-            (WallMode::Servo { control, .. }, _, _) => control.target_force,
+            ) => control.target_stress * m.area[normal_axis(self.walls[w].1).unwrap_or(2)],
+            (WallMode::Servo { control, .. }, _) => control.target_force,
             _ => 0.0,
         }
     }
@@ -365,10 +364,7 @@ impl StagePlan {
         if p.finished {
             return;
         }
-        let axial = measure.map(|m| {
-            let k = self.axial;
-            (1.0 - m.distance[k] / p.distance_at_start[k], m.ratio)
-        });
+        let axial = measure.map(|m| (self.stage_axial_strain(p, &m), m.ratio));
         let until = &stage.until;
         let mut end = None;
         if let Some((_, hold)) = until.stress_held {
@@ -427,6 +423,11 @@ impl StagePlan {
         }
     }
 
+    /// Nominal axial strain since the current stage began (compression positive).
+    pub fn stage_axial_strain(&self, p: &StageProgress, m: &CellMeasure) -> f64 {
+        1.0 - m.distance[self.axial] / p.distance_at_start[self.axial]
+    }
+
     /// Fraction (0..1) of the current stage done, by its time or strain bound.
     pub fn stage_fraction(&self, p: &StageProgress, t: f64) -> f64 {
         let until = &self.current(p).until;
@@ -435,18 +436,16 @@ impl StagePlan {
             until.axial_strain,
             self.measure(&p.wall_displacements, &p.wall_forces),
         ) {
-            (Some(e), Some(m)) => {
-                (1.0 - m.distance[self.axial] / p.distance_at_start[self.axial]) / e
-            }
+            (Some(e), Some(m)) => self.stage_axial_strain(p, &m) / e,
             _ => 0.0,
         };
         by_time.max(by_strain).clamp(0.0, 1.0)
     }
 }
 
-/// Radius of the spheres of the packing the servo areas refer to (the first `area_of` in
-/// the scene's walls or stages), or of the first packing.
-fn cell_radius(scene: &Scene) -> Option<f64> {
+/// The packing the servo areas refer to (the first `area_of` in the scene's walls or
+/// stages), or the first packing: its spheres set the cell's lattice span.
+fn cell_packing(scene: &Scene) -> Option<&PackingSpec> {
     let named = scene
         .walls
         .iter()
@@ -458,11 +457,10 @@ fn cell_radius(scene: &Scene) -> Option<f64> {
             })
         }))
         .find_map(|s| s.area_of.as_ref());
-    let packing = match named {
+    match named {
         Some(name) => scene.packings.iter().find(|p| &p.name == name),
         None => scene.packings.first(),
-    }?;
-    Some(packing.sphere.radius)
+    }
 }
 
 fn build_stage(
@@ -518,11 +516,9 @@ fn build_stage(
 
 /// ε̇ = I / (d √(ρ/p)) for the stage's inertial number I (see `WallModeSpec`).
 pub fn strain_rate_of_inertial_number(scene: &Scene, st: &StageSpec, inertial: f64) -> f64 {
-    let radius = cell_radius(scene).unwrap_or(f64::NAN);
-    let density = scene
-        .packings
-        .iter()
-        .find(|p| p.sphere.radius == radius)
+    let packing = cell_packing(scene);
+    let radius = packing.map_or(f64::NAN, |p| p.sphere.radius);
+    let density = packing
         .and_then(|p| scene.materials.get(&p.material))
         .map_or(f64::NAN, |m| m.density);
     let pressure = st

@@ -195,12 +195,8 @@ impl ContactState {
     /// Initial contact state for a model.
     pub fn new(model: &Model) -> Self {
         Self {
-            walls: model
-                .contact
-                .walls
-                .iter()
-                .enumerate()
-                .map(|(w, _)| WallState {
+            walls: (0..model.contact.walls.len())
+                .map(|w| WallState {
                     servo: (model.stages.as_ref())
                         .is_some_and(|p| p.drives_wall(w))
                         .then(ServoState::default),
@@ -523,9 +519,6 @@ pub fn enforce_walls(
     if cm.walls.is_empty() {
         return;
     }
-    if scratch.wall_grain_force.values.is_empty() {
-        scratch.wall_grain_force = GrainWallForces::new(&model.node_grain, model.grains.len());
-    }
     walls::enforce(
         cm,
         &model.mass,
@@ -537,7 +530,12 @@ pub fn enforce_walls(
         dt,
         &scratch.lists.wall_nodes,
         state,
-        &mut scratch.wall_grain_force,
+        // per-grain sums only where a wall moves by them (see `GrainWallForces`)
+        (model.stages.is_some()).then_some((
+            &model.node_grain[..],
+            model.grains.len(),
+            &mut scratch.wall_grain_force,
+        )),
     );
     let c = state.contacts();
     state.stats.max_contacts_run = state.stats.max_contacts_run.max(c);

@@ -21,36 +21,25 @@
 
 use super::{ContactModel, ContactState, Wall, WallState};
 
+use crate::math::{add, dot, norm, scale, sub};
+
 /// Normal force of each wall on each grain of this rank at the last step (N): summed
 /// per grain in node order, so that the walls' total, summed over grains in global order
 /// after an exchange, is bitwise the same on any number of ranks (a servo wall then moves
-/// identically, and so does everything it pushes).
+/// identically, and so does everything it pushes). Kept only when some wall is driven by
+/// state (`Model::stages`).
 #[derive(Debug, Default, Clone)]
 pub struct GrainWallForces {
-    /// Local grain of every model node.
-    node_grain: Vec<u32>,
     grains: usize,
     /// `[wall × grains + grain]`.
-    pub values: Vec<f64>,
+    values: Vec<f64>,
 }
 
 impl GrainWallForces {
-    pub fn new(node_grain: &[u32], grains: usize) -> Self {
-        Self {
-            node_grain: node_grain.to_vec(),
-            grains,
-            values: Vec::new(),
-        }
-    }
-
-    fn clear(&mut self, walls: usize) {
+    fn clear(&mut self, walls: usize, grains: usize) {
+        self.grains = grains;
         self.values.clear();
-        self.values.resize(walls * self.grains, 0.0);
-    }
-
-    #[inline]
-    fn add(&mut self, wall: usize, node: usize, f_n: f64) {
-        self.values[wall * self.grains + self.node_grain[node] as usize] += f_n;
+        self.values.resize(walls * grains, 0.0);
     }
 
     /// The force of wall `w` on local grain `g` (N).
@@ -58,7 +47,6 @@ impl GrainWallForces {
         self.values.get(w * self.grains + g).copied().unwrap_or(0.0)
     }
 }
-use crate::math::{add, dot, norm, scale, sub};
 
 /// Displacement of a wall from t = 0 (m) at t_{n−1}, t_n and t_{n+1} (`t` = t_n): from its
 /// prescribed history, or for a servo wall from its state (s n at each time).
@@ -76,7 +64,9 @@ pub fn displacements(wall: &Wall, ws: &WallState, t: f64, dt: f64) -> [[f64; 3];
 
 /// Corrects `v_next` (v_{n+½}) of the candidate nodes `wall_nodes` (wall, flat surface
 /// index; ordered by wall) so that no node ends behind a wall at t_{n+1}; records each
-/// wall's force, displacement, contacts, work and friction work in `state`.
+/// wall's force, displacement, contacts, work and friction work in `state`; with
+/// `by_grain` (each node's local grain, the grain count, the sums) also each wall's normal
+/// force per grain.
 #[allow(clippy::too_many_arguments)]
 pub fn enforce(
     cm: &ContactModel,
@@ -89,9 +79,11 @@ pub fn enforce(
     dt: f64,
     wall_nodes: &[(u32, u32)],
     state: &mut ContactState,
-    grain_normal_force: &mut GrainWallForces,
+    mut by_grain: Option<(&[u32], usize, &mut GrainWallForces)>,
 ) {
-    grain_normal_force.clear(cm.walls.len());
+    if let Some((_, grains, f)) = &mut by_grain {
+        f.clear(cm.walls.len(), *grains);
+    }
     let mut cursor = 0;
     for (w, wall) in cm.walls.iter().enumerate() {
         let [u_prev, u_now, u_next] = displacements(wall, &state.walls[w], t, dt);
@@ -135,7 +127,9 @@ pub fn enforce(
                 }
             }
             let f = add(scale(n, f_n), f_t);
-            grain_normal_force.add(w, node, f_n);
+            if let Some((node_grain, _, f)) = &mut by_grain {
+                f.values[w * f.grains + node_grain[node] as usize] += f_n;
+            }
             v_next[node] = v_new;
             force = add(force, f);
             p_before += dot(f, v[node]);

@@ -5,12 +5,10 @@
 
 use crate::domain::Domain;
 use crate::error::{InputError, MufeError, Result};
-use crate::io::checkpoint::{
-    read_checkpoint_info, read_checkpoint_state, write_checkpoint, CheckpointInfo,
-};
+use crate::io::checkpoint::{read_checkpoint, write_checkpoint, CheckpointInfo};
 use crate::scene::LoadedScene;
 use crate::solver::{Solver, State};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 /// The checkpoint schedule of a run.
@@ -19,8 +17,6 @@ pub struct CheckpointSchedule {
     every_seconds: Option<f64>,
     keep: usize,
     last: Instant,
-    /// Last checkpoint written (rank 0 reports it).
-    pub written: Option<PathBuf>,
 }
 
 impl CheckpointSchedule {
@@ -33,7 +29,6 @@ impl CheckpointSchedule {
             every_seconds: o.checkpoint_interval,
             keep: o.checkpoints_kept,
             last: Instant::now(),
-            written: None,
         }
     }
 
@@ -61,7 +56,7 @@ impl CheckpointSchedule {
         }
         let bytes = serde_json::to_vec(&solver.state)
             .map_err(|e| MufeError::Run(format!("serialising the state for a checkpoint: {e}")))?;
-        let path = write_checkpoint(
+        write_checkpoint(
             domain,
             dir,
             &loaded.text,
@@ -71,7 +66,6 @@ impl CheckpointSchedule {
             self.keep,
         )?;
         self.last = Instant::now();
-        self.written = Some(path);
         Ok(())
     }
 }
@@ -84,7 +78,7 @@ pub struct Restart {
 
 /// Reads this rank's state from the checkpoint at `path` for the scene `loaded`.
 pub fn load_restart(domain: &Domain, loaded: &LoadedScene, path: &Path) -> Result<Restart> {
-    let info = read_checkpoint_info(domain, path)?;
+    let (info, bytes) = read_checkpoint(domain, path)?;
     if info.scene != loaded.text {
         return Err(InputError::new(
             path.display().to_string(),
@@ -96,7 +90,6 @@ pub fn load_restart(domain: &Domain, loaded: &LoadedScene, path: &Path) -> Resul
         )
         .into());
     }
-    let bytes = read_checkpoint_state(domain, path)?;
     let state: State = serde_json::from_slice(&bytes).map_err(|e| {
         InputError::new(
             path.display().to_string(),

@@ -8,6 +8,29 @@ use crate::contact::fabric::{merge_pairs, pair_partials, PairContact, PairPartia
 use crate::domain::Domain;
 use crate::solver::Solver;
 
+/// The grain-pair contacts of the last contact evaluation, merged over ranks: `Some` on
+/// rank 0, `None` elsewhere (`partials`, `encoded`: reusable buffers). All ranks must call.
+pub fn gather_pair_contacts(
+    domain: &Domain,
+    solver: &Solver,
+    partials: &mut Vec<PairPartial>,
+    encoded: &mut Vec<f64>,
+) -> Option<Vec<PairContact>> {
+    pair_partials(
+        &solver.model,
+        &solver.state.x,
+        &solver.scratch.contact,
+        partials,
+    );
+    encoded.clear();
+    for p in partials.iter() {
+        p.encode(encoded);
+    }
+    domain
+        .gather_f64_to_root(encoded)
+        .map(|all| merge_pairs(&all))
+}
+
 /// A pair that stopped touching.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GapOpening {
@@ -57,20 +80,11 @@ impl ContactWatch {
         if !solver.model.contact.grain_contact {
             return;
         }
-        pair_partials(
-            &solver.model,
-            &solver.state.x,
-            &solver.scratch.contact,
-            &mut self.partials,
-        );
-        self.encoded.clear();
-        for p in &self.partials {
-            p.encode(&mut self.encoded);
-        }
-        let Some(all) = domain.gather_f64_to_root(&self.encoded) else {
+        let Some(pairs) =
+            gather_pair_contacts(domain, solver, &mut self.partials, &mut self.encoded)
+        else {
             return;
         };
-        let pairs = merge_pairs(&all);
         let at = row.len() - FABRIC_COLUMNS.len();
         row[at] = pairs.len() as f64;
         row[at + 1] = pairs.iter().filter(|p| p.sliding).count() as f64;
@@ -105,9 +119,7 @@ impl ContactWatch {
         if let Some(&(a, b)) = before.iter().find(|k| now.binary_search(k).is_err()) {
             let axial_strain = plan
                 .measure(&progress.wall_displacements, &progress.wall_forces)
-                .map_or(0.0, |m| {
-                    1.0 - m.distance[plan.axial] / progress.distance_at_start[plan.axial]
-                });
+                .map_or(0.0, |m| plan.stage_axial_strain(progress, &m));
             self.first_opening = Some(GapOpening {
                 a,
                 b,

@@ -2,13 +2,13 @@
 //! von Mises stress and equivalent plastic strain of the owned grains, gathered in global
 //! order.
 
+use super::contact_watch::gather_pair_contacts;
 use super::grain_motion::grain_motion;
-use crate::contact::fabric::{merge_pairs, pair_partials};
 use crate::domain::Domain;
 use crate::error::Result;
 use crate::io::results::{FieldPart, ResultsWriter};
 use crate::material::{cauchy_from_first_piola, von_mises};
-use crate::math::{cross, dot, sub};
+use crate::mesh::tet_volume;
 use crate::model::global::GlobalMesh;
 use crate::solver::{element_response, Solver};
 
@@ -248,7 +248,7 @@ fn grain_records(solver: &Solver, element_stress: &[f64]) -> GrainRecords {
         r.rotation.extend_from_slice(&motion.rotation);
         let (mut sum, mut volume) = ([0.0; 6], 0.0);
         for e in m.grains[g].elements.clone() {
-            let v = current_volume(m, &solver.state.x, e);
+            let v = tet_volume(&m.tets[e].map(|i| solver.state.x[i as usize]));
             volume += v;
             for k in 0..6 {
                 sum[k] += v * element_stress[6 * e + k];
@@ -257,12 +257,6 @@ fn grain_records(solver: &Solver, element_stress: &[f64]) -> GrainRecords {
         r.stress.extend(sum.map(|s| s / volume));
     }
     r
-}
-
-fn current_volume(m: &crate::model::Model, x: &[[f64; 3]], e: usize) -> f64 {
-    let [a, b, c, d] = m.tets[e].map(|i| x[i as usize]);
-    let (u, v, w) = (sub(b, a), sub(c, a), sub(d, a));
-    dot(u, cross(v, w)) / 6.0
 }
 
 /// Per-contact records of a frame (grain pairs, `crate::contact::fabric`): all on rank 0,
@@ -277,23 +271,8 @@ struct ContactRecords {
 }
 
 fn contact_records(domain: &Domain, solver: &Solver) -> ContactRecords {
-    let mut partials = Vec::new();
-    let mut encoded = Vec::new();
-    if solver.model.contact.grain_contact {
-        pair_partials(
-            &solver.model,
-            &solver.state.x,
-            &solver.scratch.contact,
-            &mut partials,
-        );
-        for p in &partials {
-            p.encode(&mut encoded);
-        }
-    }
-    let pairs = domain
-        .gather_f64_to_root(&encoded)
-        .map(|all| merge_pairs(&all))
-        .unwrap_or_default();
+    let pairs =
+        gather_pair_contacts(domain, solver, &mut Vec::new(), &mut Vec::new()).unwrap_or_default();
     ContactRecords {
         grains: pairs
             .iter()

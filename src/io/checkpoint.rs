@@ -136,9 +136,13 @@ fn prune(folder: &Path, keep: usize) -> std::io::Result<()> {
     Ok(())
 }
 
-/// The header of a checkpoint, checked: a file that is not a checkpoint, of another
-/// format version, or written by another number of ranks is an input error naming it.
-pub fn read_checkpoint_info(domain: &Domain, path: &Path) -> Result<CheckpointInfo, MufeError> {
+/// Reads a checkpoint: its header, checked (a file that is not a checkpoint, of another
+/// format version, or written by another number of ranks is an input error naming it),
+/// and this rank's state bytes, checksum verified.
+pub fn read_checkpoint(
+    domain: &Domain,
+    path: &Path,
+) -> Result<(CheckpointInfo, Vec<u8>), MufeError> {
     let file_name = path.display().to_string();
     let bad =
         |item: &str, msg: String| -> MufeError { InputError::new(&file_name, item, msg).into() };
@@ -170,29 +174,18 @@ pub fn read_checkpoint_info(domain: &Domain, path: &Path) -> Result<CheckpointIn
         .dataset("scene")
         .and_then(|d| collective::read_text_dataset(&d)))
     .map_err(|e| bad("scene", format!("unreadable: {e}")))?;
-    Ok(CheckpointInfo {
+    let info = CheckpointInfo {
         step: u64_attr("step")?,
         time,
         ranks,
         scene,
-    })
-}
+    };
 
-/// This rank's state bytes, checksum verified.
-pub fn read_checkpoint_state(domain: &Domain, path: &Path) -> Result<Vec<u8>, MufeError> {
-    let file_name = path.display().to_string();
-    let bad =
-        |item: &str, msg: String| -> MufeError { InputError::new(&file_name, item, msg).into() };
-    let file = File::open(path).map_err(|e| bad("file", format!("cannot open as HDF5: {e}")))?;
     let r = domain.rank();
-    let offsets = (file
-        .dataset("state_offsets")
-        .and_then(|d| d.read_raw::<u64>()))
-    .map_err(|e| bad("state_offsets", e.to_string()))?;
-    let sums = (file
-        .dataset("state_checksums")
-        .and_then(|d| d.read_raw::<u64>()))
-    .map_err(|e| bad("state_checksums", e.to_string()))?;
+    let read_u64 = |name: &str| {
+        (file.dataset(name).and_then(|d| d.read_raw::<u64>())).map_err(|e| bad(name, e.to_string()))
+    };
+    let (offsets, sums) = (read_u64("state_offsets")?, read_u64("state_checksums")?);
     if offsets.len() != domain.size() + 1 || sums.len() != domain.size() {
         return Err(bad("state_offsets", "does not match the rank count".into()));
     }
@@ -208,5 +201,5 @@ pub fn read_checkpoint_state(domain: &Domain, path: &Path) -> Result<Vec<u8>, Mu
             format!("checksum mismatch in rank {r}'s state: the file is damaged"),
         ));
     }
-    Ok(bytes)
+    Ok((info, bytes))
 }
