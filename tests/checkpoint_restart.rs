@@ -36,13 +36,7 @@ fn dir(name: &str) -> PathBuf {
 fn mufe(ranks: usize, args: &[&str]) -> Output {
     let mut all = vec!["run", "--threads", "1", "--quiet"];
     all.extend_from_slice(args);
-    mpi_launch::run_under_mpirun(
-        ranks,
-        Path::new(env!("CARGO_BIN_EXE_mufe")),
-        &all,
-        &[],
-        Duration::from_secs(120),
-    )
+    mpi_launch::run_mufe(ranks, &all, Duration::from_secs(120))
 }
 
 fn frames(path: &Path) -> Vec<(String, Vec<f64>)> {

@@ -30,20 +30,15 @@ fn run(ranks: usize, name: &str) -> (PathBuf, String) {
     let out = std::env::temp_dir().join(format!("mufe_fcc_stages_{name}_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join(SCENE);
-    let o = mpi_launch::run_under_mpirun(
-        ranks,
-        Path::new(env!("CARGO_BIN_EXE_mufe")),
-        &[
-            "run",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--threads",
-            "1",
-        ],
-        &[],
-        Duration::from_secs(300),
-    );
+    let args = [
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        "1",
+    ];
+    let o = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(300));
     mpi_launch::assert_success(&o);
     (out, String::from_utf8_lossy(&o.stdout).into_owned())
 }

@@ -49,13 +49,7 @@ fn run(
         &threads_s,
     ];
     args.extend_from_slice(extra);
-    let output = mpi_launch::run_under_mpirun(
-        ranks,
-        Path::new(env!("CARGO_BIN_EXE_mufe")),
-        &args,
-        &[],
-        Duration::from_secs(240),
-    );
+    let output = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(240));
     (out.join("results.h5"), output)
 }
 

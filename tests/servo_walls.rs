@@ -115,26 +115,21 @@ fn run_cell(ranks: usize, name: &str) -> PathBuf {
     let out = out_dir(name);
     let out_s = out.to_string_lossy().into_owned();
     let scene = root(CELL);
-    let o = mpi_launch::run_under_mpirun(
-        ranks,
-        Path::new(env!("CARGO_BIN_EXE_mufe")),
-        &[
-            "run",
-            scene.to_str().unwrap(),
-            "--out",
-            &out_s,
-            "--max-steps",
-            "1200",
-            "--threads",
-            "1",
-            "--set",
-            "output.history_interval=4e-8",
-            "--set",
-            "output.frames=false",
-        ],
-        &[],
-        Duration::from_secs(240),
-    );
+    let args = [
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        &out_s,
+        "--max-steps",
+        "1200",
+        "--threads",
+        "1",
+        "--set",
+        "output.history_interval=4e-8",
+        "--set",
+        "output.frames=false",
+    ];
+    let o = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(240));
     mpi_launch::assert_success(&o);
     out.join("results.h5")
 }

@@ -32,6 +32,18 @@ pub fn is_mpi_child() -> bool {
     std::env::var_os(CHILD_ENV).is_some_and(|v| v == "1")
 }
 
+/// Runs this package's `mufe` binary with `args` under `mpirun -n ranks` (see
+/// [`run_under_mpirun`]).
+pub fn run_mufe(ranks: usize, args: &[&str], timeout: Duration) -> Output {
+    run_under_mpirun(
+        ranks,
+        Path::new(env!("CARGO_BIN_EXE_mufe")),
+        args,
+        &[],
+        timeout,
+    )
+}
+
 /// One MPI job at a time per test binary.
 static SERIAL: Mutex<()> = Mutex::new(());
 

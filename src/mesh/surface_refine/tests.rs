@@ -225,6 +225,16 @@ fn too_many_triangles_is_an_error() {
     assert!(e.to_string().starts_with("seeding: "));
 }
 
+/// Pins at `dirs`, named like the mesh spec's fields (`refine[i].node`).
+fn pins_at(dirs: &[[f64; 3]]) -> Vec<Pin> {
+    (dirs.iter().enumerate())
+        .map(|(i, &direction)| Pin {
+            direction,
+            field: format!("refine[{i}].node"),
+        })
+        .collect()
+}
+
 /// The 12 ⟨110⟩ and 6 ⟨100⟩ directions (an FCC sphere's contacts and wall points).
 fn lattice_directions() -> Vec<[f64; 3]> {
     crate::mesh::fcc_contact_directions(true)
@@ -240,14 +250,7 @@ fn distance_to_nearest_vertex(s: &SphereSurface, x: [f64; 3]) -> f64 {
 #[test]
 fn pinned_points_are_vertices_of_an_acute_convex_surface() {
     let dirs = lattice_directions();
-    let pins: Vec<Pin> = dirs
-        .iter()
-        .enumerate()
-        .map(|(i, &direction)| Pin {
-            direction,
-            field: format!("refine[{i}].node"),
-        })
-        .collect();
+    let pins = pins_at(&dirs);
     // The FCC cell's sphere at unit radius (seeding 0.41, patches 0.18), and a uniform
     // sphere, where only the pins call for relaxation.
     let (coarse, fine) = (0.41, 0.18);
@@ -336,14 +339,7 @@ fn pins_leave_surfaces_acute_and_pins_at_valence_five_or_more() {
             unit.iter()
                 .fold(coarse, |h: f64, u| h.min(fine + growth * norm(sub(x, *u))))
         };
-        let pins: Vec<Pin> = dirs
-            .iter()
-            .enumerate()
-            .map(|(i, &direction)| Pin {
-                direction,
-                field: format!("pin {i}"),
-            })
-            .collect();
+        let pins = pins_at(&dirs);
         let plain = triangulate_sphere(1.0, coarse, size, &[], "seeding").unwrap();
         let s = triangulate_sphere(1.0, coarse, size, &pins, "seeding").unwrap();
         check_closed_outward(&s);
