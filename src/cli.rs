@@ -48,10 +48,16 @@ pub enum Command {
         /// output.checkpoint_every).
         #[arg(long, value_name = "N")]
         checkpoint_every: Option<u64>,
-        /// Continue from a checkpoint (OUT/checkpoints/step_N.h5) written for this scene
-        /// with the same --set values and rank count; OUT/results.h5 is continued.
-        #[arg(long, value_name = "CHECKPOINT")]
+        /// Continue from a checkpoint (OUT/checkpoints/step_N.h5, or `latest`: the newest
+        /// valid one of OUT/checkpoints/) written for this scene and --set values (output
+        /// settings and simulation.duration may differ); any rank count, re-partitioning
+        /// when it differs. OUT/results.h5 is continued.
+        #[arg(long, value_name = "CHECKPOINT|latest")]
         restart: Option<PathBuf>,
+        /// With --restart: start a new run in a new --out from the checkpoint although the
+        /// scene differs (friction, stages, rates); recorded in /provenance.
+        #[arg(long, requires = "restart")]
+        branch: bool,
     },
     /// Validate a scene without running: grains, elements, nodes, stable Δt, mass scaling, memory.
     Check {
@@ -135,6 +141,10 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> i32
     };
     match dispatch(cli) {
         Ok(()) => 0,
+        Err(e @ MufeError::Stopped { .. }) => {
+            eprintln!("stopped: {e}");
+            e.exit_code()
+        }
         Err(e) => {
             eprintln!("error: {e}");
             e.exit_code()
@@ -421,6 +431,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             force,
             checkpoint_every,
             restart,
+            branch,
         } => {
             if checkpoint_every == Some(0) {
                 return Err(InputError::new(
@@ -467,6 +478,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     force,
                     checkpoint_every,
                     restart,
+                    branch,
                 },
             )
             .map(|_| ())

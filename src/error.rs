@@ -157,6 +157,12 @@ pub enum MufeError {
     Run(String),
     /// I/O or HDF5 failure while writing results.
     Io(String),
+    /// The run stopped on a signal after writing a checkpoint and its results (exit
+    /// 128 + signal, the shell's convention for a signalled process).
+    Stopped {
+        signal: i32,
+        message: String,
+    },
 }
 
 impl fmt::Display for MufeError {
@@ -165,6 +171,7 @@ impl fmt::Display for MufeError {
             MufeError::Input(e) => write!(f, "{e}"),
             MufeError::Run(m) => write!(f, "{m}"),
             MufeError::Io(m) => write!(f, "{m}"),
+            MufeError::Stopped { message, .. } => write!(f, "{message}"),
         }
     }
 }
@@ -182,6 +189,7 @@ impl MufeError {
     pub fn exit_code(&self) -> i32 {
         match self {
             MufeError::Input(_) => 2,
+            MufeError::Stopped { signal, .. } => 128 + signal,
             _ => 1,
         }
     }

@@ -1,15 +1,32 @@
-//! When a run writes checkpoints (every N steps and/or every T seconds of wall time), and
-//! how a run restarts from one: the checkpoint's scene must be the scene given, its rank
-//! count the job's; every rank reads its own state and continues from it (grains on the
-//! ranks that owned them, halo begun afresh), bitwise as if it had never stopped.
+//! When a run writes checkpoints (every N steps, every T seconds of wall time, and on
+//! SIGTERM/SIGINT/SIGUSR1), and how a run restarts from one.
+//!
+//! A restart on the rank count that wrote the checkpoint gives every rank its own `State`
+//! back and continues bitwise. On another rank count the grains are re-partitioned (METIS
+//! on their bounds at the checkpoint) and every rank installs the grain packages of the
+//! grains it holds; the run-level state comes from rank 0's, and the per-rank totals
+//! (energies, the walls' work) are summed onto rank 0, so the sums over ranks are those of
+//! the checkpoint up to round-off.
+//!
+//! `latest` takes the newest readable checkpoint of `OUT/checkpoints/`, naming on stderr
+//! every newer one it skipped as damaged.
 
+use super::migration::{pack_grain, unpack_grains};
+use super::rank::{build_rank_solver, metis_owner};
 use crate::domain::Domain;
 use crate::error::{InputError, MufeError, Result};
-use crate::io::checkpoint::{read_checkpoint, write_checkpoint, CheckpointInfo};
+use crate::io::checkpoint::{
+    write_checkpoint, CheckpointFile, CheckpointInfo, GrainPackages, RankCheckpoint, CHECKPOINT_DIR,
+};
+use crate::model::decomposition::{Decomposition, Partition};
+use crate::model::global::{ghost_margin, GlobalMesh};
 use crate::scene::LoadedScene;
-use crate::solver::{Solver, State};
-use std::path::Path;
+use crate::solver::{RankTotals, Solver, State};
+use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The value of `--restart` that picks the newest valid checkpoint of `OUT/checkpoints/`.
+pub const LATEST: &str = "latest";
 
 /// The checkpoint schedule of a run.
 pub struct CheckpointSchedule {
@@ -17,6 +34,8 @@ pub struct CheckpointSchedule {
     every_seconds: Option<f64>,
     keep: usize,
     last: Instant,
+    /// Step of the last checkpoint written by this run.
+    last_step: Option<u64>,
 }
 
 impl CheckpointSchedule {
@@ -29,18 +48,22 @@ impl CheckpointSchedule {
             every_seconds: o.checkpoint_interval,
             keep: o.checkpoints_kept,
             last: Instant::now(),
+            last_step: None,
         }
     }
 
-    /// After step `step`: writes a checkpoint when one is due. All ranks must call; the
-    /// wall-time decision is reduced over ranks (clocks differ).
+    /// After a step: writes a checkpoint when one is due (`forced`: now, e.g. on a stop
+    /// signal, unless this step's is written already). The wall-time decision is reduced
+    /// over ranks (clocks differ), `forced` must be the same on all ranks. All ranks must
+    /// call. Returns the file written.
     pub fn after_step(
         &mut self,
         domain: &Domain,
         dir: &Path,
         loaded: &LoadedScene,
         solver: &Solver,
-    ) -> Result<()> {
+        forced: bool,
+    ) -> Result<Option<PathBuf>> {
         let step = solver.state.step;
         let by_steps = self.every_steps.is_some_and(|n| step.is_multiple_of(n));
         let by_time = match self.every_seconds {
@@ -51,51 +74,310 @@ impl CheckpointSchedule {
             }
             None => false,
         };
-        if !(by_steps || by_time) {
-            return Ok(());
+        if !(by_steps || by_time || forced) || self.last_step == Some(step) {
+            return Ok(None);
         }
-        let bytes = serde_json::to_vec(&solver.state)
-            .map_err(|e| MufeError::Run(format!("serialising the state for a checkpoint: {e}")))?;
-        write_checkpoint(
-            domain,
-            dir,
-            &loaded.text,
-            &bytes,
-            step,
-            solver.state.time,
-            self.keep,
-        )?;
+        let path = write_solver_checkpoint(domain, dir, loaded, solver, self.keep)?;
         self.last = Instant::now();
-        Ok(())
+        self.last_step = Some(step);
+        Ok(Some(path))
     }
+}
+
+/// Writes the checkpoint of the solver's current step. All ranks must call.
+fn write_solver_checkpoint(
+    domain: &Domain,
+    dir: &Path,
+    loaded: &LoadedScene,
+    solver: &Solver,
+    keep: usize,
+) -> Result<PathBuf> {
+    let json = |what: &str, r: serde_json::Result<Vec<u8>>| {
+        r.map_err(|e| MufeError::Run(format!("serialising the {what} for a checkpoint: {e}")))
+    };
+    let state = json("state", serde_json::to_vec(&solver.state))?;
+    let totals = json("totals", serde_json::to_vec(&solver.state.rank_totals()))?;
+    let m = &solver.model;
+    let (mut ids, mut lengths, mut packages) = (Vec::new(), Vec::new(), Vec::new());
+    for (mg, g) in m.grains[..m.owned_grains].iter().enumerate() {
+        let before = packages.len();
+        pack_grain(solver, mg, &mut packages);
+        ids.push(u64::from(g.global_id));
+        lengths.push((packages.len() - before) as u64);
+    }
+    let part = RankCheckpoint {
+        state: &state,
+        totals: &totals,
+        grain_ids: &ids,
+        package_lengths: &lengths,
+        packages: &packages,
+    };
+    let s = &solver.state;
+    write_checkpoint(domain, dir, &loaded.text, &part, s.step, s.time, keep)
 }
 
 /// A checkpoint to continue from.
 pub struct Restart {
     pub info: CheckpointInfo,
-    pub state: State,
+    pub path: PathBuf,
+    pub source: RestartSource,
 }
 
-/// Reads this rank's state from the checkpoint at `path` for the scene `loaded`.
-pub fn load_restart(domain: &Domain, loaded: &LoadedScene, path: &Path) -> Result<Restart> {
-    let (info, bytes) = read_checkpoint(domain, path)?;
-    if info.scene != loaded.text {
-        return Err(InputError::new(
-            path.display().to_string(),
-            "scene",
-            format!(
-                "the checkpoint was written for another scene (or other --set values) than {}; restart with the scene and settings it was written with",
-                loaded.path
-            ),
-        )
-        .into());
+/// Where a rank's state comes from.
+pub enum RestartSource {
+    /// The rank count that wrote the checkpoint: this rank's own state.
+    Own(Box<State>),
+    /// Another rank count: rank 0's state for what is not per grain, the per-rank totals
+    /// of all ranks, and every grain package.
+    Repartition {
+        run_level: Box<State>,
+        totals: Vec<RankTotals>,
+        grains: GrainPackages,
+    },
+}
+
+impl Restart {
+    /// Grain owners and bounds to build the ranks' solvers with: the checkpoint's on its
+    /// own rank count, a METIS partition of the bounds at the checkpoint otherwise. All
+    /// ranks must call.
+    pub fn partition(&self, domain: &Domain, global: &GlobalMesh) -> Result<Partition> {
+        let (state, own) = match &self.source {
+            RestartSource::Own(s) => (s.as_ref(), true),
+            RestartSource::Repartition { run_level, .. } => (run_level.as_ref(), false),
+        };
+        let p = &state.partition;
+        let bounds = if p.planned_bounds.is_empty() {
+            global.bounds.clone()
+        } else {
+            p.planned_bounds.clone()
+        };
+        if own {
+            return Ok(Partition {
+                owner: p.owner.clone(),
+                planned_bounds: bounds,
+            });
+        }
+        let infos: Vec<partition::GrainInfo> = (0..bounds.len())
+            .map(|g| partition::GrainInfo {
+                centre: bounds[g].centre,
+                bounding_radius: bounds[g].radius,
+                elements: global.element_offset[g + 1] - global.element_offset[g],
+                surface_nodes: global.surface_nodes[g],
+            })
+            .collect();
+        let owner = metis_owner(
+            domain,
+            &infos,
+            ghost_margin(global),
+            "re-partitioning a restart",
+        )?;
+        Ok(Partition {
+            owner,
+            planned_bounds: bounds,
+        })
     }
-    let state: State = serde_json::from_slice(&bytes).map_err(|e| {
-        InputError::new(
-            path.display().to_string(),
-            "state",
-            format!("unreadable: {e}"),
-        )
+
+    /// Puts the checkpoint's state into `solver` (built for [`Restart::partition`]).
+    pub fn install(self, domain: &Domain, solver: &mut Solver) -> Result<()> {
+        let partition = solver.state.partition.clone();
+        match self.source {
+            RestartSource::Own(state) => solver.restore(*state),
+            RestartSource::Repartition {
+                run_level,
+                totals,
+                grains,
+            } => {
+                solver.state.take_run_level_from(&run_level);
+                solver.state.partition = partition;
+                let sum = RankTotals::sum(&totals);
+                let mine = if domain.is_root() {
+                    sum
+                } else {
+                    sum.zero_like()
+                };
+                solver.state.set_rank_totals(&mine);
+                solver.state.contact.history.clear();
+                let installed = unpack_grains(solver, &grains.packages)?;
+                let held = solver.model.grains.len();
+                if installed.len() != held {
+                    return Err(MufeError::Run(format!(
+                        "restart on rank {}: the checkpoint holds {} of the {held} grains this rank needs",
+                        domain.rank(),
+                        installed.len()
+                    )));
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Reads the checkpoint named by `--restart` (a file, or [`LATEST`] in `out`) for the
+/// scene `loaded`. An error on any rank is an error on all. All ranks must call.
+pub fn load_restart(
+    domain: &Domain,
+    loaded: &LoadedScene,
+    spec: &Path,
+    out: &Path,
+    branch: bool,
+) -> Result<Restart> {
+    let latest = spec.as_os_str() == LATEST;
+    let candidates = if latest {
+        let folder = out.join(CHECKPOINT_DIR);
+        let found = newest_first(&folder);
+        if found.is_empty() {
+            return Err(InputError::new(
+                folder.display().to_string(),
+                "--restart latest",
+                "no checkpoint (step_*.h5) to restart from",
+            )
+            .into());
+        }
+        found
+    } else {
+        vec![spec.to_path_buf()]
+    };
+    let last = candidates.len() - 1;
+    for (k, path) in candidates.into_iter().enumerate() {
+        let local = read_restart(domain, loaded, &path, branch);
+        let failed = domain.all_gather_u64(u64::from(local.is_err()));
+        let first_failed = failed.iter().position(|&f| f != 0);
+        match (local, first_failed) {
+            (Ok(r), None) => return Ok(r),
+            // with `latest`, a damaged file gives way to the next older one
+            (local, Some(r))
+                if latest && k < last && local.as_ref().err().is_none_or(|e| e.damaged) =>
+            {
+                if domain.is_root() {
+                    let why = match &local {
+                        Err(e) => e.error.to_string(),
+                        Ok(_) => format!("unreadable on rank {r}"),
+                    };
+                    eprintln!(
+                        "warning: skipping damaged checkpoint {}: {why}",
+                        path.display()
+                    );
+                }
+            }
+            (Err(e), _) => return Err(e.error),
+            (Ok(_), Some(r)) => {
+                return Err(InputError::new(
+                    path.display().to_string(),
+                    "checkpoint",
+                    format!("unreadable on rank {r} (see its error)"),
+                )
+                .into())
+            }
+        }
+    }
+    unreachable!("the last candidate returns")
+}
+
+/// `step_*.h5` files of `folder`, newest step first.
+fn newest_first(folder: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(folder)
+        .map(|d| {
+            d.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| {
+                    p.file_name()
+                        .and_then(|n| n.to_str())
+                        .is_some_and(|n| n.starts_with("step_") && n.ends_with(".h5"))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    files.sort();
+    files.reverse();
+    files
+}
+
+/// A failed read, and whether it is damage (a newer file that `latest` may skip) rather
+/// than a mismatch the user must resolve.
+struct ReadError {
+    error: MufeError,
+    damaged: bool,
+}
+
+fn read_restart(
+    domain: &Domain,
+    loaded: &LoadedScene,
+    path: &Path,
+    branch: bool,
+) -> std::result::Result<Restart, ReadError> {
+    let damaged = |error: MufeError| ReadError {
+        error,
+        damaged: true,
+    };
+    let file = CheckpointFile::open(path).map_err(|error| ReadError {
+        damaged: !matches!(&error, MufeError::Input(e) if e.item == "format_version"),
+        error,
     })?;
-    Ok(Restart { info, state })
+    let name = path.display().to_string();
+    if !branch {
+        if let Some(diff) = crate::scene::first_difference(&file.info.scene, &loaded.text) {
+            return Err(ReadError {
+                error: InputError::new(
+                    &name,
+                    "scene",
+                    format!(
+                        "written for another scene than {} (first difference: {diff}); restart with the scene it was written with, or pass --branch with a new --out to start a new run from it",
+                        loaded.path
+                    ),
+                )
+                .into(),
+                damaged: false,
+            });
+        }
+    }
+    let parse_state = |bytes: Vec<u8>| -> std::result::Result<State, ReadError> {
+        serde_json::from_slice(&bytes).map_err(|e| {
+            damaged(InputError::new(&name, "state", format!("unreadable: {e}")).into())
+        })
+    };
+    let source = if file.info.ranks == domain.size() as u64 {
+        let bytes = file.json_block("state", domain.rank()).map_err(damaged)?;
+        RestartSource::Own(Box::new(parse_state(bytes)?))
+    } else {
+        let bytes = file.json_block("state", 0).map_err(damaged)?;
+        let run_level = Box::new(parse_state(bytes)?);
+        let mut totals = Vec::with_capacity(file.info.ranks as usize);
+        for r in 0..file.info.ranks as usize {
+            let bytes = file.json_block("totals", r).map_err(damaged)?;
+            totals.push(serde_json::from_slice(&bytes).map_err(|e| {
+                damaged(InputError::new(&name, "totals", format!("unreadable: {e}")).into())
+            })?);
+        }
+        let grains = file.grain_packages().map_err(damaged)?;
+        RestartSource::Repartition {
+            run_level,
+            totals,
+            grains,
+        }
+    };
+    Ok(Restart {
+        info: file.info.clone(),
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The solver, decomposition and owners of a restarted rank. All ranks must call.
+pub fn build_restarted_solver(
+    domain: &Domain,
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+    restart: Restart,
+) -> Result<(Solver, Decomposition, crate::domain::halo::HaloPlan)> {
+    let p = restart.partition(domain, global)?;
+    let (mut solver, plan, halo) =
+        build_rank_solver(domain, loaded, global, &p.owner, &p.planned_bounds)?;
+    let installed = restart.install(domain, &mut solver);
+    let failed = domain.all_gather_u64(u64::from(installed.is_err()));
+    installed?;
+    if let Some(r) = failed.iter().position(|&f| f != 0) {
+        return Err(MufeError::Run(format!(
+            "restoring the checkpoint failed on rank {r} (see its error)"
+        )));
+    }
+    Ok((solver, plan, halo))
 }

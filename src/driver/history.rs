@@ -4,7 +4,7 @@
 use super::grain_motion::grain_motion;
 use crate::boundary::stages::{StagePlan, WallMode};
 use crate::domain::Domain;
-use crate::energy::{EnergyLedger, WorkAccumulator};
+use crate::energy::EnergyLedger;
 use crate::io::results::HistoryColumn;
 use crate::math::norm;
 use crate::solver::Solver;
@@ -441,37 +441,9 @@ fn derive_indices(row: &mut [f64]) {
 /// The energy ledger summed over ranks (each rank's ledger covers its owned grains). All
 /// ranks must call.
 pub fn global_ledger(domain: &Domain, e: &EnergyLedger) -> EnergyLedger {
-    let mut v = [
-        e.kinetic,
-        e.recoverable_strain,
-        e.plastic_dissipation,
-        e.friction_dissipation,
-        e.contact_energy,
-        e.body_force.work,
-        e.body_force.pending,
-        e.boundary_work,
-        e.damping.work,
-        e.damping.pending,
-        e.initial_total.unwrap_or(0.0),
-    ];
+    let mut v = e.to_sums();
     if domain.size() > 1 {
         domain.sum_in_place(&mut v);
     }
-    EnergyLedger {
-        kinetic: v[0],
-        recoverable_strain: v[1],
-        plastic_dissipation: v[2],
-        friction_dissipation: v[3],
-        contact_energy: v[4],
-        body_force: WorkAccumulator {
-            work: v[5],
-            pending: v[6],
-        },
-        boundary_work: v[7],
-        damping: WorkAccumulator {
-            work: v[8],
-            pending: v[9],
-        },
-        initial_total: e.initial_total.map(|_| v[10]),
-    }
+    EnergyLedger::from_sums(&v, e.initial_total.is_some())
 }

@@ -181,8 +181,9 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
 
 /// Moves grains between ranks: builds every rank's model for `new_owner` (with ghosts from
 /// the grain bounds `bounds`) and carries over the full state of every grain it will hold
-/// from that grain's previous owner. Per-rank energy accumulators stay where they are
-/// (only their sum over ranks is meaningful). The caller must have completed any halo
+/// from that grain's previous owner. Per-rank totals (energies, the walls' work) stay where
+/// they are (only their sum over ranks is meaningful); stage progress, walls and time carry
+/// over. The caller must have completed any halo
 /// exchange in flight. All ranks must call.
 pub fn redistribute(
     domain: &Domain,
@@ -230,16 +231,8 @@ pub fn redistribute(
 
     let mut solver = build_solver_for(loaded, &plan.owned, &plan.ghosts)?;
     solver.model.dt = old.model.dt;
-    // run-level state that is not per grain
-    solver.state.time = old.state.time;
-    solver.state.step = old.state.step;
-    solver.state.energy = old.state.energy.clone();
-    solver.state.supplied_energy = old.state.supplied_energy;
-    solver.state.contact.detection.rebuilds = old.state.contact.detection.rebuilds;
-    solver.state.contact.friction_dissipation = old.state.contact.friction_dissipation;
-    solver.state.contact.walls = old.state.contact.walls.clone();
-    solver.state.contact.stats.max_penetration_run = old.state.contact.stats.max_penetration_run;
-    solver.state.contact.stats.max_contacts_run = old.state.contact.stats.max_contacts_run;
+    // run-level state that is not per grain (this rank keeps its own totals)
+    solver.state.take_run_level_from(&old.state);
     solver.timers = old.timers.clone();
     solver.state.contact.history.clear();
     let mut installed = unpack_grains(&mut solver, &local)?;

@@ -22,6 +22,7 @@ pub mod migration;
 pub mod output;
 pub mod progress;
 pub mod rank;
+pub mod stop_signal;
 pub mod summary;
 pub mod triaxial_plot;
 
@@ -56,8 +57,10 @@ pub struct RunOptions {
     pub force: bool,
     /// Write a checkpoint every this many steps (replaces `output.checkpoint_every`).
     pub checkpoint_every: Option<u64>,
-    /// Continue from this checkpoint.
+    /// Continue from this checkpoint (`latest`: the newest valid one of `out`).
     pub restart: Option<PathBuf>,
+    /// Start a new run from the checkpoint although the scene differs.
+    pub branch: bool,
 }
 
 /// What a finished run reports.
@@ -96,36 +99,49 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let wall0 = Instant::now();
     let global = GlobalMesh::build(loaded)?;
     let restart = (opts.restart.as_deref())
-        .map(|p| checkpoints::load_restart(domain, loaded, p))
+        .map(|p| checkpoints::load_restart(domain, loaded, p, &opts.out, opts.branch))
         .transpose()?;
-    // a restart continues with the grains where the checkpoint had them
-    let (owner, bounds) = match &restart {
-        Some(r) => {
-            let p = &r.state.partition;
-            let bounds = if p.planned_bounds.is_empty() {
-                global.bounds.clone()
-            } else {
-                p.planned_bounds.clone()
-            };
-            (p.owner.clone(), bounds)
-        }
-        None => (
-            partition_grains(domain, loaded, &global)?,
-            global.bounds.clone(),
+    let continued = restart.as_ref().map(|r| output::Continued {
+        note: format!(
+            "{} from {} (step {}, t = {:.9e} s, written by {} ranks) on {} ranks: {}",
+            if opts.branch { "branch" } else { "restart" },
+            r.path.display(),
+            r.info.step,
+            r.info.time,
+            r.info.ranks,
+            domain.size(),
+            crate::io::provenance::command_line()
         ),
-    };
-    let (mut solver, plan, halo_plan) =
-        build_rank_solver(domain, loaded, &global, &owner, &bounds)?;
-    let restarted = restart.is_some();
-    if let Some(r) = restart {
-        solver.restore(r.state)?;
-        if domain.is_root() && !opts.quiet {
-            println!(
-                "restart from step {} (t = {:.6e} s)",
-                r.info.step, r.info.time
-            );
+        resume: !opts.branch,
+    });
+    let (solver, plan, halo_plan) = match restart {
+        // a restart continues with the grains where the checkpoint had them (or
+        // re-partitioned for another rank count)
+        Some(r) => {
+            if domain.is_root() && !opts.quiet {
+                println!(
+                    "{} from {} (step {}, t = {:.6e} s, {} ranks{})",
+                    if opts.branch { "branch" } else { "restart" },
+                    r.path.display(),
+                    r.info.step,
+                    r.info.time,
+                    r.info.ranks,
+                    if r.info.ranks == domain.size() as u64 {
+                        ""
+                    } else {
+                        ": grains re-partitioned"
+                    }
+                );
+            }
+            checkpoints::build_restarted_solver(domain, loaded, &global, r)?
         }
-    }
+        None => {
+            let owner = partition_grains(domain, loaded, &global)?;
+            build_rank_solver(domain, loaded, &global, &owner, &global.bounds)?
+        }
+    };
+    let restarted = continued.is_some();
+    stop_signal::install();
     let mut run = Run {
         domain,
         loaded,
@@ -160,11 +176,38 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         let s = &run.solver.state;
         run.hooks.halo.begin(&s.x, &s.v)?;
     }
-    let mut output = Output::open(domain, loaded, opts, &global, &run.solver, restarted)?;
-    let failure = run.advance_to(last_step, &mut output)?;
+    let mut output = Output::open(
+        domain,
+        loaded,
+        opts,
+        &global,
+        &run.solver,
+        continued.as_ref(),
+    )?;
+    let end = run.advance_to(last_step, &mut output)?;
+    let (failure, stop) = match end {
+        LoopEnd::Done => (None, None),
+        LoopEnd::Failed(e) => (Some(e), None),
+        LoopEnd::Stopped(signal, checkpoint) => (None, Some((signal, checkpoint))),
+    };
     let summary = run.finish(output, failure, opts, wall0)?;
     if run.talk {
         summary::print_run_summary(&summary, &run.solver);
+    }
+    if let Some((signal, checkpoint)) = stop {
+        let s = &run.solver.state;
+        return Err(MufeError::Stopped {
+            signal,
+            message: format!(
+                "{} at step {} (t = {:.6e} s): checkpoint {} and {} written; continue with: mufe run SCENE --out {} --restart latest",
+                stop_signal::name(signal),
+                s.step,
+                s.time,
+                checkpoint.display(),
+                summary.results.display(),
+                opts.out.display()
+            ),
+        });
     }
     Ok(summary)
 }
@@ -191,6 +234,15 @@ fn step_count(loaded: &LoadedScene, dt: f64, opts: &RunOptions) -> Result<u64> {
     Ok(steps.min(u64::MAX as f64) as u64)
 }
 
+/// How the time loop ended.
+enum LoopEnd {
+    Done,
+    /// A step failed (serial run).
+    Failed(MufeError),
+    /// A stop signal; the checkpoint of the last step.
+    Stopped(i32, PathBuf),
+}
+
 /// A run in progress on one rank.
 struct Run<'a, 'd> {
     domain: &'d Domain,
@@ -210,8 +262,8 @@ struct Run<'a, 'd> {
 impl Run<'_, '_> {
     /// The time loop up to `last_step`. A step error on one rank of several aborts the
     /// job (the others cannot know); serially it is returned after the loop so that the
-    /// output can still be finished.
-    fn advance_to(&mut self, last_step: u64, output: &mut Output) -> Result<Option<MufeError>> {
+    /// output can still be finished. A stop signal ends the loop after a checkpoint.
+    fn advance_to(&mut self, last_step: u64, output: &mut Output) -> Result<LoopEnd> {
         let mut progress = Progress::new(self.talk, "run");
         let check_interval = self.loaded.scene.parallel.check_interval;
         let mut reported_stages = self.solver.state.stages.done.len();
@@ -223,14 +275,27 @@ impl Run<'_, '_> {
                     eprintln!("rank {}: error: {e}", self.domain.rank());
                     self.domain.abort(e.exit_code().max(1));
                 }
-                return Ok(Some(e));
+                return Ok(LoopEnd::Failed(e));
             }
             let n = self.solver.state.step;
             let t_out = Instant::now();
-            let last = n == last_step || self.solver.state.stages.finished;
+            let stop = self.stop_signal();
+            let last = n == last_step || self.solver.state.stages.finished || stop.is_some();
             output.after_step(&self.solver, last)?;
-            checkpoints.after_step(self.domain, &self.out, self.loaded, &self.solver)?;
+            let written = checkpoints.after_step(
+                self.domain,
+                &self.out,
+                self.loaded,
+                &self.solver,
+                stop.is_some(),
+            )?;
             self.solver.timers.add(Stage::Output, t_out.elapsed());
+            if let Some(signal) = stop {
+                progress.finish();
+                let path =
+                    written.unwrap_or_else(|| crate::io::checkpoint::checkpoint_path(&self.out, n));
+                return Ok(LoopEnd::Stopped(signal, path));
+            }
             match self.solver.model.stages.as_ref().filter(|p| p.staged) {
                 Some(plan) => {
                     let s = &self.solver.state;
@@ -257,7 +322,17 @@ impl Run<'_, '_> {
             }
         }
         progress.finish();
-        Ok(None)
+        Ok(LoopEnd::Done)
+    }
+
+    /// A stop signal received by any rank (the largest signal number if several), the
+    /// same on all ranks. All ranks must call.
+    fn stop_signal(&self) -> Option<i32> {
+        let mut s = [f64::from(stop_signal::received().unwrap_or(0))];
+        if self.domain.size() > 1 {
+            self.domain.max_in_place(&mut s);
+        }
+        (s[0] > 0.0).then_some(s[0] as i32)
     }
 
     /// Completes the halo in flight, then re-partitions or re-plans ghosts if needed.

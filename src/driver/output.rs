@@ -42,18 +42,27 @@ pub struct Output<'a, 'd> {
     triaxial_plot: Option<TriaxialPlot>,
 }
 
+/// How a run continues a checkpoint.
+pub struct Continued {
+    /// What `/provenance` records: the checkpoint, its step, the ranks and the command.
+    pub note: String,
+    /// Continue `results.h5` (a restart) rather than start a new one (a branch).
+    pub resume: bool,
+}
+
 impl<'a, 'd> Output<'a, 'd> {
     /// Creates the output directory and `results.h5` with `/scene`, `/provenance`,
-    /// `/mesh`, the history columns and the first frame; after a restart (`restarted`,
+    /// `/mesh`, the history columns and the first frame; after a restart (`continued`,
     /// the solver holding the checkpoint's state) an existing `results.h5` is reopened
-    /// and continued instead. All ranks must call.
+    /// and continued instead, and the restart is recorded in `/provenance` (a branch
+    /// starts a new file). All ranks must call.
     pub fn open(
         domain: &'d Domain,
         loaded: &LoadedScene,
         opts: &RunOptions,
         global: &'a GlobalMesh,
         solver: &Solver,
-        restarted: bool,
+        continued: Option<&Continued>,
     ) -> Result<Self> {
         std::fs::create_dir_all(&opts.out).map_err(|e| {
             MufeError::Io(format!(
@@ -63,13 +72,14 @@ impl<'a, 'd> Output<'a, 'd> {
         })?;
         let results = opts.out.join(RESULTS_FILE_NAME);
         let columns = history_columns(solver);
-        let resumed = if restarted && results.is_file() {
-            let s = &solver.state;
-            Some(ResultsWriter::resume(
-                domain, &results, &columns, s.step, s.time,
-            )?)
-        } else {
-            None
+        let resumed = match continued {
+            Some(c) if c.resume && results.is_file() => {
+                let s = &solver.state;
+                let mut r = ResultsWriter::resume(domain, &results, &columns, s.step, s.time)?;
+                r.writer.note_provenance("restart", &c.note)?;
+                Some(r)
+            }
+            _ => None,
         };
         let (writer, kept_rows, kept_frames) = match resumed {
             Some(r) => (r.writer, r.rows, r.frames),
@@ -85,6 +95,9 @@ impl<'a, 'd> Output<'a, 'd> {
                     &solver.state.partition.owner,
                 )?;
                 writer.define_history(&columns)?;
+                if let Some(c) = continued {
+                    writer.note_provenance(if c.resume { "restart" } else { "branch" }, &c.note)?;
+                }
                 (writer, Vec::new(), Vec::new())
             }
         };

@@ -56,6 +56,49 @@ pub struct EnergyLedger {
 }
 
 impl EnergyLedger {
+    /// Number of additive values in [`EnergyLedger::to_sums`].
+    pub const SUMS: usize = 11;
+
+    /// The ledger as additive values (a rank's ledger covers its owned grains, so the
+    /// model's is the sum over ranks of these, taken back with [`EnergyLedger::from_sums`]).
+    pub fn to_sums(&self) -> [f64; Self::SUMS] {
+        [
+            self.kinetic,
+            self.recoverable_strain,
+            self.plastic_dissipation,
+            self.friction_dissipation,
+            self.contact_energy,
+            self.body_force.work,
+            self.body_force.pending,
+            self.boundary_work,
+            self.damping.work,
+            self.damping.pending,
+            self.initial_total.unwrap_or(0.0),
+        ]
+    }
+
+    /// A ledger from summed [`EnergyLedger::to_sums`] values; `has_initial` says whether
+    /// the first step's total has been taken.
+    pub fn from_sums(v: &[f64; Self::SUMS], has_initial: bool) -> Self {
+        EnergyLedger {
+            kinetic: v[0],
+            recoverable_strain: v[1],
+            plastic_dissipation: v[2],
+            friction_dissipation: v[3],
+            contact_energy: v[4],
+            body_force: WorkAccumulator {
+                work: v[5],
+                pending: v[6],
+            },
+            boundary_work: v[7],
+            damping: WorkAccumulator {
+                work: v[8],
+                pending: v[9],
+            },
+            initial_total: has_initial.then_some(v[10]),
+        }
+    }
+
     /// The grains' whole stress work: ALLSE + ALLPD (equal to ALLSE for elastic grains).
     pub fn strain(&self) -> f64 {
         self.recoverable_strain + self.plastic_dissipation

@@ -1,16 +1,24 @@
 //! Checkpoints: `DIR/checkpoints/step_NNNNNNNNNNNN.h5`, the whole evolving state of a run
-//! (every rank's `solver::State`) at one step, written collectively into one HDF5 file.
+//! at one step, written collectively into one HDF5 file, readable by the same rank count
+//! (each rank takes its own `State` back, bitwise) and by any other (grains re-partitioned,
+//! each rank taking the packages of the grains it will hold).
 //!
-//! Layout (format [`CHECKPOINT_FORMAT`]):
-//! - attributes of `/`: `format_version`, `step`, `time` (s), `ranks`;
-//! - `/scene`: the scene text as run (a restart is refused if it differs);
-//! - `/state` (u8): the ranks' states as serde JSON (exact f64 round trip), rank r's bytes
-//!   at `[state_offsets[r], state_offsets[r+1])`, each rank writing its own hyperslab;
-//! - `/state_offsets` (u64, ranks + 1) and `/state_checksums` (u64 FNV-1a per rank).
+//! Layout (format [`CHECKPOINT_FORMAT`]); "blocks" are one per rank, in rank order, each
+//! rank writing its own hyperslab, with `NAME_offsets` (ranks + 1) and `NAME_checksums`
+//! (FNV-1a of each rank's bytes, little-endian):
+//! - attributes of `/`: `format_version`, `step`, `time` (s), `ranks`, `grains`;
+//! - `/scene`: the scene text as run;
+//! - `/state` (u8 blocks): each rank's `solver::State` as serde JSON (exact f64 round trip);
+//! - `/totals` (u8 blocks): each rank's `solver::RankTotals` as JSON (energies and wall
+//!   work summed over what it owns);
+//! - `/grains` (f64 blocks): the owned grains' packages (`driver::migration::pack_grain`),
+//!   with `/grain_ids` and `/grain_package_lengths` (u64, one row per grain, in the same
+//!   rank-block order; `/grain_offsets` gives each rank's first row). The checksum of a
+//!   rank's `/grains` block covers its ids, lengths and packages.
 //!
 //! A file is written as `.step_….h5.tmp` and renamed when complete (rename is atomic on
 //! POSIX file systems), so a run killed while writing leaves the previous checkpoints
-//! intact; the last K are kept. A checkpoint restarts on the rank count that wrote it.
+//! intact; the last K are kept.
 
 use super::collective;
 use super::results::{agree, fnv1a, io_error, put_u64_attr};
@@ -20,7 +28,7 @@ use hdf5::File;
 use std::path::{Path, PathBuf};
 
 /// Version of the checkpoint layout; a file of another version is refused.
-pub const CHECKPOINT_FORMAT: u64 = 1;
+pub const CHECKPOINT_FORMAT: u64 = 2;
 /// Subdirectory of the output directory.
 pub const CHECKPOINT_DIR: &str = "checkpoints";
 
@@ -38,13 +46,42 @@ pub struct CheckpointInfo {
     pub scene: String,
 }
 
-/// Writes this rank's `state` (serialised) into the checkpoint of `step` and keeps the
-/// last `keep` checkpoints of the directory. All ranks must call.
+/// What one rank puts into a checkpoint.
+pub struct RankCheckpoint<'a> {
+    /// The rank's `State`, serde JSON.
+    pub state: &'a [u8],
+    /// The rank's `RankTotals`, serde JSON.
+    pub totals: &'a [u8],
+    /// Global ids of the grains the rank owns (ascending).
+    pub grain_ids: &'a [u64],
+    /// Length (values) of each owned grain's package.
+    pub package_lengths: &'a [u64],
+    /// The owned grains' packages, concatenated in `grain_ids` order.
+    pub packages: &'a [f64],
+}
+
+impl RankCheckpoint<'_> {
+    /// Checksum of the grain block: ids, lengths and packages.
+    fn grains_checksum(&self) -> u64 {
+        grains_checksum(self.grain_ids, self.package_lengths, self.packages)
+    }
+}
+
+fn grains_checksum(ids: &[u64], lengths: &[u64], packages: &[f64]) -> u64 {
+    let mut bytes = Vec::with_capacity(8 * (ids.len() + lengths.len() + packages.len()));
+    bytes.extend(ids.iter().flat_map(|v| v.to_le_bytes()));
+    bytes.extend(lengths.iter().flat_map(|v| v.to_le_bytes()));
+    bytes.extend(packages.iter().flat_map(|v| v.to_le_bytes()));
+    fnv1a(&bytes)
+}
+
+/// Writes this rank's part of the checkpoint of `step` and keeps the last `keep`
+/// checkpoints of the directory. All ranks must call.
 pub fn write_checkpoint(
     domain: &Domain,
     dir: &Path,
     scene_text: &str,
-    state: &[u8],
+    part: &RankCheckpoint,
     step: u64,
     time: f64,
     keep: usize,
@@ -59,13 +96,7 @@ pub fn write_checkpoint(
     };
     agree(domain, &folder, "creating the checkpoint directory", made)?;
 
-    let lengths = domain.all_gather_u64(state.len() as u64);
-    let mut offsets = vec![0u64];
-    for l in &lengths {
-        offsets.push(offsets.last().copied().unwrap_or(0) + l);
-    }
-    let total = *offsets.last().unwrap_or(&0);
-    let rank = domain.rank();
+    let grains = domain.sum_u64(part.grain_ids.len() as u64);
     let created = File::with_options()
         .with_fapl(|p| p.mpio(domain.raw_comm(), None))
         .create(&tmp)
@@ -81,22 +112,32 @@ pub fn write_checkpoint(
         put_u64_attr(&file, "format_version", CHECKPOINT_FORMAT)?;
         put_u64_attr(&file, "step", step)?;
         put_u64_attr(&file, "ranks", domain.size() as u64)?;
+        put_u64_attr(&file, "grains", grains)?;
         file.new_attr::<f64>().create("time")?.write_scalar(&time)?;
         collective::create_text_dataset(&file, "scene", scene_text, domain.is_root())?;
-        let ds = file
-            .new_dataset::<u8>()
-            .shape(total as usize)
-            .create("state")?;
-        collective::write_rows(&ds, state, 1, offsets[rank], total)?;
-        let ds = (file.new_dataset::<u64>())
-            .shape(offsets.len())
-            .create("state_offsets")?;
-        let root_rows: &[u64] = if domain.is_root() { &offsets } else { &[] };
-        collective::write_1d_u64(&ds, root_rows, 0, offsets.len() as u64)?;
-        let ds = (file.new_dataset::<u64>())
-            .shape(lengths.len())
-            .create("state_checksums")?;
-        collective::write_1d_u64(&ds, &[fnv1a(state)], rank as u64, lengths.len() as u64)?;
+        write_blocks(domain, &file, "state", part.state, Some(fnv1a(part.state)))?;
+        write_blocks(
+            domain,
+            &file,
+            "totals",
+            part.totals,
+            Some(fnv1a(part.totals)),
+        )?;
+        write_blocks(
+            domain,
+            &file,
+            "grains",
+            part.packages,
+            Some(part.grains_checksum()),
+        )?;
+        write_blocks(domain, &file, "grain_ids", part.grain_ids, None)?;
+        write_blocks(
+            domain,
+            &file,
+            "grain_package_lengths",
+            part.package_lengths,
+            None,
+        )?;
         Ok(())
     })();
     agree(
@@ -118,6 +159,35 @@ pub fn write_checkpoint(
     Ok(final_path)
 }
 
+/// `/NAME` holding every rank's `data` as one block in rank order, `/NAME_offsets` and,
+/// with a checksum, `/NAME_checksums`. All ranks must call.
+fn write_blocks<T: collective::Element + hdf5::H5Type>(
+    domain: &Domain,
+    file: &File,
+    name: &str,
+    data: &[T],
+    checksum: Option<u64>,
+) -> hdf5::Result<()> {
+    let (offset, total) = domain.exclusive_scan_u64(data.len() as u64);
+    let ds = file.new_dataset::<T>().shape(total as usize).create(name)?;
+    collective::write_rows(&ds, data, 1, offset, total)?;
+    let ends = domain.all_gather_u64(offset + data.len() as u64);
+    let offsets: Vec<u64> = std::iter::once(0).chain(ends).collect();
+    let ds = (file.new_dataset::<u64>())
+        .shape(offsets.len())
+        .create(format!("{name}_offsets").as_str())?;
+    let root_rows: &[u64] = if domain.is_root() { &offsets } else { &[] };
+    collective::write_1d_u64(&ds, root_rows, 0, offsets.len() as u64)?;
+    if let Some(sum) = checksum {
+        let ranks = domain.size() as u64;
+        let ds = (file.new_dataset::<u64>())
+            .shape(ranks as usize)
+            .create(format!("{name}_checksums").as_str())?;
+        collective::write_1d_u64(&ds, &[sum], domain.rank() as u64, ranks)?;
+    }
+    Ok(())
+}
+
 /// Removes all but the newest `keep` (≥ 1) `step_*.h5` files of `folder`.
 fn prune(folder: &Path, keep: usize) -> std::io::Result<()> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(folder)?
@@ -136,70 +206,127 @@ fn prune(folder: &Path, keep: usize) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Reads a checkpoint: its header, checked (a file that is not a checkpoint, of another
-/// format version, or written by another number of ranks is an input error naming it),
-/// and this rank's state bytes, checksum verified.
-pub fn read_checkpoint(
-    domain: &Domain,
-    path: &Path,
-) -> Result<(CheckpointInfo, Vec<u8>), MufeError> {
-    let file_name = path.display().to_string();
-    let bad =
-        |item: &str, msg: String| -> MufeError { InputError::new(&file_name, item, msg).into() };
-    let file = File::open(path).map_err(|e| bad("file", format!("cannot open as HDF5: {e}")))?;
-    let u64_attr = |name: &str| -> Result<u64, MufeError> {
-        (file.attr(name).and_then(|a| a.read_scalar::<u64>()))
-            .map_err(|_| bad(name, "missing: not a mufe checkpoint".into()))
-    };
-    let version = u64_attr("format_version")?;
-    if version != CHECKPOINT_FORMAT {
-        return Err(bad(
-            "format_version",
-            format!("checkpoint format {version}; this mufe reads format {CHECKPOINT_FORMAT} only"),
-        ));
-    }
-    let ranks = u64_attr("ranks")?;
-    if ranks != domain.size() as u64 {
-        return Err(bad(
-            "ranks",
-            format!(
-                "written by {ranks} ranks; restart it with mpirun -n {ranks} (this run has {})",
-                domain.size()
-            ),
-        ));
-    }
-    let time = (file.attr("time").and_then(|a| a.read_scalar::<f64>()))
-        .map_err(|_| bad("time", "missing: not a mufe checkpoint".into()))?;
-    let scene = (file
-        .dataset("scene")
-        .and_then(|d| collective::read_text_dataset(&d)))
-    .map_err(|e| bad("scene", format!("unreadable: {e}")))?;
-    let info = CheckpointInfo {
-        step: u64_attr("step")?,
-        time,
-        ranks,
-        scene,
-    };
+/// An open checkpoint whose header has been checked (a mufe checkpoint of this format).
+pub struct CheckpointFile {
+    file: File,
+    name: String,
+    pub info: CheckpointInfo,
+}
 
-    let r = domain.rank();
-    let read_u64 = |name: &str| {
-        (file.dataset(name).and_then(|d| d.read_raw::<u64>())).map_err(|e| bad(name, e.to_string()))
-    };
-    let (offsets, sums) = (read_u64("state_offsets")?, read_u64("state_checksums")?);
-    if offsets.len() != domain.size() + 1 || sums.len() != domain.size() {
-        return Err(bad("state_offsets", "does not match the rank count".into()));
+/// Every rank's grain packages of a checkpoint, checksums verified.
+pub struct GrainPackages {
+    /// Global grain id of each package.
+    pub ids: Vec<u64>,
+    /// Each package's values.
+    pub lengths: Vec<u64>,
+    /// All packages, concatenated.
+    pub packages: Vec<f64>,
+}
+
+impl CheckpointFile {
+    /// Opens `path` and checks its header: a file that is not a checkpoint or is of another
+    /// format version is an input error naming it.
+    pub fn open(path: &Path) -> Result<Self, MufeError> {
+        let name = path.display().to_string();
+        let bad =
+            |item: &str, msg: String| -> MufeError { InputError::new(&name, item, msg).into() };
+        let file =
+            File::open(path).map_err(|e| bad("file", format!("cannot open as HDF5: {e}")))?;
+        let u64_attr = |attr: &str| -> Result<u64, MufeError> {
+            (file.attr(attr).and_then(|a| a.read_scalar::<u64>()))
+                .map_err(|_| bad(attr, "missing: not a mufe checkpoint".into()))
+        };
+        let version = u64_attr("format_version")?;
+        if version != CHECKPOINT_FORMAT {
+            return Err(bad(
+                "format_version",
+                format!(
+                    "checkpoint format {version}; this mufe reads format {CHECKPOINT_FORMAT} only"
+                ),
+            ));
+        }
+        let time = (file.attr("time").and_then(|a| a.read_scalar::<f64>()))
+            .map_err(|_| bad("time", "missing: not a mufe checkpoint".into()))?;
+        let scene = (file
+            .dataset("scene")
+            .and_then(|d| collective::read_text_dataset(&d)))
+        .map_err(|e| bad("scene", format!("unreadable: {e}")))?;
+        let info = CheckpointInfo {
+            step: u64_attr("step")?,
+            time,
+            ranks: u64_attr("ranks")?,
+            scene,
+        };
+        Ok(Self { file, name, info })
     }
-    let (a, b) = (offsets[r] as usize, offsets[r + 1] as usize);
-    let bytes = (file
-        .dataset("state")
-        .and_then(|d| d.read_slice_1d::<u8, _>(a..b)))
-    .map_err(|e| bad("state", e.to_string()))?
-    .to_vec();
-    if fnv1a(&bytes) != sums[r] {
-        return Err(bad(
-            "state",
-            format!("checksum mismatch in rank {r}'s state: the file is damaged"),
-        ));
+
+    fn bad(&self, item: &str, msg: String) -> MufeError {
+        InputError::new(&self.name, item, msg).into()
     }
-    Ok((info, bytes))
+
+    fn read_u64(&self, dataset: &str) -> Result<Vec<u64>, MufeError> {
+        (self.file.dataset(dataset).and_then(|d| d.read_raw::<u64>()))
+            .map_err(|e| self.bad(dataset, e.to_string()))
+    }
+
+    /// Rank `rank`'s block of `/NAME` (of the ranks that wrote the file).
+    fn block<T: hdf5::H5Type + Copy>(
+        &self,
+        dataset: &str,
+        rank: usize,
+    ) -> Result<Vec<T>, MufeError> {
+        let offsets = self.read_u64(&format!("{dataset}_offsets"))?;
+        if offsets.len() != self.info.ranks as usize + 1 || rank >= self.info.ranks as usize {
+            return Err(self.bad(
+                &format!("{dataset}_offsets"),
+                "does not match the rank count".into(),
+            ));
+        }
+        let (a, b) = (offsets[rank] as usize, offsets[rank + 1] as usize);
+        Ok((self.file.dataset(dataset))
+            .and_then(|d| d.read_slice_1d::<T, _>(a..b))
+            .map_err(|e| self.bad(dataset, e.to_string()))?
+            .to_vec())
+    }
+
+    /// Rank `rank`'s bytes of a JSON block (`state` or `totals`), checksum verified.
+    pub fn json_block(&self, dataset: &str, rank: usize) -> Result<Vec<u8>, MufeError> {
+        let bytes: Vec<u8> = self.block(dataset, rank)?;
+        let sums = self.read_u64(&format!("{dataset}_checksums"))?;
+        if sums.get(rank) != Some(&fnv1a(&bytes)) {
+            return Err(self.bad(
+                dataset,
+                format!("checksum mismatch in rank {rank}'s block: the file is damaged"),
+            ));
+        }
+        Ok(bytes)
+    }
+
+    /// Every grain package of the file, checksums verified.
+    pub fn grain_packages(&self) -> Result<GrainPackages, MufeError> {
+        let sums = self.read_u64("grains_checksums")?;
+        let mut all = GrainPackages {
+            ids: Vec::new(),
+            lengths: Vec::new(),
+            packages: Vec::new(),
+        };
+        for r in 0..self.info.ranks as usize {
+            let ids: Vec<u64> = self.block("grain_ids", r)?;
+            let lengths: Vec<u64> = self.block("grain_package_lengths", r)?;
+            let packages: Vec<f64> = self.block("grains", r)?;
+            if sums.get(r) != Some(&grains_checksum(&ids, &lengths, &packages))
+                || ids.len() != lengths.len()
+                || lengths.iter().sum::<u64>() != packages.len() as u64
+            {
+                return Err(self.bad(
+                    "grains",
+                    format!("checksum mismatch in rank {r}'s block: the file is damaged"),
+                ));
+            }
+            all.ids.extend(ids);
+            all.lengths.extend(lengths);
+            all.packages.extend(packages);
+        }
+        Ok(all)
+    }
 }

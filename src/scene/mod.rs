@@ -3,12 +3,14 @@
 //! and semantic checks that name the offending field. SI units throughout.
 
 mod checker;
+pub mod compare;
 pub mod estimate;
 mod overrides;
 pub mod packing;
 pub mod stages;
 mod validate;
 
+pub use compare::first_difference;
 pub use overrides::apply_override;
 
 use crate::error::InputError;

@@ -23,6 +23,6 @@ pub mod timing;
 
 pub use forces::element_response;
 pub use setup::{build_solver, build_solver_for, initial_velocities};
-pub use state::{Reaction, State};
+pub use state::{RankTotals, Reaction, State};
 pub use step::{Scratch, Serial, Solver, StepHooks};
 pub use timing::{Stage, StageTimers};

@@ -55,3 +55,123 @@ pub struct State {
     /// run driver; one part on a serial run).
     pub partition: Partition,
 }
+
+/// The quantities of a [`State`] that each rank accumulates over what it owns (energies,
+/// friction dissipation, the walls' work on its nodes): the model's value is the sum over
+/// ranks. A checkpoint keeps them per rank so that a restart on another rank count can
+/// hand their sums to one rank.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RankTotals {
+    pub energy: EnergyLedger,
+    /// `ContactState::friction_dissipation` (J).
+    pub friction_dissipation: f64,
+    /// Each wall's `work` and `friction` accumulators (J).
+    pub wall_work: Vec<[WorkAccumulator; 2]>,
+}
+
+impl RankTotals {
+    /// The sum of every rank's totals (ranks in order, so every reader gets the same sum).
+    pub fn sum(parts: &[RankTotals]) -> RankTotals {
+        let mut energy = [0.0; EnergyLedger::SUMS];
+        let mut total = RankTotals::default();
+        for p in parts {
+            for (e, v) in energy.iter_mut().zip(p.energy.to_sums()) {
+                *e += v;
+            }
+            total.friction_dissipation += p.friction_dissipation;
+            total
+                .wall_work
+                .resize(p.wall_work.len(), [WorkAccumulator::default(); 2]);
+            for (t, w) in total.wall_work.iter_mut().zip(&p.wall_work) {
+                for k in 0..2 {
+                    t[k].work += w[k].work;
+                    t[k].pending += w[k].pending;
+                }
+            }
+        }
+        let has_initial = parts.iter().any(|p| p.energy.initial_total.is_some());
+        total.energy = EnergyLedger::from_sums(&energy, has_initial);
+        total
+    }
+
+    /// Zero totals of the same shape (what a rank that inherits none of them starts from;
+    /// the first step's total counts as taken, so it is not taken again).
+    pub fn zero_like(&self) -> RankTotals {
+        let energy = EnergyLedger::from_sums(
+            &[0.0; EnergyLedger::SUMS],
+            self.energy.initial_total.is_some(),
+        );
+        RankTotals {
+            energy,
+            friction_dissipation: 0.0,
+            wall_work: vec![[WorkAccumulator::default(); 2]; self.wall_work.len()],
+        }
+    }
+}
+
+impl State {
+    /// This rank's additive totals.
+    pub fn rank_totals(&self) -> RankTotals {
+        RankTotals {
+            energy: self.energy.clone(),
+            friction_dissipation: self.contact.friction_dissipation,
+            wall_work: (self.contact.walls.iter())
+                .map(|w| [w.work, w.friction])
+                .collect(),
+        }
+    }
+
+    /// Replaces this rank's additive totals.
+    pub fn set_rank_totals(&mut self, totals: &RankTotals) {
+        self.energy = totals.energy.clone();
+        self.contact.friction_dissipation = totals.friction_dissipation;
+        for (w, t) in self.contact.walls.iter_mut().zip(&totals.wall_work) {
+            w.work = t[0];
+            w.friction = t[1];
+        }
+    }
+
+    /// Takes over from `from` (another rank's state, or this rank's before its grains
+    /// moved) everything that is not carried by the grains themselves: time, step, this
+    /// rank's totals, walls, stage progress, contact maxima, partition. The grains' nodes,
+    /// plastic state, friction history and prescribed motions travel as grain packages
+    /// (`driver::migration`). Every field of `State` is named here, so a new one does not
+    /// compile until it is placed on one side.
+    pub fn take_run_level_from(&mut self, from: &State) {
+        let State {
+            time,
+            step,
+            x: _,
+            v: _,
+            energy,
+            plastic: _,
+            motion_rotation: _,
+            reactions: _,
+            motion_work: _,
+            contact,
+            stages,
+            supplied_energy,
+            partition,
+        } = from;
+        let ContactState {
+            history: _,
+            friction_dissipation,
+            walls,
+            stats,
+            detection,
+        } = contact;
+        self.time = *time;
+        self.step = *step;
+        self.energy = energy.clone();
+        self.stages = stages.clone();
+        self.supplied_energy = *supplied_energy;
+        self.partition = partition.clone();
+        self.contact.friction_dissipation = *friction_dissipation;
+        self.contact.walls = walls.clone();
+        self.contact.stats.max_penetration_run = stats.max_penetration_run;
+        self.contact.stats.max_contacts_run = stats.max_contacts_run;
+        self.contact.stats.rebuilds = stats.rebuilds;
+        // the candidate lists are rebuilt for the new layout; only the count carries over
+        self.contact.detection.rebuilds = detection.rebuilds;
+    }
+}

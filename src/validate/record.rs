@@ -73,8 +73,9 @@ impl<'a, 'd> CaseOutput<'a, 'd> {
                     force: true,
                     checkpoint_every: None,
                     restart: None,
+                    branch: false,
                 };
-                let out = Output::open(r.domain, loaded, &opts, global, solver, false)?;
+                let out = Output::open(r.domain, loaded, &opts, global, solver, None)?;
                 Some((out, opts.out))
             }
             _ => None,

@@ -67,53 +67,111 @@ pub fn run_under_mpirun(
     timeout: Duration,
 ) -> Output {
     let _serial = SERIAL.lock().unwrap_or_else(|p| p.into_inner());
-    let launcher = std::env::var("MPIEXEC").unwrap_or_else(|_| "mpirun".to_string());
-    let mut cmd = Command::new(&launcher);
-    cmd.arg("-n").arg(ranks.to_string()).arg(exe).args(args);
-    for (k, v) in LAUNCH_ENV.iter().chain(env) {
-        cmd.env(k, v);
-    }
-    // Own process group: on timeout the launcher and every rank it started are killed
-    // together, not just the launcher.
-    cmd.process_group(0)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
-    let mut child = cmd
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot start MPI launcher {launcher:?}: {e}"));
-    let pgid = child.id();
-    let stdout = drain(child.stdout.take());
-    let stderr = drain(child.stderr.take());
+    let job = Job::start(Some(ranks), exe, args, env);
+    job.wait(timeout)
+}
 
-    let start = Instant::now();
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(status)) => break Some(status),
-            Ok(None) if start.elapsed() < timeout => thread::sleep(Duration::from_millis(50)),
-            Ok(None) => break None,
-            Err(e) => panic!("waiting for {launcher}: {e}"),
+/// A launched job (its own process group) whose output is being collected.
+pub struct Job {
+    child: std::process::Child,
+    pgid: u32,
+    label: String,
+    stdout: thread::JoinHandle<Vec<u8>>,
+    stderr: thread::JoinHandle<Vec<u8>>,
+}
+
+impl Job {
+    /// Starts `exe args...` under the launcher with `ranks` ranks, or directly (a serial
+    /// run without MPI launcher) for `None`.
+    pub fn start(ranks: Option<usize>, exe: &Path, args: &[&str], env: &[(&str, &str)]) -> Job {
+        let launcher = std::env::var("MPIEXEC").unwrap_or_else(|_| "mpirun".to_string());
+        let mut cmd = match ranks {
+            Some(n) => {
+                let mut c = Command::new(&launcher);
+                c.arg("-n").arg(n.to_string()).arg(exe);
+                c
+            }
+            None => Command::new(exe),
+        };
+        cmd.args(args);
+        for (k, v) in LAUNCH_ENV.iter().chain(env) {
+            cmd.env(k, v);
         }
-    };
-    let Some(status) = status else {
-        kill_group(pgid, "TERM");
-        thread::sleep(Duration::from_secs(2));
-        kill_group(pgid, "KILL");
-        let _ = child.wait();
-        let out = String::from_utf8_lossy(&join(stdout)).into_owned();
-        let err = String::from_utf8_lossy(&join(stderr)).into_owned();
-        panic!(
-            "{launcher} -n {ranks} {} did not finish within {timeout:?} (deadlock?); killed.\n\
-             --- stdout ---\n{out}\n--- stderr ---\n{err}",
-            exe.display()
-        );
-    };
-    // A rank left behind by the launcher would keep the pipes open; make sure none is.
-    kill_group(pgid, "KILL");
-    Output {
-        status,
-        stdout: join(stdout),
-        stderr: join(stderr),
+        // Own process group: on timeout the launcher and every rank it started are killed
+        // together, not just the launcher.
+        cmd.process_group(0)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        let label = match ranks {
+            Some(n) => format!("{launcher} -n {n} {}", exe.display()),
+            None => exe.display().to_string(),
+        };
+        let mut child = cmd
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {label}: {e}"));
+        let pgid = child.id();
+        let stdout = drain(child.stdout.take());
+        let stderr = drain(child.stderr.take());
+        Job {
+            child,
+            pgid,
+            label,
+            stdout,
+            stderr,
+        }
+    }
+
+    /// Whether the job is still running.
+    pub fn running(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+
+    /// Sends `signal` (a `kill` name: TERM, USR1, KILL) to the launcher only, or with
+    /// `whole_group` to the launcher and every rank.
+    pub fn signal(&self, signal: &str, whole_group: bool) {
+        let target = if whole_group {
+            format!("-{}", self.pgid)
+        } else {
+            self.pgid.to_string()
+        };
+        let _ = Command::new("kill")
+            .args([format!("-{signal}"), "--".to_string(), target])
+            .status();
+    }
+
+    /// Waits for the job to end (killing it after `timeout`, which fails the test) and
+    /// returns its output.
+    pub fn wait(mut self, timeout: Duration) -> Output {
+        let start = Instant::now();
+        let status = loop {
+            match self.child.try_wait() {
+                Ok(Some(status)) => break Some(status),
+                Ok(None) if start.elapsed() < timeout => thread::sleep(Duration::from_millis(50)),
+                Ok(None) => break None,
+                Err(e) => panic!("waiting for {}: {e}", self.label),
+            }
+        };
+        let Some(status) = status else {
+            kill_group(self.pgid, "TERM");
+            thread::sleep(Duration::from_secs(2));
+            kill_group(self.pgid, "KILL");
+            let _ = self.child.wait();
+            let out = String::from_utf8_lossy(&join(self.stdout)).into_owned();
+            let err = String::from_utf8_lossy(&join(self.stderr)).into_owned();
+            panic!(
+                "{} did not finish within {timeout:?} (deadlock?); killed.\n\
+                 --- stdout ---\n{out}\n--- stderr ---\n{err}",
+                self.label
+            );
+        };
+        // A rank left behind by the launcher would keep the pipes open; make sure none is.
+        kill_group(self.pgid, "KILL");
+        Output {
+            status,
+            stdout: join(self.stdout),
+            stderr: join(self.stderr),
+        }
     }
 }
 
@@ -171,4 +229,9 @@ fn kill_group(pgid: u32, signal: &str) {
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .status();
+}
+
+/// Holds this test binary's one-job-at-a-time lock (for tests that drive a [`Job`]).
+pub fn exclusive() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|p| p.into_inner())
 }

@@ -130,3 +130,30 @@ impl<'d> ResultsWriter<'d> {
         })
     }
 }
+
+impl ResultsWriter<'_> {
+    /// Records a restart or branch in `/provenance` as attribute `KIND_N` (N counting the
+    /// file's earlier ones of that kind), rank 0's `note` on all ranks. All ranks must
+    /// call.
+    pub fn note_provenance(&mut self, kind: &str, note: &str) -> Result<(), MufeError> {
+        let mut bytes = note.as_bytes().to_vec();
+        self.domain.broadcast_bytes(&mut bytes);
+        let note = String::from_utf8_lossy(&bytes).into_owned();
+        let written = (|| -> hdf5::Result<()> {
+            let group = self.file.group("provenance")?;
+            let earlier = group
+                .attr_names()?
+                .iter()
+                .filter(|n| n.starts_with(&format!("{kind}_")))
+                .count();
+            super::put_str_attr(&group, &format!("{kind}_{earlier}"), &note)
+        })();
+        agree(
+            self.domain,
+            &self.path,
+            "recording the restart in /provenance",
+            written.map_err(|e| e.to_string()),
+        )?;
+        self.flush_file()
+    }
+}
