@@ -34,7 +34,7 @@ impl fmt::Display for InputError {
     /// with "…", and the file, item and message are capped so that a 10 MB value cannot
     /// flood the terminal.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let file = readable(&self.file, MAX_ITEM_CHARS);
+        let file = readable_path(&self.file, MAX_ITEM_CHARS);
         let message = readable(&self.message, MAX_MESSAGE_CHARS);
         if self.item.is_empty() {
             write!(f, "{file}: {message}")
@@ -93,6 +93,19 @@ fn escape_controls(s: &str) -> String {
         .collect()
 }
 
+/// A file path on one line: controls escaped, and a path longer than `max_total` cut at
+/// the front, since its end (the file name) is what names the file.
+fn readable_path(s: &str, max_total: usize) -> String {
+    let escaped = escape_controls(s);
+    let n = escaped.chars().count();
+    if n <= max_total {
+        escaped
+    } else {
+        let tail: String = escaped.chars().skip(n - max_total).collect();
+        format!("…{tail}")
+    }
+}
+
 /// One readable line: controls escaped, long words (echoed values) cut, total capped.
 fn readable(s: &str, max_total: usize) -> String {
     let mut out = String::new();
@@ -126,6 +139,17 @@ impl std::error::Error for InputError {}
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_long_path_keeps_its_file_name() {
+        let path = format!("/{}/checkpoints/step_000000000150.h5", "deep/".repeat(60));
+        let line = InputError::new(&path, "file", "damaged").to_string();
+        assert!(
+            line.contains("/checkpoints/step_000000000150.h5: file: damaged"),
+            "{line}"
+        );
+        assert!(line.chars().count() < 260, "{line}");
+    }
 
     #[test]
     fn long_values_are_cut_and_lines_stay_single() {

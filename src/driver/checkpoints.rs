@@ -52,19 +52,11 @@ impl CheckpointSchedule {
         }
     }
 
-    /// After a step: writes a checkpoint when one is due (`forced`: now, e.g. on a stop
+    /// Whether a checkpoint is due after step `step` (`forced`: now, e.g. on a stop
     /// signal, unless this step's is written already). The wall-time decision is reduced
-    /// over ranks (clocks differ), `forced` must be the same on all ranks. All ranks must
-    /// call. Returns the file written.
-    pub fn after_step(
-        &mut self,
-        domain: &Domain,
-        dir: &Path,
-        loaded: &LoadedScene,
-        solver: &Solver,
-        forced: bool,
-    ) -> Result<Option<PathBuf>> {
-        let step = solver.state.step;
+    /// over ranks (clocks differ); `forced` must be the same on all ranks. All ranks must
+    /// call.
+    pub fn due(&self, domain: &Domain, step: u64, forced: bool) -> bool {
         let by_steps = self.every_steps.is_some_and(|n| step.is_multiple_of(n));
         let by_time = match self.every_seconds {
             Some(t) => {
@@ -74,13 +66,21 @@ impl CheckpointSchedule {
             }
             None => false,
         };
-        if !(by_steps || by_time || forced) || self.last_step == Some(step) {
-            return Ok(None);
-        }
+        (by_steps || by_time || forced) && self.last_step != Some(step)
+    }
+
+    /// Writes the checkpoint of the solver's current step. All ranks must call.
+    pub fn write(
+        &mut self,
+        domain: &Domain,
+        dir: &Path,
+        loaded: &LoadedScene,
+        solver: &Solver,
+    ) -> Result<PathBuf> {
         let path = write_solver_checkpoint(domain, dir, loaded, solver, self.keep)?;
         self.last = Instant::now();
-        self.last_step = Some(step);
-        Ok(Some(path))
+        self.last_step = Some(solver.state.step);
+        Ok(path)
     }
 }
 

@@ -190,7 +190,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         LoopEnd::Failed(e) => (Some(e), None),
         LoopEnd::Stopped(signal, checkpoint) => (None, Some((signal, checkpoint))),
     };
-    let summary = run.finish(output, failure, opts, wall0)?;
+    let summary = run.finish(output, failure, stop.is_some(), opts, wall0)?;
     if run.talk {
         summary::print_run_summary(&summary, &run.solver);
     }
@@ -280,15 +280,16 @@ impl Run<'_, '_> {
             let n = self.solver.state.step;
             let t_out = Instant::now();
             let stop = self.stop_signal();
-            let last = n == last_step || self.solver.state.stages.finished || stop.is_some();
+            let last = n == last_step || self.solver.state.stages.finished;
             output.after_step(&self.solver, last)?;
-            let written = checkpoints.after_step(
-                self.domain,
-                &self.out,
-                self.loaded,
-                &self.solver,
-                stop.is_some(),
-            )?;
+            let mut written = None;
+            if checkpoints.due(self.domain, n, stop.is_some()) {
+                // rows up to this step reach the file first: a job killed after the
+                // checkpoint keeps every row its restart will not write again
+                output.flush_history()?;
+                written =
+                    Some(checkpoints.write(self.domain, &self.out, self.loaded, &self.solver)?);
+            }
             self.solver.timers.add(Stage::Output, t_out.elapsed());
             if let Some(signal) = stop {
                 progress.finish();
@@ -370,11 +371,12 @@ impl Run<'_, '_> {
         &mut self,
         output: Output,
         failure: Option<MufeError>,
+        stopped: bool,
         opts: &RunOptions,
         wall0: Instant,
     ) -> Result<RunSummary> {
         let solver = &self.solver;
-        let watched = output.close(solver, failure.is_some(), &opts.out)?;
+        let watched = output.close(solver, failure.is_some(), stopped, &opts.out)?;
         let domain = self.domain;
         let energy = history::global_ledger(domain, &solver.state.energy);
         let stats = &solver.state.contact.stats;

@@ -163,16 +163,32 @@ impl<'a, 'd> Output<'a, 'd> {
         Ok(())
     }
 
+    /// Writes the buffered history rows now (before a checkpoint, so that a job killed
+    /// after it keeps every row the restart will not write again). All ranks must call.
+    pub fn flush_history(&mut self) -> Result<()> {
+        self.writer.flush_history()?;
+        self.last_flush = Instant::now();
+        Ok(())
+    }
+
     /// Writes what a finished (or failed) run leaves: a last history row when the loop
     /// wrote none for this state, the last frame, then closes the file and draws
-    /// `DIR/energy.png`. All ranks must call.
+    /// `DIR/energy.png`. A run `stopped` by a signal writes no extra row or frame: its
+    /// restart continues the file as the uninterrupted run would have written it. All
+    /// ranks must call.
     /// Returns what the contact watch saw (gap opening on rank 0; kinetic ratios).
-    pub fn close(mut self, solver: &Solver, failed: bool, dir: &Path) -> Result<ContactWatch> {
+    pub fn close(
+        mut self,
+        solver: &Solver,
+        failed: bool,
+        stopped: bool,
+        dir: &Path,
+    ) -> Result<ContactWatch> {
         // Keep what was computed up to a failure: history and a last frame help diagnose it.
         if failed || solver.state.step == 0 {
             self.push_history_row(solver)?;
         }
-        if self.frames {
+        if self.frames && !stopped {
             self.write_frame(solver)?;
         }
         self.writer.close()?;

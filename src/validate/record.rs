@@ -112,7 +112,7 @@ impl<'a, 'd> CaseOutput<'a, 'd> {
     ) -> Result<()> {
         details.insert("energy_balance_error".into(), json!(self.max_balance_error));
         if let Some((out, dir)) = self.output {
-            out.close(solver, false, &dir)?;
+            out.close(solver, false, false, &dir)?;
             details.insert(
                 "results_h5".into(),
                 json!(dir

@@ -1,0 +1,440 @@
+//! Checkpoints against faults and changes (issue 13, items 4, 6, 8), on the elastic–plastic
+//! variant of `jobs/tests/assembly.toml` (27 spheres, contacts straddling the ranks, a
+//! moving wall, plastic state at the contacts):
+//! - a 2-rank checkpoint restarted on 1 and 3 ranks (grains re-partitioned) ends with the
+//!   2-rank run's history to 1e-10;
+//! - `--restart latest` skips a damaged newest checkpoint (named on stderr) and continues
+//!   bitwise from the older one; with none valid it is one line and exit 2;
+//! - `kill -9` of a running job (serial, and every process of a 2-rank job), then
+//!   `--restart latest`, ends equal to the uninterrupted run with no row lost or repeated;
+//! - SIGTERM (serial) and SIGUSR1 to `mpirun` (2 ranks) stop the run with a checkpoint and
+//!   a readable `results.h5`, and the restart ends equal to the uninterrupted run;
+//! - a changed scene is refused naming the first difference (output settings and the end
+//!   time may change); `--branch` starts a new run from the checkpoint with other physics.
+
+#[path = "common/mpi_launch.rs"]
+mod mpi_launch;
+#[path = "common/results.rs"]
+mod results;
+
+use mpi_launch::Job;
+use results::history;
+use std::path::{Path, PathBuf};
+use std::process::Output;
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+const PLASTIC: [&str; 4] = [
+    "--set",
+    "materials.glass.yield_stress=1e8",
+    "--set",
+    "materials.glass.hardening_modulus=1e9",
+];
+
+fn scene() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("jobs/tests/assembly.toml")
+        .to_string_lossy()
+        .into_owned()
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("checkpoint_faults")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// `mufe run ASSEMBLY --out OUT ARGS PLASTIC` on `ranks` ranks (1: under mpirun too).
+fn mufe(ranks: usize, out: &Path, args: &[&str]) -> Output {
+    let s = scene();
+    let mut all = vec![
+        "run",
+        s.as_str(),
+        "--threads",
+        "1",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&PLASTIC);
+    mpi_launch::run_mufe(ranks, &all, Duration::from_secs(240))
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    let _ = std::fs::remove_dir_all(to);
+    let ok = std::process::Command::new("cp")
+        .args(["-a", from.to_str().unwrap(), to.to_str().unwrap()])
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "copying {}", from.display());
+}
+
+fn checkpoint(out: &Path, step: u64) -> PathBuf {
+    out.join(format!("checkpoints/step_{step:012}.h5"))
+}
+
+/// Every `/history` series of `b` equals `a`'s: bitwise (`tol` = 0) or to `tol` relative
+/// to the series' largest value; same rows.
+fn assert_same_history(a: &Path, b: &Path, tol: f64, what: &str) {
+    let (x, y) = (history(a), history(b));
+    assert_eq!(x.len(), y.len(), "{what}: columns");
+    for ((name, p), (name_b, q)) in x.iter().zip(&y) {
+        assert_eq!(name, name_b);
+        assert_eq!(p.len(), q.len(), "{what}: /history/{name} rows");
+        let scale = p.iter().map(|v| v.abs()).fold(0.0, f64::max);
+        for (i, (u, v)) in p.iter().zip(q).enumerate() {
+            let ok = if tol == 0.0 {
+                u.to_bits() == v.to_bits()
+            } else {
+                (u - v).abs() <= tol * scale.max(1e-300)
+            };
+            assert!(ok, "{what}: /history/{name}[{i}] = {v:e}, expected {u:e}");
+        }
+    }
+}
+
+const STEPS: &str = "300";
+
+/// The 2-rank reference: 300 steps, checkpoints at 150 and 300.
+fn two_rank_reference() -> &'static PathBuf {
+    static REFERENCE: OnceLock<PathBuf> = OnceLock::new();
+    REFERENCE.get_or_init(|| {
+        let d = dir("reference2");
+        let o = mufe(2, &d, &["--max-steps", STEPS, "--checkpoint-every", "150"]);
+        mpi_launch::assert_success(&o);
+        assert!(checkpoint(&d, 150).is_file() && checkpoint(&d, 300).is_file());
+        d
+    })
+}
+
+#[test]
+fn a_two_rank_checkpoint_restarts_on_one_and_three_ranks() {
+    let reference = two_rank_reference();
+    for ranks in [1, 3] {
+        let d = dir(&format!("to{ranks}"));
+        copy_dir(reference, &d);
+        let from = checkpoint(&d, 150);
+        let o = mufe(
+            ranks,
+            &d,
+            &["--max-steps", STEPS, "--restart", from.to_str().unwrap()],
+        );
+        mpi_launch::assert_success(&o);
+        assert_same_history(
+            &reference.join("results.h5"),
+            &d.join("results.h5"),
+            1e-10,
+            &format!("2 → {ranks} ranks"),
+        );
+        let f = hdf5::File::open(d.join("results.h5")).unwrap();
+        let note: hdf5::types::VarLenUnicode = f
+            .group("provenance")
+            .unwrap()
+            .attr("restart_0")
+            .unwrap()
+            .read_scalar()
+            .unwrap();
+        assert!(
+            note.as_str().contains("written by 2 ranks")
+                && note.contains(&format!("on {ranks} ranks")),
+            "/provenance records the restart: {note}"
+        );
+    }
+}
+
+#[test]
+fn latest_skips_a_damaged_newest_checkpoint() {
+    let reference = two_rank_reference();
+    let d = dir("damaged");
+    copy_dir(reference, &d);
+    // a checkpoint cut short (e.g. a full disk under a non-atomic copy)
+    let newest = checkpoint(&d, 300);
+    let len = std::fs::metadata(&newest).unwrap().len();
+    let f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&newest)
+        .unwrap();
+    f.set_len(len / 2).unwrap();
+    drop(f);
+    let o = mufe(2, &d, &["--max-steps", STEPS, "--restart", "latest"]);
+    mpi_launch::assert_success(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("skipping damaged checkpoint") && err.contains("step_000000000300.h5"),
+        "the damaged file is named: {err}"
+    );
+    assert_same_history(
+        &reference.join("results.h5"),
+        &d.join("results.h5"),
+        0.0,
+        "restart from the older checkpoint",
+    );
+
+    // every checkpoint damaged: one line, exit 2
+    for step in [150, 300] {
+        let p = checkpoint(&d, step);
+        if p.is_file() {
+            let len = std::fs::metadata(&p).unwrap().len();
+            let f = std::fs::OpenOptions::new().write(true).open(&p).unwrap();
+            f.set_len(len / 3).unwrap();
+        }
+    }
+    let o = mufe(2, &d, &["--max-steps", STEPS, "--restart", "latest"]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
+    assert!(
+        !errors.is_empty() && errors.iter().all(|l| l.contains("step_000000000150.h5")),
+        "one line naming the oldest file: {err}"
+    );
+
+    // no checkpoint at all
+    let empty = dir("no_checkpoint");
+    let o = mufe(1, &empty, &["--max-steps", STEPS, "--restart", "latest"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no checkpoint"));
+}
+
+#[test]
+fn a_changed_scene_is_refused_and_a_branch_starts_a_new_run() {
+    let reference = two_rank_reference();
+    let d = dir("branch_source");
+    copy_dir(reference, &d);
+    let from = checkpoint(&d, 150);
+    let from = from.to_str().unwrap();
+    // physics changed: refused, naming the first difference
+    let o = mufe(2, &d, &["--restart", from, "--set", "contact.friction=0.5"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("first difference: contact.friction = 0.3") && err.contains("--branch"),
+        "{err}"
+    );
+    // output settings and the end time may change
+    let o = mufe(
+        2,
+        &d,
+        &[
+            "--restart",
+            from,
+            "--max-steps",
+            STEPS,
+            "--set",
+            "simulation.duration=4e-5",
+            "--set",
+            "output.flush_interval=5",
+        ],
+    );
+    mpi_launch::assert_success(&o);
+    assert_same_history(
+        &reference.join("results.h5"),
+        &d.join("results.h5"),
+        0.0,
+        "restart with a later end time",
+    );
+    // a branch: new --out, other friction, recorded in /provenance
+    let b = dir("branch");
+    let o = mufe(
+        2,
+        &b,
+        &[
+            "--restart",
+            from,
+            "--branch",
+            "--max-steps",
+            STEPS,
+            "--set",
+            "contact.friction=0.5",
+        ],
+    );
+    mpi_launch::assert_success(&o);
+    let f = hdf5::File::open(b.join("results.h5")).unwrap();
+    let note: hdf5::types::VarLenUnicode = f
+        .group("provenance")
+        .unwrap()
+        .attr("branch_0")
+        .unwrap()
+        .read_scalar()
+        .unwrap();
+    assert!(note.as_str().contains("step_000000000150.h5"), "{note}");
+    let h = history(&b.join("results.h5"));
+    let steps = results::column(&h, "step");
+    assert!(
+        steps.first().is_some_and(|&s| s >= 149.0),
+        "the branch starts at the checkpoint: {steps:?}"
+    );
+    let friction = results::column(&h, "friction_dissipation");
+    let reference_h = history(&reference.join("results.h5"));
+    let reference_friction = results::column(&reference_h, "friction_dissipation");
+    assert_ne!(
+        friction.last(),
+        reference_friction.last(),
+        "the branch runs with the other friction"
+    );
+}
+
+/// Starts a long run (1200 steps, a checkpoint every 200), waits until the checkpoint of
+/// step 200 exists, sends `signal`, and returns the job's output.
+fn interrupted_run(ranks: Option<usize>, out: &Path, signal: &str, whole_group: bool) -> Output {
+    let _one = mpi_launch::exclusive();
+    let s = scene();
+    let mut args = vec![
+        "run",
+        s.as_str(),
+        "--threads",
+        "1",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+        "--max-steps",
+        LONG,
+        "--checkpoint-every",
+        "200",
+    ];
+    args.extend_from_slice(&PLASTIC);
+    let mut job = Job::start(ranks, Path::new(env!("CARGO_BIN_EXE_mufe")), &args, &[]);
+    let start = Instant::now();
+    while !checkpoint(out, 200).is_file() && job.running() {
+        assert!(start.elapsed() < Duration::from_secs(120), "no checkpoint");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(
+        job.running(),
+        "the run is still going when it is interrupted"
+    );
+    job.signal(signal, whole_group);
+    job.wait(Duration::from_secs(120))
+}
+
+const LONG: &str = "1200";
+
+/// The uninterrupted long run on `ranks` ranks (same checkpoints, so the files compare).
+fn whole_long_run(ranks: usize) -> PathBuf {
+    let d = dir(&format!("whole_long{ranks}"));
+    let o = mufe(
+        ranks,
+        &d,
+        &["--max-steps", LONG, "--checkpoint-every", "200"],
+    );
+    mpi_launch::assert_success(&o);
+    d
+}
+
+fn resume_and_compare(ranks: usize, out: &Path, whole: &Path, what: &str) {
+    let o = mufe(
+        ranks,
+        out,
+        &[
+            "--max-steps",
+            LONG,
+            "--checkpoint-every",
+            "200",
+            "--restart",
+            "latest",
+        ],
+    );
+    mpi_launch::assert_success(&o);
+    assert_same_history(
+        &whole.join("results.h5"),
+        &out.join("results.h5"),
+        0.0,
+        what,
+    );
+}
+
+#[test]
+fn kill_9_then_latest_ends_equal_to_the_uninterrupted_run() {
+    for ranks in [1, 2] {
+        let whole = whole_long_run(ranks);
+        let d = dir(&format!("killed{ranks}"));
+        let launch = (ranks > 1).then_some(ranks);
+        let o = interrupted_run(launch, &d, "KILL", true);
+        assert!(!o.status.success(), "the job was killed");
+        resume_and_compare(ranks, &d, &whole, &format!("kill -9, {ranks} rank(s)"));
+    }
+}
+
+#[test]
+fn a_stop_signal_writes_a_checkpoint_and_a_readable_file() {
+    // serial: SIGTERM to the process
+    let whole = whole_long_run(1);
+    let d = dir("sigterm");
+    let o = interrupted_run(None, &d, "TERM", false);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(128 + 15), "{err}");
+    assert!(err.contains("stopped: SIGTERM at step"), "{err}");
+    // the file is closed and readable, and the stop's checkpoint is there
+    let h = history(&d.join("results.h5"));
+    assert!(!results::column(&h, "time").is_empty());
+    let stop_step: u64 = err
+        .split("at step ")
+        .nth(1)
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("the step is named");
+    assert!(checkpoint(&d, stop_step).is_file(), "{err}");
+    resume_and_compare(1, &d, &whole, "SIGTERM");
+
+    // 2 ranks: SIGUSR1 to mpirun, which forwards it to every rank
+    let whole = whole_long_run(2);
+    let d = dir("sigusr1");
+    let o = interrupted_run(Some(2), &d, "USR1", false);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("stopped: SIGUSR1"),
+        "{err}"
+    );
+    resume_and_compare(2, &d, &whole, "SIGUSR1, 2 ranks");
+}
+
+/// Stage progress, walls and servo state travel with a re-partition: the staged two-sphere
+/// scene with forced re-partitioning on 2 ranks gives the serial history.
+#[test]
+fn a_staged_run_keeps_its_stage_through_migration() {
+    let s = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("jobs/tests/two_spheres_stages.toml")
+        .to_string_lossy()
+        .into_owned();
+    let run = |ranks: usize, name: &str, extra: &[&str]| {
+        let d = dir(name);
+        let mut args = vec![
+            "run",
+            s.as_str(),
+            "--threads",
+            "1",
+            "--quiet",
+            "--out",
+            d.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(240));
+        mpi_launch::assert_success(&o);
+        d
+    };
+    let serial = run(1, "staged1", &[]);
+    let moved = run(
+        2,
+        "staged2_migrating",
+        &[
+            "--set",
+            "parallel.imbalance_threshold=0.0",
+            "--set",
+            "parallel.check_interval=3000",
+        ],
+    );
+    assert_same_history(
+        &serial.join("results.h5"),
+        &moved.join("results.h5"),
+        1e-10,
+        "staged run with re-partitioning",
+    );
+}
