@@ -18,6 +18,19 @@
 #   4. Results: OUT/results.h5 (+ results.xdmf); log: slurm-<jobid>.out.
 #      Inspect with `h5ls -r OUT/results.h5`.
 #
+# Longer than the time limit: the job requeues itself. Slurm sends SIGUSR1 to this script
+# 5 minutes before the limit (--signal=B:USR1@300); the script passes it on to mpirun,
+# which forwards it to every rank; mufe finishes its step, writes a checkpoint into
+# OUT/checkpoints/, closes results.h5 and exits; the script then runs
+# `scontrol requeue $SLURM_JOB_ID`. When the job starts again (same job id, same
+# arguments), it finds OUT/checkpoints/ and continues with `--restart latest` (the newest
+# valid checkpoint; results.h5 is continued, the restart recorded in /provenance). The
+# rank count may differ between the pieces (the grains are re-partitioned). Between
+# signals, a checkpoint is written every MUFE_CHECKPOINT_INTERVAL seconds of wall time
+# (default 1800), so a node failure loses at most that much. Stop the cycle with
+# `scancel`. The margin must cover one step plus a checkpoint write (see
+# docs/BENCHMARKS.md for checkpoint write times).
+#
 # Layout: each MPI rank owns whole grains and runs --threads $SLURM_CPUS_PER_TASK rayon
 # threads. Ranks must NOT be bound to a single core (OpenMPI's default), otherwise all
 # threads of a rank share one core: we map ranks by node slot with PE=cpus-per-task, which
@@ -28,7 +41,8 @@
 # replace it with:  srun --cpu-bind=cores "$mufe" run "$scene" --out "$out" --threads "$threads"
 #
 # Environment overrides: MUFE (path of the binary), MPIEXEC (launcher, default mpirun),
-# MUFE_EXTRA_ARGS (e.g. "--max-steps 1000 --set simulation.duration=1e-4").
+# MUFE_EXTRA_ARGS (e.g. "--max-steps 1000 --set simulation.duration=1e-4"),
+# MUFE_CHECKPOINT_INTERVAL (seconds of wall time between checkpoints, default 1800).
 # ---------------------------------------------------------------------------------------
 #SBATCH --job-name=mufe
 #SBATCH --nodes=2
@@ -37,6 +51,9 @@
 #SBATCH --time=04:00:00
 #SBATCH --exclusive
 #SBATCH --output=slurm-%j.out
+#SBATCH --open-mode=append
+#SBATCH --requeue
+#SBATCH --signal=B:USR1@300
 
 set -euo pipefail
 
@@ -62,10 +79,45 @@ echo "scene: $scene   output: $out   start: $(date -Is)"
 # Fail fast on a bad scene (one line on stderr, exit 2) before taking up the allocation.
 "$mufe" check "$scene" >/dev/null
 
+# A requeued job continues from its newest valid checkpoint.
+restart=()
+if compgen -G "$out/checkpoints/step_*.h5" >/dev/null; then
+    restart=(--restart latest)
+    echo "continuing from the latest checkpoint in $out/checkpoints/"
+fi
+interval=${MUFE_CHECKPOINT_INTERVAL:-1800}
+
+# Near the time limit: ask mufe to checkpoint and stop, then requeue this job.
+launcher_pid=
+stop_and_requeue() {
+    echo "time limit near ($(date -Is)): asking mufe to write a checkpoint and stop"
+    if [[ -n "$launcher_pid" ]]; then
+        kill -USR1 "$launcher_pid" 2>/dev/null || true
+        wait "$launcher_pid" || true
+    fi
+    if compgen -G "$out/checkpoints/step_*.h5" >/dev/null; then
+        echo "requeueing job ${SLURM_JOB_ID:-?}"
+        scontrol requeue "${SLURM_JOB_ID:?not running under Slurm}"
+    else
+        echo "no checkpoint was written: not requeueing" >&2
+    fi
+    exit 0
+}
+trap stop_and_requeue USR1
+
+# The launcher runs in the background so that this shell can take the signal while it
+# waits (bash runs a trap only between commands).
 # shellcheck disable=SC2086  # MUFE_EXTRA_ARGS is split on purpose
 "$launcher" -n "$ranks" \
     --map-by "ppr:${SLURM_NTASKS_PER_NODE:-1}:node:PE=$threads" --bind-to core \
     -x RAYON_NUM_THREADS -x OMP_NUM_THREADS \
-    "$mufe" run "$scene" --out "$out" --threads "$threads" ${MUFE_EXTRA_ARGS:-}
-
+    "$mufe" run "$scene" --out "$out" --threads "$threads" \
+    --set "output.checkpoint_interval=$interval" "${restart[@]}" ${MUFE_EXTRA_ARGS:-} &
+launcher_pid=$!
+status=0
+wait "$launcher_pid" || status=$?
+if [[ $status -ne 0 ]]; then
+    echo "mufe ended with status $status ($(date -Is))" >&2
+    exit "$status"
+fi
 echo "done: $(date -Is); results in $out/results.h5"
