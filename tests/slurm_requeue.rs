@@ -78,15 +78,25 @@ fn the_job_script_stops_mufe_requeues_and_resumes() {
         String::from_utf8_lossy(&o.stderr)
     );
     assert!(o.status.success(), "the script ends cleanly: {text}");
-    assert!(text.contains("stopped: SIGUSR1"), "mufe stopped on the signal: {text}");
+    assert!(
+        text.contains("stopped: SIGUSR1"),
+        "mufe stopped on the signal: {text}"
+    );
     let requeued = std::fs::read_to_string(&log).unwrap_or_default();
     assert_eq!(requeued.trim(), "requeue 4242", "{text}");
 
     // second piece: the requeued job continues and finishes
     let o = Job::start(None, Path::new("bash"), &args, &env).wait(Duration::from_secs(240));
     let text = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(o.status.success(), "{text}{}", String::from_utf8_lossy(&o.stderr));
-    assert!(text.contains("continuing from the latest checkpoint"), "{text}");
+    assert!(
+        o.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        text.contains("continuing from the latest checkpoint"),
+        "{text}"
+    );
     drop(_one);
 
     // the same run in one piece

@@ -36,6 +36,23 @@ pub struct CheckpointSchedule {
     last: Instant,
     /// Step of the last checkpoint written by this run.
     last_step: Option<u64>,
+    /// What this run has written.
+    pub stats: CheckpointStats,
+}
+
+/// Checkpoints written by a run: count, size and time of the last (for the summary and
+/// docs/BENCHMARKS.md).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CheckpointStats {
+    pub written: u64,
+    /// Size of the last file (bytes).
+    pub last_bytes: u64,
+    /// Wall time of the last write, packing and serialisation included (s).
+    pub last_seconds: f64,
+    /// Wall time of all writes (s).
+    pub total_seconds: f64,
+    /// Elements of the whole model (all ranks).
+    pub elements: usize,
 }
 
 impl CheckpointSchedule {
@@ -49,6 +66,7 @@ impl CheckpointSchedule {
             keep: o.checkpoints_kept,
             last: Instant::now(),
             last_step: None,
+            stats: CheckpointStats::default(),
         }
     }
 
@@ -77,7 +95,16 @@ impl CheckpointSchedule {
         loaded: &LoadedScene,
         solver: &Solver,
     ) -> Result<PathBuf> {
+        let t0 = Instant::now();
         let path = write_solver_checkpoint(domain, dir, loaded, solver, self.keep)?;
+        let seconds = t0.elapsed().as_secs_f64();
+        self.stats = CheckpointStats {
+            written: self.stats.written + 1,
+            last_bytes: std::fs::metadata(&path).map_or(0, |m| m.len()),
+            last_seconds: seconds,
+            total_seconds: self.stats.total_seconds + seconds,
+            elements: self.stats.elements,
+        };
         self.last = Instant::now();
         self.last_step = Some(solver.state.step);
         Ok(path)

@@ -91,6 +91,8 @@ pub struct RunSummary {
     pub first_opening: Option<contact_watch::GapOpening>,
     /// Largest ALLKE/ALLIE at the history rows of each stage.
     pub max_kinetic_ratio: Vec<f64>,
+    /// Checkpoints this run wrote.
+    pub checkpoints: checkpoints::CheckpointStats,
 }
 
 /// Runs a scene to its duration (or `max_steps`) and writes the results: serially, or
@@ -155,6 +157,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         out: opts.out.clone(),
         checkpoint_every: opts.checkpoint_every,
         first_step: 0,
+        checkpoint_stats: Default::default(),
     };
     run.first_step = run.solver.state.step;
     let total_steps = step_count(loaded, run.solver.model.dt, opts)?;
@@ -257,6 +260,7 @@ struct Run<'a, 'd> {
     checkpoint_every: Option<u64>,
     /// The step the run started from (0, or the checkpoint's).
     first_step: u64,
+    checkpoint_stats: checkpoints::CheckpointStats,
 }
 
 impl Run<'_, '_> {
@@ -264,11 +268,22 @@ impl Run<'_, '_> {
     /// job (the others cannot know); serially it is returned after the loop so that the
     /// output can still be finished. A stop signal ends the loop after a checkpoint.
     fn advance_to(&mut self, last_step: u64, output: &mut Output) -> Result<LoopEnd> {
+        let mut checkpoints =
+            checkpoints::CheckpointSchedule::new(self.loaded, self.checkpoint_every);
+        let end = self.time_loop(last_step, output, &mut checkpoints);
+        self.checkpoint_stats = checkpoints.stats;
+        end
+    }
+
+    fn time_loop(
+        &mut self,
+        last_step: u64,
+        output: &mut Output,
+        checkpoints: &mut checkpoints::CheckpointSchedule,
+    ) -> Result<LoopEnd> {
         let mut progress = Progress::new(self.talk, "run");
         let check_interval = self.loaded.scene.parallel.check_interval;
         let mut reported_stages = self.solver.state.stages.done.len();
-        let mut checkpoints =
-            checkpoints::CheckpointSchedule::new(self.loaded, self.checkpoint_every);
         while self.solver.state.step < last_step && !self.solver.state.stages.finished {
             if let Err(e) = self.solver.step_with(&mut self.hooks) {
                 if self.domain.size() > 1 {
@@ -408,6 +423,10 @@ impl Run<'_, '_> {
             contacts_now: now[0] as usize,
             first_opening: watched.first_opening,
             max_kinetic_ratio: watched.max_kinetic_ratio,
+            checkpoints: checkpoints::CheckpointStats {
+                elements: self.global.total_elements(),
+                ..self.checkpoint_stats
+            },
         })
     }
 }

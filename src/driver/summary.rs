@@ -172,6 +172,18 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
         summary.elements as f64 * summary.steps_run as f64
             / solver.timers.total_seconds().max(1e-9)
     );
+    let c = &summary.checkpoints;
+    if c.written > 0 {
+        println!(
+            "checkpoints: {} written in {:.2} s; the last {:.1} MB in {:.3} s ({:.0} MB/s, {:.1} MB per million elements)",
+            c.written,
+            c.total_seconds,
+            c.last_bytes as f64 / 1e6,
+            c.last_seconds,
+            c.last_bytes as f64 / 1e6 / c.last_seconds.max(1e-9),
+            c.last_bytes as f64 / c.elements.max(1) as f64
+        );
+    }
     let stages = &solver.state.stages;
     if solver.model.stages.as_ref().is_some_and(|p| p.staged) {
         for (i, r) in stages.done.iter().enumerate() {
