@@ -243,6 +243,8 @@ pub struct ContactScratch {
     wall_next: Vec<[f64; 3]>,
     /// Normal force of each wall on each local grain at the last step.
     pub wall_grain_force: GrainWallForces,
+    /// Force of the walls on each node they touched at the last step (node, N).
+    pub wall_node_force: Vec<(u32, [f64; 3])>,
 }
 
 /// Stage 1 of the step: detection and grain–grain contact forces at x_n (velocities
@@ -438,12 +440,20 @@ pub fn add_forces(
     }
 }
 
-/// The grain–grain contact force of every node from the last [`evaluate`] (N), into
-/// `force` (zeroed first; one entry per model node): what [`add_forces`] adds, for output.
+/// The contact force on every node at the last step (N): grain–grain (what
+/// [`add_forces`] adds) plus the walls' (what [`enforce_walls`] applied through the
+/// velocity correction), into `force` (zeroed first; one entry per model node), for
+/// output.
 pub fn contact_forces_into(scratch: &ContactScratch, force: &mut [[f64; 3]]) {
     force.iter_mut().for_each(|f| *f = [0.0; 3]);
     for r in scratch.results.iter().filter(|r| r.active) {
         add_point_force(r, force);
+    }
+    for (n, f) in &scratch.wall_node_force {
+        let node = &mut force[*n as usize];
+        for i in 0..3 {
+            node[i] += f[i];
+        }
     }
 }
 
@@ -530,6 +540,7 @@ pub fn enforce_walls(
         dt,
         &scratch.lists.wall_nodes,
         state,
+        &mut scratch.wall_node_force,
         // per-grain sums only where a wall moves by them (see `GrainWallForces`)
         (model.stages.is_some()).then_some((
             &model.node_grain[..],

@@ -64,7 +64,8 @@ pub fn displacements(wall: &Wall, ws: &WallState, t: f64, dt: f64) -> [[f64; 3];
 
 /// Corrects `v_next` (v_{n+½}) of the candidate nodes `wall_nodes` (wall, flat surface
 /// index; ordered by wall) so that no node ends behind a wall at t_{n+1}; records each
-/// wall's force, displacement, contacts, work and friction work in `state`; with
+/// wall's force, displacement, contacts, work and friction work in `state`, and each
+/// contact's force on its node in `node_forces` (for the frames' nodal contact force); with
 /// `by_grain` (each node's local grain, the grain count, the sums) also each wall's normal
 /// force per grain.
 #[allow(clippy::too_many_arguments)]
@@ -79,8 +80,10 @@ pub fn enforce(
     dt: f64,
     wall_nodes: &[(u32, u32)],
     state: &mut ContactState,
+    node_forces: &mut Vec<(u32, [f64; 3])>,
     mut by_grain: Option<(&[u32], usize, &mut GrainWallForces)>,
 ) {
+    node_forces.clear();
     if let Some((_, grains, f)) = &mut by_grain {
         f.clear(cm.walls.len(), *grains);
     }
@@ -131,6 +134,7 @@ pub fn enforce(
                 f.values[w * f.grains + node_grain[node] as usize] += f_n;
             }
             v_next[node] = v_new;
+            node_forces.push((node as u32, f));
             force = add(force, f);
             p_before += dot(f, v[node]);
             p_after += dot(f, v_new);
