@@ -180,6 +180,9 @@ pub struct ResultsWriter<'d> {
     // Before `file`: open datasets must close before the file does (MPI-IO closes "semi").
     history: Option<History>,
     io: IoStats,
+    /// Every rank's hash of the row layouts of the last frame, once verified to tile the
+    /// datasets (see `blocks::check_frame_tiling`); empty before.
+    verified_layouts: Vec<u64>,
     file: File,
 }
 
@@ -224,6 +227,7 @@ impl<'d> ResultsWriter<'d> {
             path: path.to_path_buf(),
             history: None,
             io: IoStats::default(),
+            verified_layouts: Vec::new(),
             file,
         };
         let local = writer.write_header(&scene, &provenance);
@@ -402,8 +406,13 @@ impl<'d> ResultsWriter<'d> {
             local = self.same_on_all_ranks(fnv1a(&key), "mesh sizes and grain owners");
         }
         self.agree("writing /mesh", local)?;
-        self.check_blocks("/mesh/nodes", part.node_blocks, part.total_nodes)?;
-        self.check_blocks("/mesh/tetrahedra", part.tet_blocks, part.total_tets)?;
+        self.check_blocks(
+            &["/mesh/nodes", "/mesh/tetrahedra"],
+            &[
+                (part.node_blocks, part.total_nodes),
+                (part.tet_blocks, part.total_tets),
+            ],
+        )?;
 
         let is_root = self.domain.is_root();
         let owners: &[u32] = if is_root { part.grain_owner_rank } else { &[] };
@@ -514,18 +523,9 @@ impl<'d> ResultsWriter<'d> {
             local = self.same_on_all_ranks(fnv1a(key.as_bytes()), "frame index, time and fields");
         }
         self.agree(&what, local)?;
-        // Fields share a few row layouts (nodes, elements, grains): check each layout once.
-        let mut checked: Vec<(&[(u64, u64)], u64)> = Vec::with_capacity(4);
-        for f in fields {
-            if !checked.contains(&(f.blocks, f.total)) {
-                self.check_blocks(
-                    &format!("/frames/{group_name}/{}", f.name),
-                    f.blocks,
-                    f.total,
-                )?;
-                checked.push((f.blocks, f.total));
-            }
-        }
+        let layouts: Vec<_> = fields.iter().map(|f| (f.blocks, f.total)).collect();
+        blocks::check_frame_tiling(self.domain, &layouts, &mut self.verified_layouts)
+            .map_err(|(i, e)| self.error(&format!("/frames/{group_name}/{}", fields[i].name), e))?;
 
         let mut modes = Vec::with_capacity(fields.len());
         let result = (|| -> hdf5::Result<()> {
@@ -627,10 +627,18 @@ impl<'d> ResultsWriter<'d> {
     }
 
     /// Checks (on every rank, from gathered data, so every rank reaches the same verdict)
-    /// that the ranks' `blocks` tile `[0, total)` exactly (no overlap, no gap) and that all
-    /// ranks name the same total. All ranks must call.
-    fn check_blocks(&self, what: &str, blocks: &[(u64, u64)], total: u64) -> Result<(), MufeError> {
-        blocks::check_tiling(self.domain, blocks, total).map_err(|e| self.error(what, e))
+    /// that for each layout the ranks' blocks tile `[0, total)` exactly (no overlap, no
+    /// gap) and that all ranks name the same total; `names[k]` names layout k in the
+    /// error. All ranks must call, with the same number of layouts.
+    fn check_blocks<S: AsRef<str>>(
+        &self,
+        names: &[S],
+        layouts: &[(&[(u64, u64)], u64)],
+    ) -> Result<(), MufeError> {
+        blocks::check_tiling(self.domain, layouts).map_err(|(k, e)| {
+            let name = names.get(k).map_or("", |n| n.as_ref());
+            self.error(name, e)
+        })
     }
 
     /// `Ok` if every rank passes the same `key`, else a local error naming `what`.
