@@ -1,8 +1,8 @@
 //! The golden multi-rank check: `jobs/tests/assembly.toml` (27 contacting spheres, contacts
 //! straddling the partitions, a moving wall) run for 300 steps under 1, 2 and 3 ranks with
-//! 1 and 2 threads gives the same `/history` to 1e-10 relative, elastic and elastic–plastic,
-//! with and without grain migration; an error on one rank ends the job with a non-zero
-//! exit instead of a hang.
+//! 1 and 2 threads gives the same `/history` to 1e-10 relative and the same last frame to
+//! 1e-12, elastic and elastic–plastic, with and without grain migration; an error on one
+//! rank ends the job with a non-zero exit instead of a hang.
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
@@ -120,6 +120,7 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
     assert_eq!(get("step").last(), Some(&299.0));
 
     compare_configurations(
+        &golden_path,
         &golden,
         &[
             (1, 2, false),
@@ -155,14 +156,23 @@ fn elastic_plastic_history_is_the_same_on_1_2_3_ranks_and_after_migration() {
     };
     assert!(last("plastic_dissipation") > 0.0, "grains yield");
     assert!(last("plastic_index") > 0.0 && last("plastic_index") < 1.0);
-    compare_configurations(&golden, &[(2, 2, false), (3, 1, true)], &plastic, "plastic");
+    compare_configurations(
+        &golden_path,
+        &golden,
+        &[(2, 2, false), (3, 1, true)],
+        &plastic,
+        "plastic",
+    );
 }
 
 /// Runs each (ranks, threads, migrate) configuration with the scene settings `sets` and
-/// compares its `/history` with `golden` (1e-10 relative to each series' largest value).
+/// compares its `/history` with `golden` (1e-10 relative to each series' largest value)
+/// and its last frame's displacement, velocity and stress with those of `golden_path`
+/// (1e-12 relative: each rank writes its own rows, in the same global order).
 /// Migration re-partitions at steps 100 and 200 (threshold 0), so grains change hands
 /// with their full state in the middle of the run.
 fn compare_configurations(
+    golden_path: &Path,
     golden: &[(String, Vec<f64>)],
     configurations: &[(usize, usize, bool)],
     sets: &[&str],
@@ -207,6 +217,7 @@ fn compare_configurations(
                 );
             }
         }
+        assert_last_frame_equal(golden_path, &path, &format!("{label}, {ranks} ranks"));
         // the file records the decomposition
         let f = hdf5::File::open(&path).unwrap();
         let owners = f
@@ -216,6 +227,37 @@ fn compare_configurations(
             .unwrap();
         let used: std::collections::BTreeSet<u32> = owners.iter().copied().collect();
         assert_eq!(used.len(), ranks, "every rank owns grains");
+    }
+}
+
+/// The last frame's per-node and per-element fields of `b` equal those of `a` (1e-12
+/// relative to each field's largest value).
+fn assert_last_frame_equal(a: &Path, b: &Path, label: &str) {
+    let (fa, fb) = (hdf5::File::open(a).unwrap(), hdf5::File::open(b).unwrap());
+    let last = |f: &hdf5::File| {
+        let mut frames = f.group("frames").unwrap().member_names().unwrap();
+        frames.sort();
+        frames.pop().unwrap()
+    };
+    let frame = last(&fa);
+    assert_eq!(frame, last(&fb), "{label}: same frames");
+    for name in [
+        "displacement",
+        "velocity",
+        "stress",
+        "equivalent_plastic_strain",
+    ] {
+        let path = format!("frames/{frame}/{name}");
+        let read = |f: &hdf5::File| f.dataset(&path).unwrap().read_raw::<f64>().unwrap();
+        let (x, y) = (read(&fa), read(&fb));
+        assert_eq!(x.len(), y.len(), "{label}: {path} rows");
+        let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (i, (u, v)) in x.iter().zip(&y).enumerate() {
+            assert!(
+                (u - v).abs() <= 1e-12 * scale,
+                "{label}: {path}[{i}] = {v:e}, serial {u:e}"
+            );
+        }
     }
 }
 

@@ -14,7 +14,7 @@ use std::process::Command;
 use hdf5::types::VarLenUnicode;
 use mpi_launch::{assert_success, is_mpi_child, relaunch_test, DEFAULT_TIMEOUT};
 use mufe::domain::{Domain, Exchange};
-use mufe::io::{FieldPart, HistoryColumn, MeshPart, Provenance, ResultsWriter};
+use mufe::io::{grain_row_blocks, FieldPart, HistoryColumn, MeshPart, Provenance, ResultsWriter};
 
 const OUT_ENV: &str = "MUFE_TEST_OUT";
 
@@ -22,6 +22,10 @@ const OUT_ENV: &str = "MUFE_TEST_OUT";
 const TOTAL_NODES: u64 = 11;
 const TOTAL_TETS: u64 = 7;
 const GRAIN_OWNERS: [u32; 3] = [0, 1, 1];
+/// The frame's node rows in four "grains" owned alternately by the two ranks, so each rank
+/// writes two blocks that are not contiguous in the file (as after a real partition).
+const FRAME_GRAIN_NODES: [usize; 5] = [0, 3, 5, 9, TOTAL_NODES as usize];
+const FRAME_GRAIN_OWNERS: [u32; 4] = [0, 1, 0, 1];
 const HISTORY_ROWS: usize = 5;
 const SCENE: &str = "# two-rank io test\n[run]\nend_time = 1.0\n";
 
@@ -147,21 +151,29 @@ fn child_write_results() {
     let grains: Vec<u32> = (tet_offset..tet_offset + n_tets).map(grain).collect();
     w.write_mesh(&MeshPart {
         nodes: &nodes,
-        node_offset,
+        node_blocks: &[(node_offset, n_nodes)],
         total_nodes: TOTAL_NODES,
         tets: &tets,
-        tet_offset,
+        tet_blocks: &[(tet_offset, n_tets)],
         total_tets: TOTAL_TETS,
         grain_of_tet: &grains,
         grain_owner_rank: &GRAIN_OWNERS,
     })
     .unwrap();
 
-    let v: Vec<f64> = (node_offset..node_offset + n_nodes)
-        .flat_map(velocity)
-        .collect();
-    let p: Vec<f64> = (node_offset..node_offset + n_nodes).map(pressure).collect();
+    // This rank's frame rows: the interleaved blocks of its grains, packed in order.
+    let mine = (0..FRAME_GRAIN_OWNERS.len()).filter(|&g| FRAME_GRAIN_OWNERS[g] as usize == rank);
+    let blocks = grain_row_blocks(mine, &FRAME_GRAIN_NODES);
+    assert_eq!(
+        blocks.len(),
+        2,
+        "rank {rank}: two separate blocks {blocks:?}"
+    );
+    let rows = || blocks.iter().flat_map(|&(o, n)| o..o + n);
+    let v: Vec<f64> = rows().flat_map(velocity).collect();
+    let p: Vec<f64> = rows().map(pressure).collect();
     let probe: &[f64] = if rank == 0 { &PROBE } else { &[] };
+    let probe_blocks: &[(u64, u64)] = if rank == 0 { &[(0, 2)] } else { &[] };
     w.write_frame(
         7,
         0.125,
@@ -171,7 +183,7 @@ fn child_write_results() {
                 units: "m/s",
                 components: 3,
                 data: &v,
-                offset: node_offset,
+                blocks: &blocks,
                 total: TOTAL_NODES,
             },
             FieldPart {
@@ -179,7 +191,7 @@ fn child_write_results() {
                 units: "Pa",
                 components: 1,
                 data: &p,
-                offset: node_offset,
+                blocks: &blocks,
                 total: TOTAL_NODES,
             },
             FieldPart {
@@ -187,7 +199,7 @@ fn child_write_results() {
                 units: "N",
                 components: 1,
                 data: probe,
-                offset: 0,
+                blocks: probe_blocks,
                 total: PROBE.len() as u64,
             },
         ],
@@ -200,16 +212,36 @@ fn child_write_results() {
         units: "m",
         components: 1,
         data: &[0.0; 2],
-        offset: 0,
+        blocks: &[(0, 2)],
         total: 4,
     };
     let e = w.write_frame(8, 0.25, &[bad]).unwrap_err();
     assert!(e.to_string().contains(path.to_str().unwrap()), "{e}");
+    assert!(e.to_string().contains("overlap"), "{e}");
+    // So is one whose blocks leave rows to nobody (each rank's blocks valid on their own).
+    let gap_blocks: &[(u64, u64)] = if rank == 0 { &[(0, 1)] } else { &[(2, 1)] };
+    let gap = FieldPart {
+        name: "u",
+        units: "m",
+        components: 1,
+        data: &[0.0; 1],
+        blocks: gap_blocks,
+        total: 3,
+    };
+    let e = w.write_frame(8, 0.25, &[gap]).unwrap_err();
+    assert!(
+        e.to_string().contains("[1, 2) are written by no rank"),
+        "{e}"
+    );
 
     let stats = w.io_stats();
-    // Every bulk write (mesh, frame, history) must really have been collective.
-    assert_eq!(stats.not_collective, 0, "rank {rank}: {stats:?}");
-    assert!(stats.collective >= 9, "rank {rank}: {stats:?}");
+    // Every bulk write (mesh, frame, history) must really have been collective, the
+    // frame's interleaved multi-block writes included.
+    assert_eq!(stats.total().not_collective, 0, "rank {rank}: {stats:?}");
+    assert_eq!(stats.mesh.collective, 4, "rank {rank}: {stats:?}");
+    assert_eq!(stats.history.collective, 2, "rank {rank}: {stats:?}");
+    assert_eq!(stats.frames.collective, 3, "rank {rank}: {stats:?}");
+    assert_eq!(stats.frames_written, 1, "rank {rank}: {stats:?}");
     w.close().unwrap();
     println!("rank {rank} wrote results ({stats:?})");
 }

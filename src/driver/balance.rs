@@ -11,7 +11,6 @@
 //! (centre shift + radius change) by more than a quarter of the ghost margin since the
 //! last plan ([`Partition::planned_bounds`]).
 
-use super::frames::gather_rows;
 use super::migration::redistribute;
 use super::rank::metis_owner;
 use crate::domain::halo::HaloPlan;
@@ -157,4 +156,33 @@ pub fn rebalance(
         halo,
         migrated,
     }))
+}
+
+/// Gathers per-grain rows of the owned grains to rank 0 in global order (the grain bounds
+/// and work: a few values per grain; bulk fields are written collectively instead, see
+/// `super::frames`). `offsets[g]..offsets[g + 1]` are the rows of grain g; `local` holds
+/// this rank's owned grains' rows (ascending global id), `k` values per row. All ranks
+/// must call; rank 0 gets `Some(global rows)`.
+fn gather_rows(
+    domain: &Domain,
+    owner: &[u32],
+    offsets: &[usize],
+    local: &[f64],
+    k: usize,
+) -> Option<Vec<f64>> {
+    let all = domain.gather_f64_to_root(local)?;
+    let total = *offsets.last().unwrap_or(&0);
+    let mut out = vec![0.0; total * k];
+    let mut cursor = 0;
+    for r in 0..domain.size() {
+        for (g, &o) in owner.iter().enumerate() {
+            if o as usize == r {
+                let rows = offsets[g + 1] - offsets[g];
+                out[offsets[g] * k..(offsets[g] + rows) * k]
+                    .copy_from_slice(&all[cursor..cursor + rows * k]);
+                cursor += rows * k;
+            }
+        }
+    }
+    Some(out)
 }

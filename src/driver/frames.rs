@@ -1,12 +1,13 @@
-//! Frames of `results.h5`: per-node displacement and velocity, per-element Cauchy and
-//! von Mises stress and equivalent plastic strain of the owned grains, gathered in global
-//! order.
+//! Frames of `results.h5`: per-node displacement, velocity and contact force, per-element
+//! Cauchy and von Mises stress and equivalent plastic strain, per-grain records and owning
+//! ranks (each rank writes its owned grains' rows), per-contact records (from rank 0).
+//! Layout: docs/RESULTS.md.
 
 use super::contact_watch::gather_pair_contacts;
 use super::grain_motion::grain_motion;
 use crate::domain::Domain;
 use crate::error::Result;
-use crate::io::results::{FieldPart, ResultsWriter};
+use crate::io::results::{grain_row_blocks, FieldPart, ResultsWriter};
 use crate::material::{cauchy_from_first_piola, von_mises};
 use crate::mesh::tet_volume;
 use crate::model::global::GlobalMesh;
@@ -45,183 +46,116 @@ pub fn element_fields(solver: &Solver) -> ElementFields {
     out
 }
 
-/// Writes one frame: every rank contributes its owned grains' rows, rank 0 gathers them in
-/// global order and writes them (all ranks must call).
+/// Writes one frame: every rank writes its owned grains' rows (nodes, elements, grain
+/// records) straight into the file, in global grain order, with one collective write per
+/// field; nothing bulk is gathered. The per-contact records are the exception: they are
+/// few (one per touching grain pair) and come out of `gather_pair_contacts` on rank 0
+/// already, so rank 0 writes them all. All ranks must call.
 pub fn write_frame(
     writer: &mut ResultsWriter,
     domain: &Domain,
     solver: &Solver,
     global: &GlobalMesh,
-    owner: &[u32],
     index: usize,
 ) -> Result<()> {
     let m = &solver.model;
-    let (nn, ne) = (m.owned_nodes, m.owned_elements);
+    let (nn, ne, ng) = (m.owned_nodes, m.owned_elements, m.owned_grains);
+    // This rank's rows in the file: its owned grains, in model order, which is ascending
+    // global order (the writer refuses blocks out of order rather than misplace rows).
+    let owned = || m.grains[..ng].iter().map(|g| g.global_id as usize);
+    let node_blocks = grain_row_blocks(owned(), &global.node_offset);
+    let element_blocks = grain_row_blocks(owned(), &global.element_offset);
+    let grain_offset: Vec<usize> = (0..=global.meshes.len()).collect();
+    let grain_blocks = grain_row_blocks(owned(), &grain_offset);
+
     let disp: Vec<f64> = solver.state.x[..nn]
         .iter()
         .zip(&m.x0[..nn])
         .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
         .collect();
-    let vel: Vec<f64> = solver.state.v[..nn].iter().flatten().copied().collect();
+    let vel = solver.state.v[..nn].as_flattened();
     let mut contact = vec![[0.0; 3]; m.num_nodes()];
     crate::contact::contact_forces_into(&solver.scratch.contact, &mut contact);
-    let contact: Vec<f64> = contact[..nn].iter().flatten().copied().collect();
+    let contact = contact[..nn].as_flattened();
     let fields = element_fields(solver);
-    let gather = |local: &[f64], offsets: &[usize], k: usize| {
-        gather_rows(domain, owner, offsets, local, k).unwrap_or_default()
-    };
-    let disp = gather(&disp, &global.node_offset, 3);
-    let vel = gather(&vel, &global.node_offset, 3);
-    let contact = gather(&contact, &global.node_offset, 3);
-    let stress = gather(&fields.stress[..6 * ne], &global.element_offset, 6);
-    let vm = gather(&fields.von_mises[..ne], &global.element_offset, 1);
-    let eqps = gather(
-        &fields.equivalent_plastic_strain[..ne],
-        &global.element_offset,
-        1,
-    );
-    // the rank that advanced each element at this frame (migration moves grains)
-    let owner_rank = gather(&vec![domain.rank() as f64; ne], &global.element_offset, 1);
+    let rank = domain.rank() as f64;
+    // the rank that advanced each element and grain at this frame (migration moves grains)
+    let owner_rank = vec![rank; ne];
+    let owner_rank_of_grain = vec![rank; ng];
     let grains = grain_records(solver, &fields.stress);
-    let grain_offset: Vec<usize> = (0..=owner.len()).collect();
-    let grain_disp = gather(&grains.displacement, &grain_offset, 3);
-    let grain_rot = gather(&grains.rotation, &grain_offset, 3);
-    let grain_stress = gather(&grains.stress, &grain_offset, 6);
+
     let contacts = contact_records(domain, solver);
     // rank 0 holds the contacts; every rank must state the same dataset sizes
-    let mut count = [contacts.sliding.len() as f64];
-    domain.sum_in_place(&mut count);
-    let (g, c) = (owner.len() as u64, count[0] as u64);
+    let c = domain.sum_u64(contacts.sliding.len() as u64);
+    let contact_block = [(0, c)];
+    let contact_blocks: &[(u64, u64)] = if domain.is_root() && c > 0 {
+        &contact_block
+    } else {
+        &[]
+    };
+
     let (n, e) = (global.total_nodes() as u64, global.total_elements() as u64);
+    let g = global.meshes.len() as u64;
+    let node = |name, units, components, data| FieldPart {
+        name,
+        units,
+        components,
+        data,
+        blocks: &node_blocks,
+        total: n,
+    };
+    let element = |name, units, components, data| FieldPart {
+        name,
+        units,
+        components,
+        data,
+        blocks: &element_blocks,
+        total: e,
+    };
+    let grain = |name, units, components, data| FieldPart {
+        name,
+        units,
+        components,
+        data,
+        blocks: &grain_blocks,
+        total: g,
+    };
+    let contact_pair = |name, units, components, data| FieldPart {
+        name,
+        units,
+        components,
+        data,
+        blocks: contact_blocks,
+        total: c,
+    };
     let fields = [
-        FieldPart {
-            name: "displacement",
-            units: "m",
-            components: 3,
-            data: &disp,
-            offset: 0,
-            total: n,
-        },
-        FieldPart {
-            name: "velocity",
-            units: "m/s",
-            components: 3,
-            data: &vel,
-            offset: 0,
-            total: n,
-        },
-        FieldPart {
-            name: "contact_force",
-            units: "N",
-            components: 3,
-            data: &contact,
-            offset: 0,
-            total: n,
-        },
-        FieldPart {
-            name: "stress",
-            units: "Pa",
-            components: 6,
-            data: &stress,
-            offset: 0,
-            total: e,
-        },
-        FieldPart {
-            name: "von_mises_stress",
-            units: "Pa",
-            components: 1,
-            data: &vm,
-            offset: 0,
-            total: e,
-        },
-        FieldPart {
-            name: "owner_rank",
-            units: "",
-            components: 1,
-            data: &owner_rank,
-            offset: 0,
-            total: e,
-        },
-        FieldPart {
-            name: "equivalent_plastic_strain",
-            units: "1",
-            components: 1,
-            data: &eqps,
-            offset: 0,
-            total: e,
-        },
-        FieldPart {
-            name: "grain_displacement",
-            units: "m",
-            components: 3,
-            data: &grain_disp,
-            offset: 0,
-            total: g,
-        },
-        FieldPart {
-            name: "grain_rotation",
-            units: "rad",
-            components: 3,
-            data: &grain_rot,
-            offset: 0,
-            total: g,
-        },
-        FieldPart {
-            name: "grain_stress",
-            units: "Pa",
-            components: 6,
-            data: &grain_stress,
-            offset: 0,
-            total: g,
-        },
-        FieldPart {
-            name: "contact_grains",
-            units: "",
-            components: 2,
-            data: &contacts.grains,
-            offset: 0,
-            total: c,
-        },
-        FieldPart {
-            name: "contact_point",
-            units: "m",
-            components: 3,
-            data: &contacts.point,
-            offset: 0,
-            total: c,
-        },
-        FieldPart {
-            name: "contact_normal",
-            units: "1",
-            components: 3,
-            data: &contacts.normal,
-            offset: 0,
-            total: c,
-        },
-        FieldPart {
-            name: "contact_normal_force",
-            units: "N",
-            components: 1,
-            data: &contacts.normal_force,
-            offset: 0,
-            total: c,
-        },
-        FieldPart {
-            name: "contact_tangential_force",
-            units: "N",
-            components: 1,
-            data: &contacts.tangential_force,
-            offset: 0,
-            total: c,
-        },
-        FieldPart {
-            name: "contact_sliding",
-            units: "",
-            components: 1,
-            data: &contacts.sliding,
-            offset: 0,
-            total: c,
-        },
+        node("displacement", "m", 3, &disp),
+        node("velocity", "m/s", 3, vel),
+        node("contact_force", "N", 3, contact),
+        element("stress", "Pa", 6, &fields.stress[..6 * ne]),
+        element("von_mises_stress", "Pa", 1, &fields.von_mises[..ne]),
+        element("owner_rank", "", 1, &owner_rank),
+        element(
+            "equivalent_plastic_strain",
+            "1",
+            1,
+            &fields.equivalent_plastic_strain[..ne],
+        ),
+        grain("grain_displacement", "m", 3, &grains.displacement),
+        grain("grain_rotation", "rad", 3, &grains.rotation),
+        grain("grain_stress", "Pa", 6, &grains.stress),
+        grain("owner_rank_of_grain", "", 1, &owner_rank_of_grain),
+        contact_pair("contact_grains", "", 2, &contacts.grains),
+        contact_pair("contact_point", "m", 3, &contacts.point),
+        contact_pair("contact_normal", "1", 3, &contacts.normal),
+        contact_pair("contact_normal_force", "N", 1, &contacts.normal_force),
+        contact_pair(
+            "contact_tangential_force",
+            "N",
+            1,
+            &contacts.tangential_force,
+        ),
+        contact_pair("contact_sliding", "", 1, &contacts.sliding),
     ];
     writer.write_frame(index, solver.state.time, &fields)
 }
@@ -287,32 +221,4 @@ fn contact_records(domain: &Domain, solver: &Solver) -> ContactRecords {
             .map(|p| f64::from(u8::from(p.sliding)))
             .collect(),
     }
-}
-
-/// Gathers a per-node (or per-element) field of the owned grains to rank 0 in global
-/// order. `per_grain[g]` is the row count of grain g; `local` holds this rank's owned
-/// grains' rows (ascending global id), `k` values per row. All ranks must call; rank 0
-/// gets `Some(global rows)`.
-pub fn gather_rows(
-    domain: &Domain,
-    owner: &[u32],
-    offsets: &[usize],
-    local: &[f64],
-    k: usize,
-) -> Option<Vec<f64>> {
-    let all = domain.gather_f64_to_root(local)?;
-    let total = *offsets.last().unwrap_or(&0);
-    let mut out = vec![0.0; total * k];
-    let mut cursor = 0;
-    for r in 0..domain.size() {
-        for (g, &o) in owner.iter().enumerate() {
-            if o as usize == r {
-                let rows = offsets[g + 1] - offsets[g];
-                out[offsets[g] * k..(offsets[g] + rows) * k]
-                    .copy_from_slice(&all[cursor..cursor + rows * k]);
-                cursor += rows * k;
-            }
-        }
-    }
-    Some(out)
 }

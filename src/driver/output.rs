@@ -9,7 +9,9 @@ use super::triaxial_plot::TriaxialPlot;
 use super::RunOptions;
 use crate::domain::Domain;
 use crate::error::{MufeError, Result};
-use crate::io::results::{MeshPart, Provenance, ResultsWriter, RESULTS_FILE_NAME};
+use crate::io::results::{
+    grain_row_blocks, MeshPart, Provenance, ResultsWriter, RESULTS_FILE_NAME,
+};
 use crate::io::xdmf::{write_xdmf, XdmfLayout, XDMF_FILE_NAME};
 use crate::model::global::GlobalMesh;
 use crate::scene::LoadedScene;
@@ -40,6 +42,8 @@ pub struct Output<'a, 'd> {
     contacts: ContactWatch,
     /// `DIR/stress_ratio.png` of a staged cell.
     triaxial_plot: Option<TriaxialPlot>,
+    /// No report of the results writes at the end (`--quiet`).
+    quiet: bool,
 }
 
 /// How a run continues a checkpoint.
@@ -128,6 +132,7 @@ impl<'a, 'd> Output<'a, 'd> {
             flush_interval: scene.output.flush_interval,
             contacts: ContactWatch::new(solver),
             triaxial_plot: TriaxialPlot::new(solver, &columns),
+            quiet: opts.quiet,
         };
         // the plots cover the whole run: the rows before a restart come from the file
         let stage_column = columns.iter().position(|c| c.name == "stage");
@@ -191,6 +196,9 @@ impl<'a, 'd> Output<'a, 'd> {
         if self.frames && !stopped {
             self.write_frame(solver)?;
         }
+        // the last history rows too, so that the report counts every write
+        self.writer.flush_history()?;
+        self.report_io();
         self.writer.close()?;
         if self.domain.is_root() {
             self.energy_plot.draw(&dir.join("energy.png"))?;
@@ -199,6 +207,43 @@ impl<'a, 'd> Output<'a, 'd> {
             }
         }
         Ok(self.contacts)
+    }
+
+    /// Says how the bulk writes of `results.h5` were performed, summed over the ranks:
+    /// collective MPI-IO is what makes the output scale, and HDF5 can fall back to
+    /// independent I/O silently, so a fallback is a warning even with `--quiet`.
+    /// All ranks must call.
+    fn report_io(&self) {
+        let io = self.writer.io_stats();
+        let total = io.total();
+        let mut counts = [
+            io.frames.collective as f64,
+            io.frames.not_collective as f64,
+            total.collective as f64,
+            total.not_collective as f64,
+        ];
+        self.domain.sum_in_place(&mut counts);
+        if !self.domain.is_root() {
+            return;
+        }
+        let [frames_ok, frames_bad, all_ok, all_bad] = counts.map(|c| c as u64);
+        if !self.quiet {
+            println!(
+                "results.h5: {} frames written by {} rank(s); collective MPI-IO writes: \
+                 frames {frames_ok}/{}, all {all_ok}/{}",
+                io.frames_written,
+                self.domain.size(),
+                frames_ok + frames_bad,
+                all_ok + all_bad,
+            );
+        }
+        if all_bad > 0 {
+            eprintln!(
+                "warning: {}: {all_bad} of {} dataset writes fell back to independent MPI-IO",
+                self.writer.path().display(),
+                all_ok + all_bad
+            );
+        }
     }
 
     /// Flushes the buffered history rows once `flush_interval` seconds of wall time have
@@ -234,7 +279,6 @@ impl<'a, 'd> Output<'a, 'd> {
             self.domain,
             solver,
             self.global,
-            &solver.state.partition.owner,
             self.frame_index,
         )?;
         self.frame_times.push((self.frame_index, solver.state.time));
@@ -260,8 +304,10 @@ impl<'a, 'd> Output<'a, 'd> {
     }
 }
 
-/// `/mesh` from the global layout (identical on all ranks); rank 0 writes it. All ranks
-/// must call.
+/// `/mesh` from the global layout (identical on all ranks): each rank writes the nodes,
+/// tetrahedra and grain ids of the grains `owner` gives it, in global grain order; rank 0
+/// writes `owner` itself (the initial owners: the frames' `owner_rank_of_grain` follows
+/// migration). All ranks must call.
 fn write_mesh(
     writer: &mut ResultsWriter,
     domain: &Domain,
@@ -269,27 +315,32 @@ fn write_mesh(
     global: &GlobalMesh,
     owner: &[u32],
 ) -> Result<()> {
-    let (mut nodes, mut tets, mut grain_of_tet) = (Vec::new(), Vec::new(), Vec::new());
-    if domain.is_root() {
-        for (g, spec) in loaded.scene.grains.iter().enumerate() {
-            let mesh = &global.meshes[g];
-            let base = global.node_offset[g] as u64;
-            let c = spec.centre;
-            nodes.extend(
-                mesh.nodes
-                    .iter()
-                    .map(|p| [p[0] + c[0], p[1] + c[1], p[2] + c[2]]),
-            );
-            tets.extend(mesh.tets.iter().map(|t| t.map(|n| n as u64 + base)));
-            grain_of_tet.extend(std::iter::repeat_n(g as u32, mesh.tets.len()));
-        }
+    let rank = domain.rank();
+    let owned = || (0..owner.len()).filter(|&g| owner[g] as usize == rank);
+    let node_blocks = grain_row_blocks(owned(), &global.node_offset);
+    let tet_blocks = grain_row_blocks(owned(), &global.element_offset);
+    let rows = |blocks: &[(u64, u64)]| blocks.iter().map(|b| b.1 as usize).sum();
+    let mut nodes = Vec::with_capacity(rows(&node_blocks));
+    let mut tets = Vec::with_capacity(rows(&tet_blocks));
+    let mut grain_of_tet = Vec::with_capacity(rows(&tet_blocks));
+    for g in owned() {
+        let mesh = &global.meshes[g];
+        let base = global.node_offset[g] as u64;
+        let c = loaded.scene.grains[g].centre;
+        nodes.extend(
+            mesh.nodes
+                .iter()
+                .map(|p| [p[0] + c[0], p[1] + c[1], p[2] + c[2]]),
+        );
+        tets.extend(mesh.tets.iter().map(|t| t.map(|n| n as u64 + base)));
+        grain_of_tet.extend(std::iter::repeat_n(g as u32, mesh.tets.len()));
     }
     writer.write_mesh(&MeshPart {
         nodes: &nodes,
-        node_offset: 0,
+        node_blocks: &node_blocks,
         total_nodes: global.total_nodes() as u64,
         tets: &tets,
-        tet_offset: 0,
+        tet_blocks: &tet_blocks,
         total_tets: global.total_elements() as u64,
         grain_of_tet: &grain_of_tet,
         grain_owner_rank: owner,

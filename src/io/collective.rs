@@ -3,8 +3,9 @@
 //! hdf5-metno's high-level writes use independent transfers (each rank writes on its own).
 //! That is correct but does not let MPI-IO aggregate the ranks' pieces into large
 //! contiguous writes, which is what makes parallel output scale. This module goes one level
-//! down: a dataset-transfer property list with `H5FD_MPIO_COLLECTIVE`, each rank's hyperslab
-//! (a contiguous block of rows `[offset, offset + rows)`), `H5Dwrite`, and a readback of the
+//! down: a dataset-transfer property list with `H5FD_MPIO_COLLECTIVE`, each rank's selection
+//! (one or more blocks of rows `[offset, offset + rows)`, the union of their hyperslabs),
+//! one `H5Dwrite` per dataset, and a readback of the
 //! I/O mode HDF5 actually used, so tests can prove the write really was collective.
 //!
 //! All unsafe HDF5 code of the results writer lives here, inside `hdf5::sync::sync` (the
@@ -29,7 +30,7 @@ use hdf5_sys::h5p::{
 };
 use hdf5_sys::h5s::{
     H5Sclose, H5Screate, H5Screate_simple, H5Sget_simple_extent_dims, H5Sget_simple_extent_ndims,
-    H5Sselect_hyperslab, H5Sselect_none, H5S_SCALAR, H5S_SELECT_SET,
+    H5Sselect_hyperslab, H5Sselect_none, H5S_SCALAR, H5S_SELECT_OR, H5S_SELECT_SET,
 };
 use hdf5_sys::h5t::{
     H5Tclose, H5Tcopy, H5Tget_class, H5Tget_size, H5Tis_variable_str, H5Tset_cset, H5Tset_size,
@@ -177,43 +178,72 @@ pub fn write_rows<T: Element>(
     offset: u64,
     total: u64,
 ) -> hdf5::Result<IoMode> {
+    // A ragged `data` still forms one block, so that the validation below reports it.
+    let rows = data.len().div_ceil(columns.max(1)) as u64;
+    let block = [(offset, rows)];
+    let blocks: &[(u64, u64)] = if data.is_empty() { &[] } else { &block };
+    write_row_blocks(dataset, data, columns, blocks, total)
+}
+
+/// Writes this rank's rows into `dataset`, collectively, where the rows need not be
+/// contiguous in the file: a rank owns grains scattered over the global order, and one
+/// collective `H5Dwrite` per dataset (the file selection the union of the blocks, the
+/// memory selection the packed rows) lets MPI-IO aggregate everything at once instead of
+/// one write per block.
+///
+/// `blocks` lists `(offset, rows)` in ascending, non-overlapping order; `data` holds the
+/// rows of all blocks packed in that order (`Σ rows × columns` values, row-major). The
+/// dataset's shape is as for [`write_rows`]. No blocks (and empty `data`) writes nothing
+/// but still takes part.
+///
+/// All ranks must call (collective).
+///
+/// Returns the I/O mode HDF5 reports for this rank's part of the transfer.
+pub fn write_row_blocks<T: Element>(
+    dataset: &Dataset,
+    data: &[T],
+    columns: usize,
+    blocks: &[(u64, u64)],
+    total: u64,
+) -> hdf5::Result<IoMode> {
     hdf5::sync::sync(|| {
         // SAFETY: every id is checked and owned by an `Owned`; the buffer holds exactly the
-        // number of elements selected in the memory space (rows × columns, or none).
+        // number of elements selected in the memory space (Σ rows × columns, or none), and
+        // the file selection selects the same number.
         unsafe {
             let ds = dataset.id();
             let file_space = Owned::new(H5Dget_space(ds), H5Sclose, "H5Dget_space")?;
-            let problem = validate_block(file_space.id, data.len(), columns, offset, total);
-            // An invalid block still joins the collective with an empty selection.
-            let rows = if problem.is_some() {
-                0
-            } else {
-                data.len() / columns.max(1)
-            };
-            let n = (rows * columns) as hsize_t;
+            let problem = validate_blocks(file_space.id, data.len(), columns, blocks, total);
+            // Invalid blocks still join the collective with an empty selection.
+            let n = if problem.is_some() { 0 } else { data.len() };
+            let n_mem = n as hsize_t;
             let mem_space = Owned::new(
-                H5Screate_simple(1, &n, std::ptr::null()),
+                H5Screate_simple(1, &n_mem, std::ptr::null()),
                 H5Sclose,
                 "H5Screate_simple",
             )?;
-            if rows == 0 {
+            if n == 0 {
                 check(H5Sselect_none(file_space.id), "H5Sselect_none")?;
                 check(H5Sselect_none(mem_space.id), "H5Sselect_none")?;
             } else {
-                // For a 1-D dataset HDF5 reads only the first entry of each array.
-                let start: [hsize_t; 2] = [offset, 0];
-                let count: [hsize_t; 2] = [rows as hsize_t, columns as hsize_t];
-                check(
-                    H5Sselect_hyperslab(
-                        file_space.id,
-                        H5S_SELECT_SET,
-                        start.as_ptr(),
-                        std::ptr::null(),
-                        count.as_ptr(),
-                        std::ptr::null(),
-                    ),
-                    "H5Sselect_hyperslab",
-                )?;
+                let mut op = H5S_SELECT_SET;
+                for &(offset, rows) in blocks.iter().filter(|b| b.1 > 0) {
+                    // For a 1-D dataset HDF5 reads only the first entry of each array.
+                    let start: [hsize_t; 2] = [offset, 0];
+                    let count: [hsize_t; 2] = [rows, columns as hsize_t];
+                    check(
+                        H5Sselect_hyperslab(
+                            file_space.id,
+                            op,
+                            start.as_ptr(),
+                            std::ptr::null(),
+                            count.as_ptr(),
+                            std::ptr::null(),
+                        ),
+                        "H5Sselect_hyperslab",
+                    )?;
+                    op = H5S_SELECT_OR;
+                }
             }
             let mode = write_collective(
                 ds,
@@ -230,15 +260,16 @@ pub fn write_rows<T: Element>(
     })
 }
 
-/// Checks a row block against the dataset's file space; `Some(reason)` if it does not fit.
+/// Checks row blocks and their data against the dataset's file space; `Some(reason)` if
+/// they do not fit.
 ///
 /// # Safety
 /// `file_space` must be a valid dataspace id.
-unsafe fn validate_block(
+unsafe fn validate_blocks(
     file_space: hid_t,
     len: usize,
     columns: usize,
-    offset: u64,
+    blocks: &[(u64, u64)],
     total: u64,
 ) -> Option<String> {
     if columns == 0 {
@@ -249,11 +280,30 @@ unsafe fn validate_block(
             "{len} values are not whole rows of {columns} columns"
         ));
     }
-    let rows = (len / columns) as u64;
-    if offset.checked_add(rows).is_none_or(|end| end > total) {
+    let mut end = 0u64;
+    let mut rows = 0u64;
+    for (k, &(offset, n)) in blocks.iter().enumerate() {
+        if k > 0 && offset < end {
+            return Some(format!(
+                "row block {k} starts at row {offset}, before the end {end} of the previous \
+                 one (blocks must be ascending and must not overlap)"
+            ));
+        }
+        end = match offset.checked_add(n) {
+            Some(e) if e <= total => e,
+            _ => {
+                return Some(format!(
+                    "rows [{offset}, {}) outside the {total} rows of the dataset",
+                    offset.saturating_add(n)
+                ))
+            }
+        };
+        rows += n;
+    }
+    if rows != (len / columns) as u64 {
         return Some(format!(
-            "rows [{offset}, {}) outside the {total} rows of the dataset",
-            offset.saturating_add(rows)
+            "{} rows of data for row blocks of {rows} rows",
+            len / columns
         ));
     }
     let ndims = H5Sget_simple_extent_ndims(file_space);

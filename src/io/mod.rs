@@ -13,6 +13,7 @@ pub mod results;
 
 pub use collective::IoMode;
 pub use results::{
-    FieldPart, HistoryColumn, IoStats, MeshPart, Provenance, ResultsWriter, RESULTS_FILE_NAME,
+    grain_row_blocks, FieldPart, HistoryColumn, IoCount, IoStats, MeshPart, Provenance,
+    ResultsWriter, RESULTS_FILE_NAME,
 };
 pub mod xdmf;

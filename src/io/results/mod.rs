@@ -1,4 +1,6 @@
-//! `results.h5`: the run's results in one parallel HDF5 file (layout: docs/ARCHITECTURE.md §7).
+//! `results.h5`: the run's results in one parallel HDF5 file. The layout (every group,
+//! dataset and attribute with shape, type and units) is docs/RESULTS.md, checked against
+//! real files by `scripts/check_results_layout.py` (tests/results_layout.rs); in short:
 //!
 //! ```text
 //! /scene                          fixed-length UTF-8 string: the scene text as run
@@ -7,16 +9,17 @@
 //! /history/<name>                 1-D f64 over output times, chunked and extended at each
 //!                                 flush; attributes units, description, abaqus (if any)
 //! /mesh/nodes                     (N, 3) f64, m
-//! /mesh/tetrahedra                (M, 4) u64, global node ids (0-based)
-//! /mesh/grain_of_element          (M,) u32
+//! /mesh/tetrahedra                (E, 4) u64, global node ids (0-based)
+//! /mesh/grain_of_element          (E,) u32
 //! /mesh/owner_rank_of_grain       (G,) u32
 //! /frames/NNNNNN/<field>          (rows,) or (rows, components) f64; group attribute time (s)
 //! ```
 //! Every dataset has a string attribute `units`; ids, counts and text have `units = ""`.
 //!
 //! The file is opened with the MPI-IO driver on the [`Domain`]'s communicator, on one rank
-//! as on many. Each rank writes its own contiguous block of rows with a collective transfer
-//! (see [`super::collective`]); whole-job data (history, scene, the grain-owner table) is
+//! as on many. Each rank writes its own rows (blocks of rows in global order, see
+//! [`blocks`]) with one collective transfer per dataset (see [`super::collective`]);
+//! whole-job data (history, scene, the grain-owner table, per-contact records) is
 //! written by rank 0 within the same collective calls. HDF5 metadata (groups, datasets,
 //! attributes) must be identical on every rank, so the writer takes the scene text and
 //! provenance from rank 0 and checks that the ranks agree on names and sizes before each
@@ -70,16 +73,18 @@ impl HistoryColumn {
 }
 
 /// This rank's part of the mesh, for [`ResultsWriter::write_mesh`]. Nodes and elements are
-/// numbered globally; each rank holds a contiguous block of each.
+/// numbered globally; each rank holds some blocks of rows of each (see [`grain_row_blocks`]).
 #[derive(Debug, Clone, Copy)]
 pub struct MeshPart<'a> {
-    /// Coordinates (m) of nodes `node_offset .. node_offset + nodes.len()`.
+    /// Coordinates (m) of the nodes in `node_blocks`, packed in block order.
     pub nodes: &'a [[f64; 3]],
-    pub node_offset: u64,
+    /// `(first row, rows)` of this rank's nodes, ascending, non-overlapping.
+    pub node_blocks: &'a [(u64, u64)],
     pub total_nodes: u64,
-    /// Global node ids of tetrahedra `tet_offset .. tet_offset + tets.len()`.
+    /// Global node ids of the tetrahedra in `tet_blocks`, packed in block order.
     pub tets: &'a [[u64; 4]],
-    pub tet_offset: u64,
+    /// `(first row, rows)` of this rank's tetrahedra, ascending, non-overlapping.
+    pub tet_blocks: &'a [(u64, u64)],
     pub total_tets: u64,
     /// Grain id of each of this rank's tetrahedra (same length as `tets`).
     pub grain_of_tet: &'a [u32],
@@ -96,22 +101,62 @@ pub struct FieldPart<'a> {
     pub units: &'a str,
     /// Values per row: 1 (scalar, stored 1-D), 3 (vector), 6 (symmetric tensor), ...
     pub components: usize,
-    /// `rows × components` values, row-major.
+    /// `rows × components` values, row-major: the rows of `blocks`, packed in block order.
     pub data: &'a [f64],
-    /// Global index of this rank's first row.
-    pub offset: u64,
+    /// `(first row, rows)` of this rank's rows, ascending, non-overlapping (empty: none).
+    pub blocks: &'a [(u64, u64)],
     /// Rows of the whole field (all ranks).
     pub total: u64,
 }
 
-/// How the writer's bulk writes were actually performed, as HDF5 reports them
-/// (`H5Pget_mpio_actual_io_mode`), counted on this rank.
+/// How a set of bulk writes was actually performed, as HDF5 reports it
+/// (`H5Pget_mpio_actual_io_mode`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct IoStats {
+pub struct IoCount {
     /// Writes HDF5 performed collectively.
     pub collective: u64,
     /// Writes HDF5 performed (wholly or partly) independently.
     pub not_collective: u64,
+}
+
+impl IoCount {
+    fn add(&mut self, mode: IoMode) {
+        if mode.is_collective() {
+            self.collective += 1;
+        } else {
+            self.not_collective += 1;
+        }
+    }
+}
+
+/// The writer's bulk writes on this rank, by kind: one per dataset written (so a frame of
+/// 17 fields counts 17), and the number of frames written.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct IoStats {
+    pub mesh: IoCount,
+    pub history: IoCount,
+    pub frames: IoCount,
+    pub frames_written: u64,
+}
+
+impl IoStats {
+    /// All bulk writes together.
+    pub fn total(&self) -> IoCount {
+        IoCount {
+            collective: self.mesh.collective + self.history.collective + self.frames.collective,
+            not_collective: self.mesh.not_collective
+                + self.history.not_collective
+                + self.frames.not_collective,
+        }
+    }
+}
+
+/// What [`ResultsWriter::count`] adds to.
+#[derive(Debug, Clone, Copy)]
+enum WriteKind {
+    Mesh,
+    History,
+    Frame,
 }
 
 /// Extendable `/history` time series, buffered between flushes.
@@ -135,6 +180,9 @@ pub struct ResultsWriter<'d> {
     // Before `file`: open datasets must close before the file does (MPI-IO closes "semi").
     history: Option<History>,
     io: IoStats,
+    /// Every rank's hash of the row layouts of the last frame, once verified to tile the
+    /// datasets (see `blocks::check_frame_tiling`); empty before.
+    verified_layouts: Vec<u64>,
     file: File,
 }
 
@@ -179,6 +227,7 @@ impl<'d> ResultsWriter<'d> {
             path: path.to_path_buf(),
             history: None,
             io: IoStats::default(),
+            verified_layouts: Vec::new(),
             file,
         };
         let local = writer.write_header(&scene, &provenance);
@@ -335,14 +384,14 @@ impl<'d> ResultsWriter<'d> {
         }
         history.pending.clear();
         history.rows_written = end;
-        self.count(&modes);
+        self.count(WriteKind::History, &modes);
         self.agree("writing /history", result)?;
         self.flush_file()
     }
 
     /// Writes `/mesh` (nodes, tetrahedra, grain of each element, owner rank of each grain)
-    /// collectively, each rank its own blocks; rank 0 writes the grain-owner table. Once per
-    /// file.
+    /// collectively, each rank its own blocks; rank 0 writes the grain-owner table (the
+    /// owners when the mesh is written, i.e. at the start of the run). Once per file.
     ///
     /// All ranks must call.
     pub fn write_mesh(&mut self, part: &MeshPart) -> Result<(), MufeError> {
@@ -358,16 +407,11 @@ impl<'d> ResultsWriter<'d> {
         }
         self.agree("writing /mesh", local)?;
         self.check_blocks(
-            "/mesh/nodes",
-            part.node_offset,
-            part.nodes.len() as u64,
-            part.total_nodes,
-        )?;
-        self.check_blocks(
-            "/mesh/tetrahedra",
-            part.tet_offset,
-            part.tets.len() as u64,
-            part.total_tets,
+            &["/mesh/nodes", "/mesh/tetrahedra"],
+            &[
+                (part.node_blocks, part.total_nodes),
+                (part.tet_blocks, part.total_tets),
+            ],
         )?;
 
         let is_root = self.domain.is_root();
@@ -383,11 +427,11 @@ impl<'d> ResultsWriter<'d> {
                 "description",
                 "node coordinates in the reference configuration",
             )?;
-            modes.push(collective::write_2d_f64(
+            modes.push(collective::write_row_blocks(
                 &ds,
                 part.nodes.as_flattened(),
                 3,
-                part.node_offset,
+                part.node_blocks,
                 part.total_nodes,
             )?);
 
@@ -398,21 +442,22 @@ impl<'d> ResultsWriter<'d> {
                 "description",
                 "global node ids (0-based) of each linear tetrahedron",
             )?;
-            modes.push(collective::write_2d_u64(
+            modes.push(collective::write_row_blocks(
                 &ds,
                 part.tets.as_flattened(),
                 4,
-                part.tet_offset,
+                part.tet_blocks,
                 part.total_tets,
             )?);
 
             let ds = new_fixed::<u32>(&group, "grain_of_element", part.total_tets, 1)?;
             put_str_attr(&ds, "units", "")?;
             put_str_attr(&ds, "description", "grain id of each tetrahedron")?;
-            modes.push(collective::write_1d_u32(
+            modes.push(collective::write_row_blocks(
                 &ds,
                 part.grain_of_tet,
-                part.tet_offset,
+                1,
+                part.tet_blocks,
                 part.total_tets,
             )?);
 
@@ -421,12 +466,12 @@ impl<'d> ResultsWriter<'d> {
             put_str_attr(
                 &ds,
                 "description",
-                "MPI rank that owns each grain in this run",
+                "MPI rank that owns each grain at the start of the run (frames/NNNNNN/owner_rank_of_grain follows migration)",
             )?;
             modes.push(collective::write_1d_u32(&ds, owners, 0, grains)?);
             Ok(())
         })();
-        self.count(&modes);
+        self.count(WriteKind::Mesh, &modes);
         self.agree("writing /mesh", result.map_err(|e| e.to_string()))?;
         self.flush_file()
     }
@@ -458,6 +503,9 @@ impl<'d> ResultsWriter<'d> {
                         f.components
                     ));
                 }
+                let rows = (f.data.len() / f.components) as u64;
+                blocks::check_local(f.blocks, rows)
+                    .map_err(|e| format!("field {}: {e}", f.name))?;
             }
             Ok(())
         });
@@ -475,15 +523,9 @@ impl<'d> ResultsWriter<'d> {
             local = self.same_on_all_ranks(fnv1a(key.as_bytes()), "frame index, time and fields");
         }
         self.agree(&what, local)?;
-        for f in fields {
-            let rows = (f.data.len() / f.components) as u64;
-            self.check_blocks(
-                &format!("/frames/{group_name}/{}", f.name),
-                f.offset,
-                rows,
-                f.total,
-            )?;
-        }
+        let layouts: Vec<_> = fields.iter().map(|f| (f.blocks, f.total)).collect();
+        blocks::check_frame_tiling(self.domain, &layouts, &mut self.verified_layouts)
+            .map_err(|(i, e)| self.error(&format!("/frames/{group_name}/{}", fields[i].name), e))?;
 
         let mut modes = Vec::with_capacity(fields.len());
         let result = (|| -> hdf5::Result<()> {
@@ -500,18 +542,19 @@ impl<'d> ResultsWriter<'d> {
             for f in fields {
                 let ds = new_fixed::<f64>(&group, f.name, f.total, f.components)?;
                 put_str_attr(&ds, "units", f.units)?;
-                modes.push(collective::write_2d_f64(
+                modes.push(collective::write_row_blocks(
                     &ds,
                     f.data,
                     f.components,
-                    f.offset,
+                    f.blocks,
                     f.total,
                 )?);
             }
             Ok(())
         })();
-        self.count(&modes);
+        self.count(WriteKind::Frame, &modes);
         self.agree(&what, result.map_err(|e| e.to_string()))?;
+        self.io.frames_written += 1;
         self.flush_file()
     }
 
@@ -534,6 +577,10 @@ impl<'d> ResultsWriter<'d> {
     }
 
     fn check_mesh_part(&self, part: &MeshPart) -> Result<(), String> {
+        blocks::check_local(part.node_blocks, part.nodes.len() as u64)
+            .map_err(|e| format!("nodes: {e}"))?;
+        blocks::check_local(part.tet_blocks, part.tets.len() as u64)
+            .map_err(|e| format!("tetrahedra: {e}"))?;
         if part.grain_of_tet.len() != part.tets.len() {
             return Err(format!(
                 "{} grain ids for {} tetrahedra",
@@ -549,7 +596,7 @@ impl<'d> ResultsWriter<'d> {
         {
             return Err(format!(
                 "element {}: node id out of range in {t:?} ({} nodes)",
-                part.tet_offset + i as u64,
+                global_row(part.tet_blocks, i as u64),
                 part.total_nodes
             ));
         }
@@ -562,7 +609,7 @@ impl<'d> ResultsWriter<'d> {
         {
             return Err(format!(
                 "element {}: grain {g} out of range ({grains} grains)",
-                part.tet_offset + i as u64
+                global_row(part.tet_blocks, i as u64)
             ));
         }
         let size = self.domain.size();
@@ -580,52 +627,18 @@ impl<'d> ResultsWriter<'d> {
     }
 
     /// Checks (on every rank, from gathered data, so every rank reaches the same verdict)
-    /// that the ranks' blocks `[offset, offset + rows)` tile `[0, total)` exactly and that
-    /// all ranks name the same total. All ranks must call.
-    fn check_blocks(
+    /// that for each layout the ranks' blocks tile `[0, total)` exactly (no overlap, no
+    /// gap) and that all ranks name the same total; `names[k]` names layout k in the
+    /// error. All ranks must call, with the same number of layouts.
+    fn check_blocks<S: AsRef<str>>(
         &self,
-        what: &str,
-        offset: u64,
-        rows: u64,
-        total: u64,
+        names: &[S],
+        layouts: &[(&[(u64, u64)], u64)],
     ) -> Result<(), MufeError> {
-        let offsets = self.domain.all_gather_u64(offset);
-        let counts = self.domain.all_gather_u64(rows);
-        let totals = self.domain.all_gather_u64(total);
-        if let Some(r) = totals.iter().position(|&t| t != totals[0]) {
-            return Err(self.error(
-                what,
-                format!(
-                    "rank {r} says {} rows, rank 0 says {}",
-                    totals[r], totals[0]
-                ),
-            ));
-        }
-        let mut blocks: Vec<(u64, u64, usize)> = offsets
-            .iter()
-            .zip(&counts)
-            .enumerate()
-            .filter(|(_, (_, &n))| n > 0)
-            .map(|(r, (&o, &n))| (o, n, r))
-            .collect();
-        blocks.sort_unstable();
-        let mut next = 0u64;
-        for &(o, n, r) in &blocks {
-            if o != next {
-                return Err(self.error(
-                    what,
-                    format!("rank {r} writes rows from {o}, expected {next} (blocks must not overlap or leave gaps)"),
-                ));
-            }
-            next = o.saturating_add(n);
-        }
-        if next != totals[0] {
-            return Err(self.error(
-                what,
-                format!("the ranks write {next} rows of {}", totals[0]),
-            ));
-        }
-        Ok(())
+        blocks::check_tiling(self.domain, layouts).map_err(|(k, e)| {
+            let name = names.get(k).map_or("", |n| n.as_ref());
+            self.error(name, e)
+        })
     }
 
     /// `Ok` if every rank passes the same `key`, else a local error naming `what`.
@@ -642,13 +655,14 @@ impl<'d> ResultsWriter<'d> {
         agree(self.domain, &self.path, what, local)
     }
 
-    fn count(&mut self, modes: &[IoMode]) {
-        for m in modes {
-            if m.is_collective() {
-                self.io.collective += 1;
-            } else {
-                self.io.not_collective += 1;
-            }
+    fn count(&mut self, kind: WriteKind, modes: &[IoMode]) {
+        let count = match kind {
+            WriteKind::Mesh => &mut self.io.mesh,
+            WriteKind::History => &mut self.io.history,
+            WriteKind::Frame => &mut self.io.frames,
+        };
+        for &m in modes {
+            count.add(m);
         }
     }
 
@@ -747,7 +761,10 @@ pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
     })
 }
 
+mod blocks;
 mod resume;
+use blocks::global_row;
+pub use blocks::grain_row_blocks;
 pub use resume::Resumed;
 
 #[cfg(test)]

@@ -120,6 +120,7 @@ impl<'d> ResultsWriter<'d> {
                 rows_written: keep as u64,
             }),
             io: Default::default(),
+            verified_layouts: Vec::new(),
             file,
         };
         writer.flush_file()?;

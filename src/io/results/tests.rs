@@ -71,10 +71,10 @@ fn single_rank_file_reads_back() {
         let tets = [[0u64, 1, 2, 3], [1, 2, 3, 4]];
         w.write_mesh(&MeshPart {
             nodes: &nodes,
-            node_offset: 0,
+            node_blocks: &[(0, 5)],
             total_nodes: 5,
             tets: &tets,
-            tet_offset: 0,
+            tet_blocks: &[(0, 2)],
             total_tets: 2,
             grain_of_tet: &[0, 1],
             grain_owner_rank: &[0, 0],
@@ -91,7 +91,7 @@ fn single_rank_file_reads_back() {
                     units: "m",
                     components: 3,
                     data: &u,
-                    offset: 0,
+                    blocks: &[(0, 5)],
                     total: 5,
                 },
                 FieldPart {
@@ -99,7 +99,7 @@ fn single_rank_file_reads_back() {
                     units: "Pa",
                     components: 1,
                     data: &p,
-                    offset: 0,
+                    blocks: &[(0, 5)],
                     total: 5,
                 },
             ],
@@ -109,8 +109,14 @@ fn single_rank_file_reads_back() {
         w.close().unwrap();
         (stats, nodes.len())
     });
-    assert_eq!(stats.not_collective, 0, "{stats:?}");
-    assert!(stats.collective >= 6, "{stats:?}");
+    assert_eq!(stats.total().not_collective, 0, "{stats:?}");
+    assert_eq!(stats.mesh.collective, 4, "{stats:?}");
+    assert_eq!(
+        stats.history.collective, 2,
+        "one flush of two columns: {stats:?}"
+    );
+    assert_eq!(stats.frames.collective, 2, "{stats:?}");
+    assert_eq!(stats.frames_written, 1, "{stats:?}");
 
     let f = File::open(&path).unwrap();
     assert_eq!(
@@ -223,7 +229,7 @@ fn bad_input_is_an_error_and_the_file_stays_usable() {
             units: "m",
             components: 3,
             data: &[0.0; 6],
-            offset: 0,
+            blocks: &[(0, 2)],
             total: 3,
         };
         assert!(w.write_frame(0, 0.0, &[short]).is_err());
@@ -232,16 +238,27 @@ fn bad_input_is_an_error_and_the_file_stays_usable() {
             units: "m",
             components: 3,
             data: &[0.0; 7],
-            offset: 0,
+            blocks: &[(0, 2)],
             total: 2,
         };
         assert!(w.write_frame(0, 0.0, &[ragged]).is_err());
+        // Row blocks must be ascending and must not overlap (the data are packed in order).
+        let descending = FieldPart {
+            name: "u",
+            units: "m",
+            components: 1,
+            data: &[0.0; 4],
+            blocks: &[(2, 2), (0, 2)],
+            total: 4,
+        };
+        let e = w.write_frame(0, 0.0, &[descending]).unwrap_err();
+        assert!(e.to_string().contains("ascending"), "{e}");
         let bad_mesh = MeshPart {
             nodes: &[[0.0; 3]; 4],
-            node_offset: 0,
+            node_blocks: &[(0, 4)],
             total_nodes: 4,
             tets: &[[0, 1, 2, 9]],
-            tet_offset: 0,
+            tet_blocks: &[(0, 1)],
             total_tets: 1,
             grain_of_tet: &[0],
             grain_owner_rank: &[0],
@@ -255,7 +272,7 @@ fn bad_input_is_an_error_and_the_file_stays_usable() {
             units: "m",
             components: 3,
             data: &[1.0; 6],
-            offset: 0,
+            blocks: &[(0, 2)],
             total: 2,
         };
         w.write_frame(0, 0.5, &[ok]).unwrap();
