@@ -175,10 +175,13 @@ class Checker:
             if units != entry.units:
                 out.append(f"units {units!r}, documented {entry.units!r}")
         for name in obj.attrs:
-            if name not in entry.attrs:
+            # an attribute documented as `kind_K` stands for kind_0, kind_1, ...
+            key = re.sub(r"_[0-9]+$", "_K", name)
+            key = name if name in entry.attrs else key
+            if key not in entry.attrs:
                 out.append(f"undocumented attribute {name}")
-            elif not attr_dtype_ok(entry.attrs[name][0], obj.attrs[name]):
-                out.append(f"attribute {name} is not {entry.attrs[name][0]}")
+            elif not attr_dtype_ok(entry.attrs[key][0], obj.attrs[name]):
+                out.append(f"attribute {name} is not {entry.attrs[key][0]}")
         for name, (_, optional) in entry.attrs.items():
             if not optional and name not in obj.attrs:
                 out.append(f"missing attribute {name}")

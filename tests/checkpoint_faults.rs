@@ -10,7 +10,8 @@
 //! - SIGTERM (serial) and SIGUSR1 to `mpirun` (2 ranks) stop the run with a checkpoint and
 //!   a readable `results.h5`, and the restart ends equal to the uninterrupted run;
 //! - a changed scene is refused naming the first difference (output settings and the end
-//!   time may change); `--branch` starts a new run from the checkpoint with other physics.
+//!   time may change), and so is a `results.h5` of another format version; `--branch`
+//!   starts a new run from the checkpoint with other physics.
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
@@ -143,6 +144,18 @@ fn a_two_rank_checkpoint_restarts_on_one_and_three_ranks() {
                 && note.contains(&format!("on {ranks} ranks")),
             "/provenance records the restart: {note}"
         );
+        // the continued file still matches docs/RESULTS.md
+        let check = std::process::Command::new("python3")
+            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/check_results_layout.py"))
+            .arg(d.join("results.h5"))
+            .output()
+            .expect("python3 runs");
+        assert!(
+            check.status.success(),
+            "{}{}",
+            String::from_utf8_lossy(&check.stdout),
+            String::from_utf8_lossy(&check.stderr)
+        );
     }
 }
 
@@ -217,6 +230,27 @@ fn a_changed_scene_is_refused_and_a_branch_starts_a_new_run() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("first difference: contact.friction = 0.3") && err.contains("--branch"),
+        "{err}"
+    );
+    // a results file of another layout version is not continued
+    let other = dir("other_results_version");
+    copy_dir(&d, &other);
+    {
+        let f = hdf5::File::open_rw(other.join("results.h5")).unwrap();
+        f.attr("format_version")
+            .unwrap()
+            .write_scalar(&99u64)
+            .unwrap();
+    }
+    let o = mufe(
+        2,
+        &other,
+        &["--restart", checkpoint(&other, 150).to_str().unwrap()],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("results.h5: format_version: format 99"),
         "{err}"
     );
     // output settings and the end time may change

@@ -42,6 +42,9 @@ use crate::error::MufeError;
 
 /// File name of the results inside a run's output directory.
 pub const RESULTS_FILE_NAME: &str = "results.h5";
+/// Version of the `results.h5` layout (docs/RESULTS.md), the root attribute
+/// `format_version`; a restart continues only a file of this version.
+pub const RESULTS_FORMAT: u64 = 1;
 
 /// Rows per chunk of the extendable history datasets (8 KiB of f64: small enough that a
 /// short run wastes little, large enough that a long one has few chunks).
@@ -248,6 +251,8 @@ impl<'d> ResultsWriter<'d> {
 
     fn write_header(&self, scene: &str, provenance: &Provenance) -> Result<(), String> {
         let is_root = self.domain.is_root();
+        put_u64_attr(&self.file, "format_version", RESULTS_FORMAT)
+            .map_err(|e| format!("/: {e}"))?;
         let ds = collective::create_text_dataset(&self.file, "scene", scene, is_root)
             .map_err(|e| format!("/scene: {e}"))?;
         put_str_attr(&ds, "units", "").map_err(|e| format!("/scene: {e}"))?;

@@ -44,6 +44,19 @@ impl<'d> ResultsWriter<'d> {
             opened.as_ref().map(|_| ()).map_err(Clone::clone),
         )?;
         let file = opened.map_err(|e| io_error(path, "reopening results file", e))?;
+        let version = (file.attr("format_version")).and_then(|a| a.read_scalar::<u64>());
+        if version.as_ref().ok() != Some(&super::RESULTS_FORMAT) {
+            let found = version.map_or("no format_version".to_string(), |v| format!("format {v}"));
+            return Err(crate::error::InputError::new(
+                path.display().to_string(),
+                "format_version",
+                format!(
+                    "{found}; this mufe continues results files of format {} only: restart into a new --out with --branch",
+                    super::RESULTS_FORMAT
+                ),
+            )
+            .into());
+        }
 
         let read = (|| -> Result<HistoryRead, String> {
             let group = file
