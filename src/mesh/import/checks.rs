@@ -81,7 +81,7 @@ pub fn check(s: &Surface) -> Result<(), Defect> {
         return Err((
             "facet 0".into(),
             format!(
-                "inward orientation: the enclosed signed volume is {} (< 0): facets are ordered clockwise seen from outside",
+                "inward orientation: the enclosed signed volume is {} m³ (< 0): facets are ordered clockwise seen from outside",
                 crate::error::num(v)
             ),
         ));
