@@ -378,10 +378,11 @@ pub fn shape_estimate(shape: &ShapeSpec) -> Option<ShapeEstimate> {
     }
 }
 
-/// Elements of TetGen's fill of a surface per V/V(h) (measured 1.0–1.3 on virtual sand
-/// grains at seeding r_eq/3 … r_eq/6; docs/SHAPES.md).
-const SURFACE_FILL_FACTOR: f64 = 1.3;
-/// Elements per facet of a file finer than the seeding (measured 3.0–3.7 on virtual sand
+/// Elements of TetGen's fill of a surface per V/V(h) (measured 3.5 on 20 virtual sand
+/// grains at seeding r_eq/5: the `q` bound and the subdivided surface give tets smaller
+/// than the regular tet of the seeding; docs/SHAPES.md).
+const SURFACE_FILL_FACTOR: f64 = 3.5;
+/// Elements per facet of a file finer than the seeding (measured 3.3 on 20 virtual sand
 /// grains of 1280 facets at seeding r_eq/2.5).
 const SURFACE_ELEMENTS_PER_FACET: f64 = 3.4;
 
