@@ -92,6 +92,37 @@ pub enum Command {
         #[arg(long)]
         force: bool,
     },
+    /// Write a virtual sand: N irregular grains as binary STL files (mm) and DIR/scene.toml
+    /// placing them on a loose grid between two walls (docs/SHAPES.md).
+    Sand {
+        /// Output directory (created if needed).
+        #[arg(long)]
+        out: PathBuf,
+        /// Number of grains.
+        #[arg(long, default_value_t = 8)]
+        grains: usize,
+        /// Random seed: the same seed and parameters give the same files.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Longest over middle semi-axis a/b (≥ 1).
+        #[arg(long, default_value_t = 1.4)]
+        elongation: f64,
+        /// Middle over shortest semi-axis b/c (≥ 1).
+        #[arg(long, default_value_t = 1.25)]
+        flatness: f64,
+        /// Relative amplitude of the surface waves (0 … 0.3).
+        #[arg(long, default_value_t = 0.08)]
+        roughness: f64,
+        /// Equivalent diameter (m).
+        #[arg(long, default_value_t = 1e-3)]
+        size: f64,
+        /// Mesh seeding written into the scene (m); default size/5.
+        #[arg(long)]
+        seeding: Option<f64>,
+        /// Icosphere level of the surfaces: 20·4^level facets (1 … 6).
+        #[arg(long, default_value_t = 3)]
+        level: u32,
+    },
     /// Run analytic validation cases (hertz, mindlin, mindlin_cyclic, torsion, rolling,
     /// plastic_cube, plastic_spheres) over meshing ratios; print a table, write
     /// DIR/validation.json, one PNG per case and each run's results.h5 + energy.png.
@@ -418,6 +449,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     }
                 }
             }
+            print_shape_descriptors(&loaded);
             println!("ok: {} is valid", scene.display());
             Ok(())
         }
@@ -573,7 +605,80 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             set,
             force,
         } => partition_command(&scene, &set, parts, out.as_deref(), margin, exact, force),
+        Command::Sand {
+            out,
+            grains,
+            seed,
+            elongation,
+            flatness,
+            roughness,
+            size,
+            seeding,
+            level,
+        } => {
+            let p = crate::sand::SandParams {
+                grains,
+                seed,
+                elongation,
+                flatness,
+                roughness,
+                size,
+                seeding: seeding.unwrap_or(size / 5.0),
+                level,
+            };
+            check_sand_params(&p)?;
+            check_out_dir(&out)?;
+            let path = crate::sand::write_sand(&out, &p).map_err(|e| {
+                MufeError::Io(format!("{}: cannot write the sand: {e}", out.display()))
+            })?;
+            println!("wrote {grains} grains and {}", path.display());
+            Ok(())
+        }
     }
+}
+
+/// One line per grain of a surface shape: its descriptors (docs/SHAPES.md).
+fn print_shape_descriptors(loaded: &LoadedScene) {
+    for (i, g) in loaded.scene.grains.iter().enumerate() {
+        if let crate::scene::ShapeSpec::Surface(s) = &g.shape {
+            if let Some(geometry) = &s.geometry {
+                println!(
+                    "shape of grain '{}' ({}): {}",
+                    g.display_name(i),
+                    s.file,
+                    geometry.descriptors
+                );
+            }
+        }
+    }
+}
+
+/// The bounds of `mufe sand`'s arguments.
+fn check_sand_params(p: &crate::sand::SandParams) -> Result<(), InputError> {
+    let bad = |arg: &str, why: String| Err(InputError::new("<command line>", arg, why));
+    if !(1..=100_000).contains(&p.grains) {
+        return bad("--grains", format!("must be 1 … 100000, got {}", p.grains));
+    }
+    for (arg, v) in [("--elongation", p.elongation), ("--flatness", p.flatness)] {
+        if !(v.is_finite() && (1.0..=10.0).contains(&v)) {
+            return bad(arg, format!("must be 1 … 10, got {v}"));
+        }
+    }
+    if !(p.roughness.is_finite() && (0.0..=0.3).contains(&p.roughness)) {
+        return bad(
+            "--roughness",
+            format!("must be 0 … 0.3, got {}", p.roughness),
+        );
+    }
+    for (arg, v) in [("--size", p.size), ("--seeding", p.seeding)] {
+        if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+            return bad(arg, format!("must be a length in (0, 1] m, got {v}"));
+        }
+    }
+    if !(1..=6).contains(&p.level) {
+        return bad("--level", format!("must be 1 … 6, got {}", p.level));
+    }
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------
@@ -645,6 +750,10 @@ pub fn scene_partition_grains(
                     (half[0] * half[0] + half[1] * half[1] + half[2] * half[2]).sqrt(),
                 )
             }
+            ShapeSpec::Surface(s) => (
+                g.centre,
+                s.geometry.as_ref().map_or(0.0, |x| x.bounding_radius),
+            ),
         };
         let estimate = match &g.shape {
             ShapeSpec::Block(b) => {
@@ -655,6 +764,11 @@ pub fn scene_partition_grains(
             }
             ShapeSpec::Sphere(s) if !exact => estimate_sphere_counts(s),
             ShapeSpec::Sphere(_) => None,
+            ShapeSpec::Surface(s) => s
+                .geometry
+                .as_ref()
+                .and_then(|x| x.volume_mesh)
+                .map(|(e, n)| (e, n / 4)),
         };
         // Blocks are exact from the formula; only spheres count as estimated.
         let estimated = estimate.is_some() && matches!(g.shape, ShapeSpec::Sphere(_));
@@ -665,13 +779,8 @@ pub fn scene_partition_grains(
                 match meshed.get(&key) {
                     Some(c) => *c,
                     None => {
-                        let m = crate::model::mesh_shape(&g.shape).map_err(|e| {
-                            InputError::new(
-                                &loaded.path,
-                                format!("grains[{i}].shape"),
-                                e.to_string(),
-                            )
-                        })?;
+                        let m = crate::model::mesh_shape(&g.shape)
+                            .map_err(|e| e.for_grain(&loaded.path, i))?;
                         let c = (m.tets.len(), crate::mesh::extract_surface(&m).nodes.len());
                         meshed.insert(key, c);
                         c

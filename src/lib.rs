@@ -33,6 +33,7 @@ pub mod energy;
 pub mod io;
 pub mod material;
 pub mod math;
+pub mod sand;
 pub mod scene;
 pub mod solver;
 pub mod validate;

@@ -258,6 +258,9 @@ pub fn servo_control(scene: &Scene, wall: &WallSpec, spec: &ServoSpec) -> ServoC
                 0.5 * b.size.iter().map(|s| s * s).sum::<f64>().sqrt(),
                 b.size.iter().product(),
             ),
+            ShapeSpec::Surface(s) => s.geometry.as_ref().map_or((g.centre, 0.0, 0.0), |x| {
+                (g.centre, x.bounding_radius, x.descriptors.volume)
+            }),
         };
         let along = centre[0] * n[0] + centre[1] * n[1] + centre[2] * n[2];
         lo = lo.min(along - bounding);

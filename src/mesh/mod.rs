@@ -19,6 +19,7 @@
 //! element, so the minimum dihedral angle matters).
 
 pub mod block;
+pub mod import;
 mod quality;
 mod sphere;
 mod surface;
@@ -65,6 +66,10 @@ pub enum MeshError {
     /// TetGen rejected the input or produced an unusable mesh.
     #[error("TetGen failed: {0}")]
     TetGen(String),
+    /// A surface file is unreadable or defective: the error names that file and the item
+    /// (`facet 17`, `line 4`).
+    #[error("{0}")]
+    File(crate::error::InputError),
     /// The mesh has no elements.
     #[error("mesh has no elements")]
     Empty,
@@ -102,11 +107,25 @@ impl MeshError {
                 field.clone()
             }
             MeshError::TetGen(_) | MeshError::Empty => String::new(),
+            MeshError::File(e) => e.item.clone(),
             MeshError::NonFiniteNode { node, .. } => format!("node {node}"),
             MeshError::NodeOutOfRange { element, .. }
             | MeshError::RepeatedNode { element, .. }
             | MeshError::InvertedElement { element, .. }
             | MeshError::DegenerateElement { element, .. } => format!("element {element}"),
+        }
+    }
+
+    /// The input error of grain `grain`'s shape in `scene_file`; a surface file's own
+    /// defect stays an error of that file.
+    pub fn for_grain(&self, scene_file: &str, grain: usize) -> crate::error::InputError {
+        match self {
+            MeshError::File(e) => e.clone(),
+            other => crate::error::InputError::new(
+                scene_file,
+                format!("grains[{grain}].shape"),
+                other.to_string(),
+            ),
         }
     }
 
@@ -124,6 +143,7 @@ impl MeshError {
         };
         let message = match self {
             MeshError::InvalidSpec { message, .. } => message.clone(),
+            MeshError::File(e) => return e.clone(),
             other => {
                 // Drop the leading "item: " that Display repeats.
                 let full = other.to_string();

@@ -461,7 +461,7 @@ pub fn mesh_sphere(spec: &SphereMeshSpec) -> Result<TetMesh, MeshError> {
         marker: 1,
         max_volume: None,
     }];
-    let mut mesh = tetrahedralize(&points, &facets, &regions, RADIUS_EDGE_RATIO)?;
+    let mut mesh = tetrahedralize(&points, &facets, &regions, RADIUS_EDGE_RATIO, None)?;
     for p in mesh.nodes.iter_mut() {
         *p = scale(*p, big_r);
     }

@@ -36,18 +36,20 @@ pub(crate) struct Region {
 /// Tetrahedralises the closed PLC made of triangular `facets` over `points`. Coordinates
 /// should be of order one (the caller scales), because TetGen's tolerances are relative and
 /// volume constraints pass through text. `radius_edge_ratio` is TetGen's `q` bound (> 1.0;
-/// 1.4–2.0 is typical). Returned tets are positively oriented.
+/// 1.4–2.0 is typical); `max_volume` a bound on every tet's volume (TetGen `-a<V>`).
+/// Returned tets are positively oriented.
 pub(crate) fn tetrahedralize(
     points: &[[f64; 3]],
     facets: &[[u32; 3]],
     regions: &[Region],
     radius_edge_ratio: f64,
+    max_volume: Option<f64>,
 ) -> Result<TetMesh, MeshError> {
     let err = |e: &str| MeshError::TetGen(e.to_string());
     let mut tg = tritet::Tetgen::new(
         points.len(),
         Some(vec![3; facets.len()]),
-        Some(regions.len()),
+        (!regions.is_empty()).then_some(regions.len()),
         None,
     )
     .map_err(err)?;
@@ -76,7 +78,7 @@ pub(crate) fn tetrahedralize(
         let _guard = TETGEN_LOCK
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        tg.generate_mesh(false, false, None, Some(radius_edge_ratio))
+        tg.generate_mesh(false, false, max_volume, Some(radius_edge_ratio))
             .map_err(err)?;
         let npoint = tg.out_npoint();
         let ncell = tg.out_ncell();
@@ -147,7 +149,7 @@ mod tests {
             marker: 1,
             max_volume: Some(0.01),
         };
-        let m = tetrahedralize(&pts, &facets, &[region], 2.0).unwrap();
+        let m = tetrahedralize(&pts, &facets, &[region], 2.0, None).unwrap();
         assert!(m.tets.len() > 10);
         let v: f64 = m
             .tets
@@ -173,7 +175,7 @@ mod tests {
             marker: 1,
             max_volume: None,
         };
-        let e = tetrahedralize(&pts, &facets, &[region], 2.0).unwrap_err();
+        let e = tetrahedralize(&pts, &facets, &[region], 2.0, None).unwrap_err();
         assert!(matches!(e, MeshError::TetGen(_)));
         assert!(e.to_string().starts_with("TetGen failed: "), "{e}");
     }

@@ -20,6 +20,7 @@ pub fn mesh_shape(shape: &ShapeSpec) -> Result<TetMesh, mesh::MeshError> {
     match shape {
         ShapeSpec::Sphere(s) => mesh::mesh_sphere(s),
         ShapeSpec::Block(b) => Ok(mesh::block::mesh_block(b.size, b.divisions)),
+        ShapeSpec::Surface(s) => mesh::import::mesh_surface(s),
     }
 }
 
@@ -79,9 +80,7 @@ pub fn build_model_with_ghosts(
         let m = match cache.get(&key) {
             Some(m) => m.clone(),
             None => {
-                let m = Arc::new(mesh_shape(&g.shape).map_err(|e| {
-                    InputError::new(file, format!("grains[{gi}].shape"), e.to_string())
-                })?);
+                let m = Arc::new(mesh_shape(&g.shape).map_err(|e| e.for_grain(file, gi))?);
                 mesh::validate(&m).map_err(|e| {
                     InputError::new(file, format!("grains[{gi}].shape"), e.to_string())
                 })?;

@@ -36,9 +36,8 @@ impl GlobalMesh {
             let (m, ns) = match cache.get(&key) {
                 Some(v) => v.clone(),
                 None => {
-                    let m = Arc::new(mesh_shape(&g.shape).map_err(|e| {
-                        InputError::new(&loaded.path, format!("grains[{gi}].shape"), e.to_string())
-                    })?);
+                    let m =
+                        Arc::new(mesh_shape(&g.shape).map_err(|e| e.for_grain(&loaded.path, gi))?);
                     let ns = mesh::extract_surface(&m).nodes.len();
                     cache.insert(key, (m.clone(), ns));
                     (m, ns)

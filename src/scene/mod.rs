@@ -8,6 +8,7 @@ pub mod estimate;
 mod overrides;
 pub mod packing;
 pub mod stages;
+mod surfaces;
 mod validate;
 
 pub use compare::first_difference;
@@ -172,6 +173,8 @@ pub enum ShapeSpec {
     Sphere(SphereMeshSpec),
     /// Structured box split into tetrahedra, spanning [0, size] from the grain's origin.
     Block(BlockSpec),
+    /// A surface file (STL, OBJ, MSH) filled with tets (docs/SHAPES.md).
+    Surface(crate::mesh::import::SurfaceSpec),
 }
 
 /// A rectangular block meshed as nx×ny×nz cubes, each split into 6 tetrahedra.
@@ -450,6 +453,7 @@ pub fn parse_scene(
         })
         .map_err(|e| blame_override(e, overrides))?;
     packing::expand(file, &mut scene).map_err(|e| blame_override(e, overrides))?;
+    surfaces::resolve(file, &mut scene).map_err(|e| blame_override(e, overrides))?;
     validate::validate_scene(file, &scene)
         .map_err(|e| blame_override(packing::blame(&scene, e), overrides))?;
     let text = if overrides.is_empty() {

@@ -70,6 +70,8 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
                     other => c.err(f("shape.sphere"), other.to_string()),
                 })?;
             }
+            // Fields and the file itself are checked when the scene is loaded (surfaces.rs).
+            ShapeSpec::Surface(_) => {}
             ShapeSpec::Block(b) => {
                 for k in 0..3 {
                     c.positive(&format!("grains[{i}].shape.block.size[{k}]"), b.size[k])?;
@@ -301,6 +303,11 @@ fn physical_bounds(c: &Checker, scene: &Scene) -> Result<(), InputError> {
                 point(&f("shape.block.size"), &b.size)?;
                 0.5 * len3(&b.size)
             }
+            ShapeSpec::Surface(s) => {
+                let r = s.geometry.as_ref().map_or(0.0, |x| x.bounding_radius);
+                length(f("shape.surface.scale"), r)?;
+                r
+            }
         };
         r_min = r_min.min(radius);
         let cp = scene.materials.get(&g.material).map_or(0.0, wave_speed);
@@ -501,6 +508,16 @@ fn initial_overlaps(c: &Checker, scene: &Scene) -> Result<(), InputError> {
                     centre: g.centre,
                     radius: s.radius,
                     sag: top * top / (8.0 * s.radius),
+                });
+            }
+            // Only the mesh-level check of `mufe run` sees an irregular shape; here it is a
+            // point at its centre (which catches nothing but keeps the indices aligned).
+            ShapeSpec::Surface(s) => {
+                min_edge = min_edge.min(s.seeding);
+                bodies.push(Body::Ball {
+                    centre: g.centre,
+                    radius: 0.0,
+                    sag: 0.0,
                 });
             }
             ShapeSpec::Block(b) => {

@@ -1,0 +1,376 @@
+//! Grains of any shape from surface files (STL, OBJ, Gmsh MSH 4.1): read, scale to metres,
+//! check (and optionally repair), centre, subdivide to the seeding and fill with tets by
+//! TetGen; or, for an MSH volume mesh, use its tets as they are. See docs/SHAPES.md.
+//!
+//! Pipeline of [`mesh_surface`]: [`prepare`] (read → units × scale → repair → checks →
+//! origin) → on-disk cache lookup (`cache`) → [`refine::subdivide`] to edges ≤ seeding →
+//! TetGen with a global maximum volume (a regular tet of edge = seeding) and the sphere
+//! mesher's radius–edge bound → rotation. Defects are input errors naming the surface file
+//! and the first bad facet.
+
+pub mod cache;
+pub mod checks;
+mod descriptors;
+pub mod formats;
+mod intersect;
+mod refine;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde::{Deserialize, Serialize};
+
+pub use descriptors::ShapeDescriptors;
+pub use formats::{Format, Imported};
+
+use super::tetgen::tetrahedralize;
+use super::{MeshError, TetMesh};
+use crate::error::{num, InputError};
+use crate::math::{norm, sub};
+
+/// Bumped whenever a change to this pipeline changes the meshes (invalidates the cache).
+const MESHER_VERSION: u32 = 1;
+
+/// Largest surface after subdivision (facets): ~100 M tets.
+const MAX_FACETS: usize = 4_000_000;
+
+/// A closed triangulated surface: facets counter-clockwise seen from outside once checked.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Surface {
+    pub points: Vec<[f64; 3]>,
+    pub facets: Vec<[u32; 3]>,
+}
+
+/// Where the grain's origin (its `centre` in the scene) is in the file's geometry.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SurfaceOrigin {
+    /// The volume centroid of the shape (default).
+    #[default]
+    Centroid,
+    /// The file's own origin (after units and scale).
+    File,
+}
+
+/// A grain shape read from a surface file.
+///
+/// ```toml
+/// shape = { surface = { file = "grain.stl", units = "mm", seeding = 1.0e-4, scale = 1.0, rotation = [0.0, 0.0, 1.5708], repair = false } }
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SurfaceSpec {
+    /// `.stl` (binary or ASCII), `.obj` or `.msh` (Gmsh 4.1 ASCII); relative paths are
+    /// relative to the scene file (resolved when the scene is loaded).
+    pub file: String,
+    /// Length unit of the file's coordinates: `m`, `cm`, `mm`, `um` (or `µm`).
+    pub units: String,
+    /// Target element edge (m, after units and scale). Ignored for MSH volume meshes.
+    pub seeding: f64,
+    /// Factor applied after the unit conversion (–), default 1.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Rotation of the shape about its origin, as an axis-angle vector (rad): the axis is
+    /// the direction, the angle (right-handed) the length. Applied before the grain is
+    /// moved to its `centre`. Default none.
+    #[serde(default)]
+    pub rotation: [f64; 3],
+    /// Repair what is safely repairable (near-duplicate vertices, degenerate and repeated
+    /// facets, flipped facets) and say what changed on stderr. Default false.
+    #[serde(default)]
+    pub repair: bool,
+    /// `centroid` (default) or `file`: which point of the shape is placed at `centre`.
+    #[serde(default)]
+    pub origin: SurfaceOrigin,
+    /// Checked geometry, filled when the scene is loaded (not input).
+    #[serde(skip)]
+    pub geometry: Option<Arc<SurfaceGeometry>>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// What the scene needs to know of a surface shape before meshing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceGeometry {
+    /// Of the checked surface (for an MSH volume mesh, of its boundary), grain frame.
+    pub descriptors: ShapeDescriptors,
+    /// Largest distance of a vertex from the grain's origin (m).
+    pub bounding_radius: f64,
+    /// Facets of the surface as read and shortest edge (m).
+    pub facets: usize,
+    pub min_edge: f64,
+    /// Exact (elements, nodes) of an MSH volume mesh used as is.
+    pub volume_mesh: Option<(usize, usize)>,
+}
+
+impl SurfaceSpec {
+    /// Metres per file unit, `None` for an unknown unit.
+    pub fn unit_factor(&self) -> Option<f64> {
+        match self.units.as_str() {
+            "m" => Some(1.0),
+            "cm" => Some(1e-2),
+            "mm" => Some(1e-3),
+            "um" | "µm" | "μm" => Some(1e-6),
+            _ => None,
+        }
+    }
+
+    /// Field checks (no file access). Fields are named below `surface.`.
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let bad = |field: &str, message: String| MeshError::InvalidSpec {
+            field: field.into(),
+            message,
+        };
+        if Format::from_path(Path::new(&self.file)).is_none() {
+            return Err(bad(
+                "file",
+                format!(
+                    "'{}' has no known extension; use .stl, .obj or .msh",
+                    crate::error::echo(&self.file)
+                ),
+            ));
+        }
+        if self.unit_factor().is_none() {
+            return Err(bad(
+                "units",
+                format!(
+                    "unknown unit '{}'; use m, cm, mm or um",
+                    crate::error::echo(&self.units)
+                ),
+            ));
+        }
+        for (field, v) in [("seeding", self.seeding), ("scale", self.scale)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(bad(
+                    field,
+                    format!("must be a finite number > 0, got {}", num(v)),
+                ));
+            }
+        }
+        if let Some(k) = (0..3).find(|&k| !self.rotation[k].is_finite()) {
+            return Err(bad(
+                &format!("rotation[{k}]"),
+                format!("must be finite, got {}", num(self.rotation[k])),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Makes a relative `file` relative to the directory of `scene_file`.
+    pub fn resolve_against(&mut self, scene_file: &Path) {
+        let p = PathBuf::from(&self.file);
+        if p.is_relative() {
+            if let Some(dir) = scene_file.parent().filter(|d| !d.as_os_str().is_empty()) {
+                self.file = dir.join(p).display().to_string();
+            }
+        }
+    }
+
+    fn factor(&self) -> f64 {
+        self.unit_factor().unwrap_or(1.0) * self.scale
+    }
+}
+
+/// A checked shape in the grain frame (metres, origin placed), before rotation.
+#[derive(Debug, Clone)]
+pub enum Prepared {
+    Surface(Surface),
+    Volume(TetMesh),
+}
+
+fn file_error(
+    spec: &SurfaceSpec,
+    item: impl Into<String>,
+    message: impl Into<String>,
+) -> MeshError {
+    MeshError::File(InputError::new(&spec.file, item, message))
+}
+
+/// Reads, scales, repairs (when asked; `report` prints what changed on stderr), checks and
+/// centres the shape. Returns it with the file's bytes (for the cache key).
+pub fn prepare(spec: &SurfaceSpec, report: bool) -> Result<(Prepared, Vec<u8>), MeshError> {
+    spec.validate()?;
+    let bytes = std::fs::read(&spec.file)
+        .map_err(|e| file_error(spec, "file", format!("cannot read the surface file: {e}")))?;
+    let format = Format::from_path(Path::new(&spec.file)).unwrap_or(Format::Stl);
+    let imported =
+        formats::read(format, &bytes).map_err(|(item, msg)| file_error(spec, item, msg))?;
+    let factor = spec.factor();
+    let prepared = match imported {
+        Imported::Surface(mut s) => {
+            s.points.iter_mut().for_each(|p| *p = p.map(|c| c * factor));
+            if spec.repair {
+                let r = checks::repair(&mut s);
+                if report && !r.is_empty() {
+                    eprintln!("note: {}: repaired: {r}", spec.file);
+                }
+                // Drop the vertices merged away (TetGen would keep them as loose points).
+                s = formats::surface_from_soup(
+                    s.facets.iter().map(|f| f.map(|i| s.points[i as usize])),
+                );
+            }
+            checks::check(&s).map_err(|(item, msg)| file_error(spec, item, msg))?;
+            if spec.origin == SurfaceOrigin::Centroid {
+                let c = ShapeDescriptors::of(&s).centroid;
+                s.points.iter_mut().for_each(|p| *p = sub(*p, c));
+            }
+            Prepared::Surface(s)
+        }
+        Imported::Volume(mut m) => {
+            m.nodes.iter_mut().for_each(|p| *p = p.map(|c| c * factor));
+            super::validate(&m).map_err(|e| {
+                file_error(
+                    spec,
+                    e.item(),
+                    e.to_string()
+                        .split_once(": ")
+                        .map_or(e.to_string(), |x| x.1.to_string()),
+                )
+            })?;
+            if spec.origin == SurfaceOrigin::Centroid {
+                let c = ShapeDescriptors::of(&boundary_of(&m)).centroid;
+                m.nodes.iter_mut().for_each(|p| *p = sub(*p, c));
+            }
+            Prepared::Volume(m)
+        }
+    };
+    Ok((prepared, bytes))
+}
+
+fn boundary_of(m: &TetMesh) -> Surface {
+    let s = super::extract_surface(m);
+    Surface {
+        points: m.nodes.clone(),
+        facets: s.facets,
+    }
+}
+
+/// Checks the shape and returns its geometry (used when the scene is loaded).
+pub fn inspect(spec: &SurfaceSpec) -> Result<SurfaceGeometry, MeshError> {
+    let (prepared, _) = prepare(spec, true)?;
+    let (surface, volume_mesh) = match &prepared {
+        Prepared::Surface(s) => (s.clone(), None),
+        Prepared::Volume(m) => (boundary_of(m), Some((m.tets.len(), m.nodes.len()))),
+    };
+    let min_edge = surface
+        .facets
+        .iter()
+        .flat_map(|f| (0..3).map(move |k| (f[k], f[(k + 1) % 3])))
+        .map(|(a, b)| norm(sub(surface.points[a as usize], surface.points[b as usize])))
+        .fold(f64::INFINITY, f64::min);
+    let used = |i: usize| surface.facets.iter().any(|f| f.contains(&(i as u32)));
+    let bounding_radius = match volume_mesh {
+        Some(_) => surface
+            .points
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| used(*i))
+            .map(|(_, p)| norm(*p))
+            .fold(0.0, f64::max),
+        None => surface.points.iter().map(|p| norm(*p)).fold(0.0, f64::max),
+    };
+    Ok(SurfaceGeometry {
+        descriptors: ShapeDescriptors::of(&surface),
+        bounding_radius,
+        facets: surface.facets.len(),
+        min_edge,
+        volume_mesh,
+    })
+}
+
+/// Meshes the shape, through the on-disk cache of [`cache::cache_dir`].
+pub fn mesh_surface(spec: &SurfaceSpec) -> Result<TetMesh, MeshError> {
+    mesh_surface_cached(spec, cache::cache_dir().as_deref()).map(|(m, _)| m)
+}
+
+/// Meshes the shape with the cache in `cache_dir` (none: no cache); also says whether the
+/// mesh came from the cache.
+pub fn mesh_surface_cached(
+    spec: &SurfaceSpec,
+    cache_dir: Option<&Path>,
+) -> Result<(TetMesh, bool), MeshError> {
+    let (prepared, bytes) = prepare(spec, false)?;
+    let (mut mesh, hit) = match prepared {
+        Prepared::Volume(m) => (m, false),
+        Prepared::Surface(s) => {
+            let key = format!(
+                "mufe surface mesher {MESHER_VERSION}\nfile {} bytes fnv64 {:016x}\nseeding {:e}\nfactor {:e}\nrepair {}\norigin {:?}\n",
+                bytes.len(),
+                cache::fnv64(&bytes),
+                spec.seeding,
+                spec.factor(),
+                spec.repair,
+                spec.origin
+            );
+            match cache_dir.and_then(|d| cache::load(d, &key)) {
+                Some(m) => (m, true),
+                None => {
+                    let m = fill(&s, spec.seeding)?;
+                    if let Some(d) = cache_dir {
+                        cache::store(d, &key, &m);
+                    }
+                    (m, false)
+                }
+            }
+        }
+    };
+    rotate(&mut mesh.nodes, spec.rotation);
+    Ok((mesh, hit))
+}
+
+/// Subdivides the surface to edges ≤ `seeding` and fills it with tets.
+fn fill(s: &Surface, seeding: f64) -> Result<TetMesh, MeshError> {
+    let fine = refine::subdivide(s, seeding, MAX_FACETS).ok_or(MeshError::TooLarge {
+        field: "seeding".into(),
+        limit: MAX_FACETS,
+    })?;
+    // TetGen's tolerances are relative and its volume bound goes through text: work at
+    // order-one coordinates.
+    let size = fine
+        .points
+        .iter()
+        .map(|p| norm(*p))
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
+    let points: Vec<[f64; 3]> = fine.points.iter().map(|p| p.map(|c| c / size)).collect();
+    let h = seeding / size;
+    let max_volume = h * h * h / (6.0 * std::f64::consts::SQRT_2);
+    let mut mesh = tetrahedralize(
+        &points,
+        &fine.facets,
+        &[],
+        super::sphere::RADIUS_EDGE_RATIO,
+        Some(max_volume),
+    )?;
+    mesh.nodes.iter_mut().for_each(|p| *p = p.map(|c| c * size));
+    super::validate(&mesh)?;
+    Ok(mesh)
+}
+
+/// Axis-aligned bounding box (low and high corners).
+pub fn bounding_box(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Rotates points by the axis-angle vector `w` (Rodrigues).
+pub fn rotate(points: &mut [[f64; 3]], w: [f64; 3]) {
+    let angle = norm(w);
+    if angle == 0.0 {
+        return;
+    }
+    let r = nalgebra::Rotation3::new(nalgebra::Vector3::from(w));
+    for p in points.iter_mut() {
+        let q = r * nalgebra::Vector3::from(*p);
+        *p = [q.x, q.y, q.z];
+    }
+}
