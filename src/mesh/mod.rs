@@ -12,7 +12,10 @@
 //!    field (seeding; core size below a graded band; refinement patches);
 //! 3. TetGen (private `tetgen` module) tetrahedralises the surface with the lattice points
 //!    as isolated vertices under a radius–edge bound, keeping the surface exactly as
-//!    triangulated; tets are re-oriented to positive volume and checked with [`validate`].
+//!    triangulated; tets are re-oriented to positive volume;
+//! 4. [`smooth`]: the interior nodes of slivers are moved to raise the smallest element
+//!    height (the surface stays exactly as triangulated), then the mesh is checked with
+//!    [`validate`].
 //!
 //! [`extract_surface`], [`facet_normals`] and [`surface_node_geometry`] give contact what it
 //! needs; [`quality()`] summarises element shape (the explicit time step depends on the worst
@@ -21,6 +24,7 @@
 pub mod block;
 pub mod import;
 mod quality;
+pub mod smooth;
 mod sphere;
 mod surface;
 pub mod surface_refine;
