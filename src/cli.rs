@@ -238,7 +238,7 @@ pub fn clap_error(e: &clap::Error) -> InputError {
             (
                 "command".into(),
                 format!(
-                    "unknown command '{}'; use run, check, partition or validate",
+                    "unknown command '{}'; use run, check, partition, validate or sand",
                     crate::error::echo(&sub)
                 ),
             )
@@ -249,7 +249,8 @@ pub fn clap_error(e: &clap::Error) -> InputError {
         ),
         ErrorKind::MissingSubcommand | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => (
             "command".into(),
-            "no command given; use run, check, partition or validate (see mufe --help)".into(),
+            "no command given; use run, check, partition, validate or sand (see mufe --help)"
+                .into(),
         ),
         ErrorKind::ArgumentConflict => (
             context(ContextKind::InvalidArg).map_or_else(|| "argument".into(), arg_name),

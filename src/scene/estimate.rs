@@ -20,10 +20,13 @@
 //!   a mean edge ≈ 0.85 H. Nodes: elements/[`ELEMENTS_PER_NODE`] + surface triangles/2
 //!   × [`SURFACE_NODE_SHARE`] (the surface nodes carry fewer tets each). The smallest
 //!   element size is min(s, sᵣ).
-//! - **time step**: Δt ≈ dt_safety · k · h_min / c_p per grain, c_p = √((λ+2G)/ρ) the
-//!   dilatational wave speed of its material, k = [`SPHERE_DT_FACTOR`] for TetGen meshes
-//!   (their worst element is ~10× shorter in its critical mode than the seeding) and
-//!   [`BLOCK_DT_FACTOR`] for the structured blocks; the smallest over the grains. The step
+//! - **time step**: Δt ≈ dt_safety · L / c_p per grain, c_p = √((λ+2G)/ρ) the
+//!   dilatational wave speed of its material and L the shape's step length: the smaller of
+//!   [`SPHERE_DT_FACTOR`] × seeding and [`PATCH_DT_FACTOR`] × the finest patch for the
+//!   smoothed sphere meshes (their worst element is 5–10× shorter in its critical mode than
+//!   the seeding), [`SURFACE_DT_FACTOR`] × the smallest size for imported surfaces,
+//!   [`BLOCK_DT_FACTOR`] × the cell size for the structured blocks; the smallest over the
+//!   grains. The step
 //!   used is `simulation.dt`, else `target_dt`, else this estimate; steps = ⌈duration/Δt⌉.
 //! - **memory** of a run: [`BYTES_PER_ELEMENT`] per element, [`BYTES_PER_NODE`] per node,
 //!   [`BASE_BYTES`] (measured peak RSS of `mufe run`, mesher included), and
@@ -37,9 +40,18 @@ use crate::mesh::SphereMeshSpec;
 use std::collections::BTreeMap;
 use std::f64::consts::{PI, SQRT_2};
 
-/// Critical-step factor of TetGen sphere meshes: Δt_crit ≈ k·h_min/c_p (measured
-/// 0.07–0.15 on the jobs).
-pub const SPHERE_DT_FACTOR: f64 = 0.1;
+/// Critical-step factor of the smoothed sphere meshes without refinement patches:
+/// Δt_crit ≈ k·h/c_p for the seeding h (measured 0.15–0.21 on the jobs and
+/// `tests/mesh_stable_step.rs`; a regular tet gives 0.565).
+pub const SPHERE_DT_FACTOR: f64 = 0.18;
+/// The same, relative to the seeding of the finest refinement patch, whose transition to
+/// the interior lattice leaves the worst elements (measured 0.09–0.19 on the jobs; also
+/// relative to the seeding of a graded mesh, for its band-to-core transition). A patch
+/// of radius 0 is a single fine point: with a pinned node its size counts as
+/// √(patch seeding × seeding); without one it leaves the worst element to the seeding.
+pub const PATCH_DT_FACTOR: f64 = 0.1;
+/// The same for meshes of imported surfaces (not smoothed).
+pub const SURFACE_DT_FACTOR: f64 = 0.1;
 /// Critical-step factor of the structured block meshes (measured 0.51 on cubes).
 pub const BLOCK_DT_FACTOR: f64 = 0.5;
 /// Elements per interior node of the meshes (measured 5.6–6.3).
@@ -73,6 +85,8 @@ pub struct ShapeEstimate {
     pub surface_triangles: u64,
     /// Smallest nominal element edge (m).
     pub min_size: f64,
+    /// Length the stable step scales with: Δt ≈ step_length/c_p (m).
+    pub step_length: f64,
     /// The field (below `shape.`) that drives the element count.
     pub driver: &'static str,
     /// Index of the refinement patch that drives the count, if one does.
@@ -225,12 +239,26 @@ pub fn sphere_estimate(s: &SphereMeshSpec) -> Option<ShapeEstimate> {
     let n = crate::mesh::surface_refine::geodesic_frequency(big_r, h) as f64;
     let mut triangles = 20.0 * n * n;
     let mut min_size = h;
+    // a graded band's transition to the coarse core is as bad as a patch's
+    let mut step_length = if s.graded.is_some() {
+        PATCH_DT_FACTOR * h
+    } else {
+        SPHERE_DT_FACTOR * h
+    };
     let mut driver_patch = None;
     let mut largest_patch = 0.0;
     let (element_overlap, triangle_overlap) = patch_overlap(s);
     for (k, p) in s.refine.iter().enumerate() {
         let (sr, r, g) = (p.seeding, p.radius, p.growth);
         min_size = min_size.min(sr);
+        let fine = match (r > 0.0, p.node) {
+            (true, _) => Some(sr),
+            (false, true) => Some((sr * h).sqrt()),
+            (false, false) => None,
+        };
+        if let Some(fine) = fine {
+            step_length = step_length.min(PATCH_DT_FACTOR * fine);
+        }
         let reach = if g > 0.0 {
             r + (h - sr) / g
         } else {
@@ -269,6 +297,7 @@ pub fn sphere_estimate(s: &SphereMeshSpec) -> Option<ShapeEstimate> {
         nodes: to_count(nodes)?,
         surface_triangles: to_count(triangles)?,
         min_size,
+        step_length,
         driver,
         driver_patch,
     })
@@ -364,6 +393,7 @@ pub fn block_estimate(size: [f64; 3], divisions: [usize; 3]) -> Option<ShapeEsti
         nodes,
         surface_triangles: surface_nodes.checked_mul(2)?,
         min_size,
+        step_length: BLOCK_DT_FACTOR * min_size,
         driver: "block.divisions",
         driver_patch: None,
     })
@@ -397,6 +427,7 @@ fn surface_estimate(s: &crate::mesh::import::SurfaceSpec) -> Option<ShapeEstimat
             nodes: nodes as u64,
             surface_triangles: g.facets as u64,
             min_size: g.min_edge,
+            step_length: SURFACE_DT_FACTOR * g.min_edge,
             driver: "surface.file",
             driver_patch: None,
         });
@@ -417,6 +448,7 @@ fn surface_estimate(s: &crate::mesh::import::SurfaceSpec) -> Option<ShapeEstimat
         nodes: (elements / ELEMENTS_PER_NODE + SURFACE_NODE_SHARE * triangles / 2.0) as u64 + 4,
         surface_triangles: triangles as u64,
         min_size: h.min(g.min_edge),
+        step_length: SURFACE_DT_FACTOR * h.min(g.min_edge),
         driver: "surface.seeding",
         driver_patch: None,
     })
@@ -459,11 +491,6 @@ pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputE
         triangles = triangles
             .checked_add(est.surface_triangles)
             .ok_or_else(|| too_big(field()))?;
-        let factor = match g.shape {
-            ShapeSpec::Sphere(_) => SPHERE_DT_FACTOR,
-            ShapeSpec::Block(_) => BLOCK_DT_FACTOR,
-            ShapeSpec::Surface(_) => SPHERE_DT_FACTOR,
-        };
         let c = scene
             .materials
             .get(&g.material)
@@ -475,7 +502,7 @@ pub fn estimate_scene(file: &str, scene: &Scene) -> Result<SceneEstimate, InputE
         {
             plastic_elements = plastic_elements.saturating_add(est.elements);
         }
-        let dt = sim.dt_safety * factor * est.min_size / c;
+        let dt = sim.dt_safety * est.step_length / c;
         if dt < dt_stable {
             (dt_stable, critical_grain) = (dt, i);
         }
