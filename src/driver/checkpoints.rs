@@ -164,6 +164,24 @@ pub enum RestartSource {
 }
 
 impl Restart {
+    /// "restart from FILE (step N, t = T s, written by R ranks) on Q ranks", naming a
+    /// re-partition and a branch.
+    pub fn describe(&self, ranks: usize, branch: bool) -> String {
+        format!(
+            "{} from {} (step {}, t = {:.9e} s, written by {} ranks) on {ranks} ranks{}",
+            if branch { "branch" } else { "restart" },
+            self.path.display(),
+            self.info.step,
+            self.info.time,
+            self.info.ranks,
+            if self.info.ranks == ranks as u64 {
+                ""
+            } else {
+                ", grains re-partitioned"
+            }
+        )
+    }
+
     /// Grain owners and bounds to build the ranks' solvers with: the checkpoint's on its
     /// own rank count, a METIS partition of the bounds at the checkpoint otherwise. All
     /// ranks must call.

@@ -105,13 +105,8 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         .transpose()?;
     let continued = restart.as_ref().map(|r| output::Continued {
         note: format!(
-            "{} from {} (step {}, t = {:.9e} s, written by {} ranks) on {} ranks: {}",
-            if opts.branch { "branch" } else { "restart" },
-            r.path.display(),
-            r.info.step,
-            r.info.time,
-            r.info.ranks,
-            domain.size(),
+            "{}: {}",
+            r.describe(domain.size(), opts.branch),
             crate::io::provenance::command_line()
         ),
         resume: !opts.branch,
@@ -121,19 +116,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         // re-partitioned for another rank count)
         Some(r) => {
             if domain.is_root() && !opts.quiet {
-                println!(
-                    "{} from {} (step {}, t = {:.6e} s, {} ranks{})",
-                    if opts.branch { "branch" } else { "restart" },
-                    r.path.display(),
-                    r.info.step,
-                    r.info.time,
-                    r.info.ranks,
-                    if r.info.ranks == domain.size() as u64 {
-                        ""
-                    } else {
-                        ": grains re-partitioned"
-                    }
-                );
+                println!("{}", r.describe(domain.size(), opts.branch));
             }
             checkpoints::build_restarted_solver(domain, loaded, &global, r)?
         }
