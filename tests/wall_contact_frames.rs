@@ -20,7 +20,9 @@ fn nodal_contact_forces_add_up_to_the_wall_forces() {
     let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
         .args(["run", scene.to_str().unwrap(), "--quiet", "--threads", "1"])
         .args(["--out", out.to_str().unwrap(), "--max-steps", "12000"])
+        // a history row at every frame step, whatever the step
         .args(["--set", "output.frame_interval=1e-5"])
+        .args(["--set", "output.history_interval=1e-5"])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
