@@ -37,9 +37,22 @@ pub struct Until {
     /// (tolerance, hold time in s).
     pub stress_held: Option<(f64, f64)>,
     pub axial_strain: Option<f64>,
-    /// (relative drop, strain margin).
-    pub failure: Option<(f64, f64)>,
+    pub failure: Option<FailureRule>,
 }
+
+/// When a stage counts the specimen as failed (`crate::scene::stages::FailureSpec`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FailureRule {
+    /// Relative drop below the peak ratio (–).
+    pub drop: f64,
+    /// Axial strain run on after failure (–).
+    pub strain_margin: f64,
+    /// Axial strain without a rise of [`PLATEAU_RISE`] that counts as failure (–).
+    pub plateau_strain: Option<f64>,
+}
+
+/// Relative rise of the stress ratio that restarts the plateau window.
+pub const PLATEAU_RISE: f64 = 1e-3;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stage {
@@ -156,6 +169,9 @@ pub struct StageProgress {
     pub held_since: Option<f64>,
     pub peak: Option<RatioPoint>,
     pub failure: Option<RatioPoint>,
+    /// Last point where the ratio rose by [`PLATEAU_RISE`] over the previous such point.
+    #[serde(default)]
+    pub rising: Option<RatioPoint>,
     /// All stages done: the run stops.
     pub finished: bool,
     /// Normal force of every wall at the last step, summed over ranks and low-pass
@@ -389,12 +405,26 @@ impl StagePlan {
             if until.axial_strain.is_some_and(|e| strain >= e) {
                 end = Some(StageEnd::AxialStrain);
             }
-            if let Some((drop, margin)) = until.failure {
+            if p
+                .rising
+                .is_none_or(|r| ratio > r.ratio * (1.0 + PLATEAU_RISE))
+            {
+                p.rising = Some(point);
+            }
+            if let Some(rule) = until.failure {
                 let peak = p.peak.map_or(0.0, |pk| pk.ratio);
-                if p.failure.is_none() && peak > 0.0 && ratio < (1.0 - drop) * peak {
+                let dropped = peak > 0.0 && ratio < (1.0 - rule.drop) * peak;
+                let stalled = rule.plateau_strain.is_some_and(|w| {
+                    p.rising
+                        .is_some_and(|r| peak > 0.0 && strain >= r.axial_strain + w)
+                });
+                if p.failure.is_none() && (dropped || stalled) {
                     p.failure = Some(point);
                 }
-                if p.failure.is_some_and(|f| strain >= f.axial_strain + margin) {
+                if p
+                    .failure
+                    .is_some_and(|f| strain >= f.axial_strain + rule.strain_margin)
+                {
                     end = Some(StageEnd::Failure);
                 }
             }
@@ -420,6 +450,7 @@ impl StagePlan {
             p.held_since = None;
             p.peak = None;
             p.failure = None;
+            p.rising = None;
         }
     }
 
@@ -509,7 +540,11 @@ fn build_stage(
                 .as_ref()
                 .map(|h| (h.tolerance, h.time_constants * tau)),
             axial_strain: u.axial_strain,
-            failure: u.failure.as_ref().map(|f| (f.drop, f.strain_margin)),
+            failure: u.failure.as_ref().map(|f| FailureRule {
+                drop: f.drop,
+                strain_margin: f.strain_margin,
+                plateau_strain: f.plateau_strain,
+            }),
         },
     }
 }

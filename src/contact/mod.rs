@@ -93,6 +93,7 @@ pub mod fabric;
 pub mod friction;
 pub mod narrow;
 mod overlap;
+pub mod patch;
 pub mod walls;
 
 pub use crate::model::contact_layout::{

@@ -12,10 +12,15 @@
 //! when the closest point is inside a facet, the sum of the two facet normals on an edge, the
 //! angle-weighted vertex normal on a vertex. The penetration depth is the distance to the
 //! closest surface point, which is continuous as a node crosses facet edges, so the penalty
-//! force has no jump there (only its direction turns, by at most the dihedral angle between
-//! neighbouring facets, and only on the medial plane where both facets are equally close).
+//! force has no jump there.
+//!
+//! The master surface is curved ([`super::patch`]): each facet's Phong patch, so the
+//! contact normal and the penetration follow the body's shape rather than the facets'
+//! (a faceted normal tilts with the tangential offset of a node-on-node contact and takes
+//! the tilt off the friction angle).
 
 use super::friction::{return_map, rotate_onto_plane, tangential};
+use super::patch::facet_patch;
 use super::{ContactKey, ContactModel, FrictionPoint, NONE};
 use crate::math::{add, cross, dot, norm, scale, sub};
 
@@ -456,7 +461,11 @@ pub fn locate(
     let pn = pseudo_normal(cm, x, facet, cl.feature);
     let d = sub(xs, cl.point);
     let dist = cl.dist2.sqrt();
-    if dot(d, pn) >= 0.0 || dist == 0.0 {
+    let flat_inside = dot(d, pn) < 0.0 && dist > 0.0;
+    if let Some(on_patch) = locate_on_patch(cm, x, xs, facet, cl, flat_inside) {
+        return Some(on_patch);
+    }
+    if !flat_inside {
         return Some(Located {
             closest: cl,
             facet,
@@ -476,6 +485,64 @@ pub fn locate(
         facet,
         depth,
         normal,
+    })
+}
+
+/// `xs` against the curved patch of `facet` (and of its neighbour across the edge the
+/// closest patch point is clamped to), from the flat closest point `cl`. `None` when the
+/// facet stays flat (a crease). Far outside (beyond the patch's bulge) the flat distance
+/// less the bulge is returned: a lower bound of the patch distance, which is all the
+/// broad phase needs.
+fn locate_on_patch(
+    cm: &ContactModel,
+    x: &[[f64; 3]],
+    xs: [f64; 3],
+    facet: usize,
+    cl: Closest,
+    flat_inside: bool,
+) -> Option<Located> {
+    let vertex_normal = |f: usize, k: usize| pseudo_normal(cm, x, f, Feature::Vertex(k as u8));
+    let patch = facet_patch(cm, x, facet, |k| vertex_normal(facet, k))?;
+    let dist = cl.dist2.sqrt();
+    let bulge = patch.bulge_bound();
+    if !flat_inside && dist > 2.0 * bulge {
+        return Some(Located {
+            closest: cl,
+            facet,
+            depth: -(dist - bulge),
+            normal: [0.0; 3],
+        });
+    }
+    let outward = |f: usize| {
+        let [a, b, c] = cm.facet[f].map(|n| x[n as usize]);
+        triangle_normal(a, b, c)
+    };
+    let mut best = (patch.closest(xs, cl.bary, outward(facet)), facet);
+    if let Some(k) = best.0.clamped_edge {
+        let other = cm.facet_adjacent[facet][k];
+        if other != NONE {
+            let o = other as usize;
+            if let Some(p) = facet_patch(cm, x, o, |k| vertex_normal(o, k)) {
+                let [a, b, c] = cm.facet[o].map(|n| x[n as usize]);
+                let start = closest_point_on_triangle(xs, a, b, c).bary;
+                let candidate = p.closest(xs, start, outward(o));
+                if candidate.distance < best.0.distance {
+                    best = (candidate, o);
+                }
+            }
+        }
+    }
+    let (pp, facet) = best;
+    Some(Located {
+        closest: Closest {
+            point: pp.point,
+            bary: pp.bary,
+            feature: Feature::Face,
+            dist2: pp.distance * pp.distance,
+        },
+        facet,
+        depth: pp.depth,
+        normal: if pp.depth > 0.0 { pp.normal } else { [0.0; 3] },
     })
 }
 

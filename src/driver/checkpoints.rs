@@ -111,6 +111,35 @@ impl CheckpointSchedule {
     }
 }
 
+impl CheckpointSchedule {
+    /// Keeps the state at the end of stage `k` (1-based) as
+    /// `DIR/checkpoints/stage_<k>_<name>.h5` (this step's checkpoint, written now unless
+    /// it is already). All ranks must call.
+    pub fn write_stage_end(
+        &mut self,
+        domain: &Domain,
+        dir: &Path,
+        loaded: &LoadedScene,
+        solver: &Solver,
+        (k, name): (usize, &str),
+    ) -> Result<PathBuf> {
+        let step = solver.state.step;
+        let source = if self.last_step == Some(step) {
+            crate::io::checkpoint::checkpoint_path(dir, step)
+        } else {
+            self.write(domain, dir, loaded, solver)?
+        };
+        let kept = crate::io::checkpoint::stage_checkpoint_path(dir, k, name);
+        let linked = if domain.is_root() {
+            crate::io::checkpoint::keep_checkpoint_as(&source, &kept).map_err(|e| e.to_string())
+        } else {
+            Ok(())
+        };
+        crate::io::results::agree(domain, &kept, "keeping the stage checkpoint", linked)?;
+        Ok(kept)
+    }
+}
+
 /// Writes the checkpoint of the solver's current step. All ranks must call.
 fn write_solver_checkpoint(
     domain: &Domain,

@@ -267,6 +267,7 @@ impl Run<'_, '_> {
         let mut progress = Progress::new(self.talk, "run");
         let check_interval = self.loaded.scene.parallel.check_interval;
         let mut reported_stages = self.solver.state.stages.done.len();
+        let mut stages_kept = reported_stages;
         while self.solver.state.step < last_step && !self.solver.state.stages.finished {
             if let Err(e) = self.solver.step_with(&mut self.hooks) {
                 if self.domain.size() > 1 {
@@ -288,6 +289,7 @@ impl Run<'_, '_> {
                 written =
                     Some(checkpoints.write(self.domain, &self.out, self.loaded, &self.solver)?);
             }
+            self.keep_stage_ends(output, checkpoints, &mut stages_kept)?;
             self.solver.timers.add(Stage::Output, t_out.elapsed());
             if let Some(signal) = stop {
                 progress.finish();
@@ -322,6 +324,44 @@ impl Run<'_, '_> {
         }
         progress.finish();
         Ok(LoopEnd::Done)
+    }
+
+    /// Keeps a checkpoint at the end of every stage but the last (`output.stage_checkpoints`)
+    /// once the stage count `kept` falls behind the stages done. All ranks must call.
+    fn keep_stage_ends(
+        &self,
+        output: &mut Output,
+        checkpoints: &mut checkpoints::CheckpointSchedule,
+        kept: &mut usize,
+    ) -> Result<()> {
+        let s = &self.solver.state;
+        let ended = s.stages.done.len();
+        if ended == *kept {
+            return Ok(());
+        }
+        *kept = ended;
+        if s.stages.finished || !self.loaded.scene.output.stage_checkpoints {
+            return Ok(());
+        }
+        let Some(plan) = self.solver.model.stages.as_ref() else {
+            return Ok(());
+        };
+        output.flush_history()?;
+        let name = &plan.stages[ended - 1].name;
+        let path = checkpoints.write_stage_end(
+            self.domain,
+            &self.out,
+            self.loaded,
+            &self.solver,
+            (ended, name),
+        )?;
+        if self.talk {
+            println!(
+                "stage '{name}' kept as {} (branch from it: --restart FILE --branch)",
+                path.display()
+            );
+        }
+        Ok(())
     }
 
     /// A stop signal received by any rank (the largest signal number if several), the

@@ -241,9 +241,14 @@ fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wal
             if let Some(e) = u.axial_strain {
                 ends.push(format!("axial strain {e}"));
             }
-            if let Some((drop, margin)) = u.failure {
+            if let Some(f) = u.failure {
+                let plateau = f
+                    .plateau_strain
+                    .map(|w| format!(" or no 0.1 % rise over {w} strain"))
+                    .unwrap_or_default();
                 ends.push(format!(
-                    "failure (ratio {drop} below peak) + {margin} strain"
+                    "failure (ratio {} below peak{plateau}) + {} strain",
+                    f.drop, f.strain_margin
                 ));
             }
             let modes: Vec<String> = (st.modes.iter().zip(walls))

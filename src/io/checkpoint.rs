@@ -37,6 +37,26 @@ pub fn checkpoint_path(dir: &Path, step: u64) -> PathBuf {
     dir.join(CHECKPOINT_DIR).join(format!("step_{step:012}.h5"))
 }
 
+/// `DIR/checkpoints/stage_<k>_<name>.h5`: the state at the end of stage `k` (1-based),
+/// outside the rotation of `step_*.h5` (never pruned, not taken by `--restart latest`).
+pub fn stage_checkpoint_path(dir: &Path, k: usize, name: &str) -> PathBuf {
+    let safe: String = name
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
+        .collect();
+    dir.join(CHECKPOINT_DIR)
+        .join(format!("stage_{k}_{safe}.h5"))
+}
+
+/// Keeps the checkpoint `from` also as `to` (a hard link, or a copy where the file system
+/// has none). Root only; the caller agrees the result over ranks.
+pub fn keep_checkpoint_as(from: &Path, to: &Path) -> std::io::Result<()> {
+    if to.exists() {
+        std::fs::remove_file(to)?;
+    }
+    std::fs::hard_link(from, to).or_else(|_| std::fs::copy(from, to).map(|_| ()))
+}
+
 /// What a checkpoint says about itself.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CheckpointInfo {

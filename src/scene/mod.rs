@@ -377,6 +377,11 @@ pub struct OutputSpec {
     /// Checkpoints kept (the newest; default 2).
     #[serde(default = "default_checkpoints_kept")]
     pub checkpoints_kept: usize,
+    /// Keep the state at the end of every stage but the last
+    /// (`DIR/checkpoints/stage_<k>_<name>.h5`, never pruned): the start of branches, e.g.
+    /// shearing one consolidated specimen at several frictions (default true).
+    #[serde(default = "default_true")]
+    pub stage_checkpoints: bool,
 }
 
 impl Default for OutputSpec {
@@ -389,6 +394,7 @@ impl Default for OutputSpec {
             checkpoint_every: None,
             checkpoint_interval: None,
             checkpoints_kept: default_checkpoints_kept(),
+            stage_checkpoints: true,
         }
     }
 }

@@ -72,7 +72,9 @@ pub struct UntilSpec {
     #[serde(default)]
     pub axial_strain: Option<f64>,
     /// Failure: the stress ratio σ_axial/σ_lateral has fallen `drop` (relative) below its
-    /// peak in this stage; the stage then goes on for `strain_margin` more axial strain.
+    /// peak in this stage, or (with `plateau_strain`) has not risen by 0.1 % over that much
+    /// axial strain (steady sliding without softening); the stage then goes on for
+    /// `strain_margin` more axial strain.
     #[serde(default)]
     pub failure: Option<FailureSpec>,
 }
@@ -101,6 +103,9 @@ pub struct FailureSpec {
     /// Axial strain run on after failure is detected (–).
     #[serde(default)]
     pub strain_margin: f64,
+    /// Axial strain over which a ratio that has not risen by 0.1 % counts as failure (–).
+    #[serde(default)]
+    pub plateau_strain: Option<f64>,
 }
 
 /// The lower and upper wall of each coordinate axis: the wall whose normal is +eₖ and the
@@ -216,6 +221,9 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
         if let Some(fl) = &u.failure {
             c.positive(&f("until.failure.drop"), fl.drop)?;
             c.non_negative(&f("until.failure.strain_margin"), fl.strain_margin)?;
+            if let Some(pl) = fl.plateau_strain {
+                c.positive(&f("until.failure.plateau_strain"), pl)?;
+            }
             if fl.drop >= 1.0 {
                 return Err(c.err(
                     f("until.failure.drop"),

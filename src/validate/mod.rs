@@ -11,6 +11,8 @@ pub mod record;
 pub mod reference;
 pub mod runner;
 pub mod scenes;
+pub mod thornton_scene;
+pub mod thornton_walls;
 pub mod two_sphere;
 
 use crate::error::InputError;
@@ -21,7 +23,7 @@ use runner::{Case, CaseOutcome};
 pub const QUICK_TOLERANCE_FACTOR: f64 = 1.5;
 
 /// All cases, in the order they run.
-pub const CASE_NAMES: [&str; 7] = [
+pub const CASE_NAMES: [&str; 8] = [
     "hertz",
     "mindlin",
     "mindlin_cyclic",
@@ -29,6 +31,7 @@ pub const CASE_NAMES: [&str; 7] = [
     "rolling",
     "plastic_cube",
     "plastic_spheres",
+    "thornton_walls",
 ];
 
 /// Resolves case names (empty: all) to case objects.
@@ -57,6 +60,7 @@ pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> 
                 })),
                 "plastic_cube" => Ok(Box::new(plastic_cube::PlasticCubeCase)),
                 "plastic_spheres" => Ok(Box::new(plastic_spheres::PlasticSpheresCase)),
+                "thornton_walls" => Ok(Box::new(thornton_walls::ThorntonWallsCase)),
                 other => Err(InputError::new(
                     "<command line>",
                     "CASE",

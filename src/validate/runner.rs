@@ -77,6 +77,33 @@ pub trait Case {
         params: &Params,
         record: Option<&Recorder>,
     ) -> Result<CaseOutcome>;
+    /// Every run of one `mufe validate` call, each outcome handed to `report` (which checks
+    /// and prints it) as soon as it is done: by default one [`Case::run`] per meshing
+    /// ratio; a case sweeping another variable (friction) overrides it.
+    fn run_sweep(
+        &self,
+        mrs: &[f64],
+        quick: bool,
+        overrides: &[String],
+        params: &Params,
+        record: Option<&Recorder>,
+        report: &mut dyn FnMut(&mut CaseOutcome),
+    ) -> Result<Vec<CaseOutcome>> {
+        let mut outcomes = Vec::new();
+        for &mr in mrs {
+            let t0 = Instant::now();
+            let mut o = self.run(mr, quick, overrides, params, record)?;
+            o.wall_s = t0.elapsed().as_secs_f64();
+            report(&mut o);
+            outcomes.push(o);
+        }
+        Ok(outcomes)
+    }
+    /// Draws the case's plots into `out`: by default `<case>.png` (FE curves over the
+    /// theory of [`Case::plot`]) and, where outcomes carry one, `<case>_error.png`.
+    fn draw_plots(&self, outcomes: &[CaseOutcome], out: &Path) -> Result<()> {
+        draw_curve_plots(self, outcomes, out)
+    }
     /// The scene a run of this case uses (`mufe validate --write-scenes`), generated from
     /// the case scene after `overrides`.
     fn generated_scene(&self, overrides: &[String], params: &Params) -> Result<String> {
@@ -254,31 +281,53 @@ pub fn run_cases(
         let list = mrs
             .map(|m| m.to_vec())
             .unwrap_or_else(|| case.default_mrs(quick));
-        let mut outcomes = Vec::new();
-        for mr in list {
-            let t0 = Instant::now();
-            let mut o = case.run(mr, quick, overrides, params, Some(&recorder))?;
-            o.wall_s = t0.elapsed().as_secs_f64();
-            let balance = balance_error(&o);
-            // every case keeps its energy ledger closed, whatever its curve metric
-            o.pass &= balance <= BALANCE_TOLERANCE;
-            println!(
-                "{:<15} {:>8.4} {:>9} {:>8} {:>9.1} {:>9} {:>8} {:>9} {:>5}",
-                o.case,
-                o.mr,
-                o.elements,
-                o.steps,
-                o.wall_s,
-                percent(o.error),
-                percent(o.target),
-                percent(balance),
-                if o.pass { "yes" } else { "NO" }
-            );
-            outcomes.push(o);
-        }
-        let (mut p, theory) = case.plot(&outcomes);
+        let outcomes = case.run_sweep(
+            &list,
+            quick,
+            overrides,
+            params,
+            Some(&recorder),
+            &mut |o: &mut CaseOutcome| {
+                let balance = balance_error(o);
+                // every case keeps its energy ledger closed, whatever its curve metric
+                o.pass &= balance <= BALANCE_TOLERANCE;
+                println!(
+                    "{:<15} {:>8.4} {:>9} {:>8} {:>9.1} {:>9} {:>8} {:>9} {:>5}",
+                    o.case,
+                    o.mr,
+                    o.elements,
+                    o.steps,
+                    o.wall_s,
+                    percent(o.error),
+                    percent(o.target),
+                    percent(balance),
+                    if o.pass { "yes" } else { "NO" }
+                );
+            },
+        )?;
+        case.draw_plots(&outcomes, out)?;
+        write_curves(&out.join(format!("{}_curves.csv", case.name())), &outcomes)?;
+        all.extend(outcomes);
+    }
+    write_json(&out.join("validation.json"), &all)?;
+    speed_vs_error_plot(&out.join("speed_vs_error.png"), &all)?;
+    println!(
+        "wrote {}, {}, one PNG per case, and DIR/<case>/mr_<MR>/results.h5 + energy.png per run",
+        out.join("validation.json").display(),
+        out.join("speed_vs_error.png").display()
+    );
+    Ok(all)
+}
+
+/// The default plots of a case (see [`Case::draw_plots`]).
+pub fn draw_curve_plots<C: Case + ?Sized>(
+    case: &C,
+    outcomes: &[CaseOutcome],
+    out: &Path,
+) -> Result<()> {
+        let (mut p, theory) = case.plot(outcomes);
         let mut series = theory;
-        for o in &outcomes {
+        for o in outcomes {
             series.push(Series {
                 label: format!("FE, MR = {:.4} ({} elements)", o.mr, o.elements),
                 points: o.curve.clone(),
@@ -312,17 +361,7 @@ pub fn run_cases(
             )
             .map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
         }
-        write_curves(&out.join(format!("{}_curves.csv", case.name())), &outcomes)?;
-        all.extend(outcomes);
-    }
-    write_json(&out.join("validation.json"), &all)?;
-    speed_vs_error_plot(&out.join("speed_vs_error.png"), &all)?;
-    println!(
-        "wrote {}, {}, one PNG per case, and DIR/<case>/mr_<MR>/results.h5 + energy.png per run",
-        out.join("validation.json").display(),
-        out.join("speed_vs_error.png").display()
-    );
-    Ok(all)
+    Ok(())
 }
 
 /// The largest energy-balance drift of a run ([`super::record::CaseOutput`]); infinite

@@ -451,6 +451,7 @@ pub struct Params {
     pub mindlin_cyclic: TwoSphereParams,
     pub torsion: TwoSphereParams,
     pub rolling: TwoSphereParams,
+    pub thornton_walls: super::thornton_scene::ThorntonParams,
 }
 
 impl Default for Params {
@@ -461,6 +462,7 @@ impl Default for Params {
             mindlin_cyclic: TwoSphereParams::mindlin_cyclic(),
             torsion: TwoSphereParams::torsion(),
             rolling: TwoSphereParams::rolling(),
+            thornton_walls: Default::default(),
         }
     }
 }
@@ -536,6 +538,7 @@ impl Params {
             "mindlin_cyclic" => self.mindlin_cyclic.fields(),
             "torsion" => self.torsion.fields(),
             "rolling" => self.rolling.fields(),
+            "thornton_walls" => self.thornton_walls.fields(),
             other => {
                 return Err(bad(format!(
                     "unknown case '{other}' (known: {})",
