@@ -88,11 +88,18 @@ fn restart_continues_bitwise(ranks: usize) {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     files.sort();
+    // the end of stage 1 is kept outside the rotation
+    let stage_file = ckpt.join("stage_1_press.h5");
     assert_eq!(
         files,
-        ["step_000000004000.h5", "step_000000008000.h5"],
+        [
+            "stage_1_press.h5",
+            "step_000000004000.h5",
+            "step_000000008000.h5"
+        ],
         "kept files"
     );
+    files.remove(0);
     let f = hdf5::File::open(ckpt.join(&files[1])).unwrap();
     let attr = |n: &str| f.attr(n).unwrap().read_scalar::<u64>().unwrap();
     assert_eq!(
@@ -108,6 +115,28 @@ fn restart_continues_bitwise(ranks: usize) {
     );
     mpi_launch::assert_success(&o);
 
+    assert_same_as_whole(&whole, &part);
+
+    // a restart from the end of stage 1 also continues exactly as the whole run went on
+    let f = hdf5::File::open(&stage_file).unwrap();
+    let stage_step = f.attr("step").unwrap().read_scalar::<u64>().unwrap();
+    assert!(
+        stage_step > 0 && stage_step < 11000,
+        "stage 1 ended at step {stage_step}"
+    );
+    drop(f);
+    let o = mufe(
+        ranks,
+        &[&s, "--out", out, "--restart", stage_file.to_str().unwrap()],
+    );
+    mpi_launch::assert_success(&o);
+    assert_same_as_whole(&whole, &part);
+    let _ = std::fs::remove_dir_all(whole);
+    let _ = std::fs::remove_dir_all(part);
+}
+
+/// `part/results.h5` holds bitwise the history and frames of `whole/results.h5`.
+fn assert_same_as_whole(whole: &Path, part: &Path) {
     let (a, b) = (
         history(&whole.join("results.h5")),
         history(&part.join("results.h5")),
@@ -130,8 +159,6 @@ fn restart_continues_bitwise(ranks: usize) {
     for ((name, x), (_, y)) in fa.iter().zip(&fb) {
         assert!(x == y, "/frames/{name} differs after the restart");
     }
-    let _ = std::fs::remove_dir_all(whole);
-    let _ = std::fs::remove_dir_all(part);
 }
 
 #[test]

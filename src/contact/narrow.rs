@@ -20,7 +20,7 @@
 //! the tilt off the friction angle).
 
 use super::friction::{return_map, rotate_onto_plane, tangential};
-use super::patch::facet_patch;
+use super::patch::Patch;
 use super::{ContactKey, ContactModel, FrictionPoint, NONE};
 use crate::math::{add, cross, dot, norm, scale, sub};
 
@@ -486,6 +486,17 @@ pub fn locate(
         depth,
         normal,
     })
+}
+
+/// The curved patch of a master facet, or `None` when it stays flat.
+fn facet_patch(
+    cm: &ContactModel,
+    x: &[[f64; 3]],
+    facet: usize,
+    vertex_normal: impl Fn(usize) -> [f64; 3],
+) -> Option<Patch> {
+    let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
+    Patch::of_facet([a, b, c], triangle_normal(a, b, c), vertex_normal)
 }
 
 /// `xs` against the curved patch of `facet` (and of its neighbour across the edge the

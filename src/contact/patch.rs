@@ -25,7 +25,6 @@
 //! Creases are kept sharp: a facet with a corner normal more than [`CREASE_DEG`] from its
 //! own normal (a block's edges and corners: 45°, 54.7°) stays flat.
 
-use super::ContactModel;
 use crate::math::{add, cross, dot, norm, scale, sub};
 
 /// Phong shape factor: ½ is exact for quadratic surfaces (module docs).
@@ -109,8 +108,14 @@ impl Patch {
             let n = self.normals[i];
             let h = dot(sub(p, self.corners[i]), n);
             q = sub(q, scale(n, SHAPE_FACTOR * b[i] * h));
-            qu = sub(qu, scale(n, SHAPE_FACTOR * (db_du[i] * h + b[i] * dot(e1, n))));
-            qv = sub(qv, scale(n, SHAPE_FACTOR * (db_dv[i] * h + b[i] * dot(e2, n))));
+            qu = sub(
+                qu,
+                scale(n, SHAPE_FACTOR * (db_du[i] * h + b[i] * dot(e1, n))),
+            );
+            qv = sub(
+                qv,
+                scale(n, SHAPE_FACTOR * (db_dv[i] * h + b[i] * dot(e2, n))),
+            );
         }
         (q, qu, qv)
     }
@@ -180,18 +185,6 @@ fn clamp_to_triangle(u: f64, v: f64) -> (f64, f64, Option<usize>) {
     (best.0, best.1, Some(best.2))
 }
 
-/// The patch of a master facet, or `None` when it stays flat.
-pub fn facet_patch(
-    cm: &ContactModel,
-    x: &[[f64; 3]],
-    facet: usize,
-    vertex_normal: impl Fn(usize) -> [f64; 3],
-) -> Option<Patch> {
-    let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
-    let flat = super::narrow::triangle_normal(a, b, c);
-    Patch::of_facet([a, b, c], flat, vertex_normal)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -238,7 +231,11 @@ mod tests {
         let corner = patch.normals[0];
         for (towards, start, depth_tol) in [
             // near a corner (a lattice contact node): the patch is the tangent plane there
-            (add(scale(corner, 0.98), [0.0, 0.0, 0.02]), [0.9, 0.05, 0.05], 1e-3 * flat_sag),
+            (
+                add(scale(corner, 0.98), [0.0, 0.0, 0.02]),
+                [0.9, 0.05, 0.05],
+                1e-3 * flat_sag,
+            ),
             // mid-facet, where the flat facet is furthest from the sphere
             ([0.02, -0.01, 1.0], [1.0 / 3.0; 3], 0.02 * flat_sag),
         ] {

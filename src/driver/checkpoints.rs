@@ -16,7 +16,8 @@ use super::rank::{build_rank_solver, metis_owner};
 use crate::domain::Domain;
 use crate::error::{InputError, MufeError, Result};
 use crate::io::checkpoint::{
-    write_checkpoint, CheckpointFile, CheckpointInfo, GrainPackages, RankCheckpoint, CHECKPOINT_DIR,
+    write_checkpoint, CheckpointFile, CheckpointInfo, GrainPackages, RankCheckpoint, Target,
+    CHECKPOINT_DIR,
 };
 use crate::model::decomposition::{Decomposition, Partition};
 use crate::model::global::{ghost_margin, GlobalMesh};
@@ -96,7 +97,8 @@ impl CheckpointSchedule {
         solver: &Solver,
     ) -> Result<PathBuf> {
         let t0 = Instant::now();
-        let path = write_solver_checkpoint(domain, dir, loaded, solver, self.keep)?;
+        let target = Target::Rotation { keep: self.keep };
+        let path = write_solver_checkpoint(domain, dir, loaded, solver, target)?;
         let seconds = t0.elapsed().as_secs_f64();
         self.stats = CheckpointStats {
             written: self.stats.written + 1,
@@ -113,8 +115,9 @@ impl CheckpointSchedule {
 
 impl CheckpointSchedule {
     /// Keeps the state at the end of stage `k` (1-based) as
-    /// `DIR/checkpoints/stage_<k>_<name>.h5` (this step's checkpoint, written now unless
-    /// it is already). All ranks must call.
+    /// `DIR/checkpoints/stage_<k>_<name>.h5`: a link to this step's checkpoint when the
+    /// rotation has just written it, else its own file (the rotation is left as it is).
+    /// All ranks must call.
     pub fn write_stage_end(
         &mut self,
         domain: &Domain,
@@ -124,12 +127,11 @@ impl CheckpointSchedule {
         (k, name): (usize, &str),
     ) -> Result<PathBuf> {
         let step = solver.state.step;
-        let source = if self.last_step == Some(step) {
-            crate::io::checkpoint::checkpoint_path(dir, step)
-        } else {
-            self.write(domain, dir, loaded, solver)?
-        };
         let kept = crate::io::checkpoint::stage_checkpoint_path(dir, k, name);
+        if self.last_step != Some(step) {
+            return write_solver_checkpoint(domain, dir, loaded, solver, Target::Kept(kept));
+        }
+        let source = crate::io::checkpoint::checkpoint_path(dir, step);
         let linked = if domain.is_root() {
             crate::io::checkpoint::keep_checkpoint_as(&source, &kept).map_err(|e| e.to_string())
         } else {
@@ -146,7 +148,7 @@ fn write_solver_checkpoint(
     dir: &Path,
     loaded: &LoadedScene,
     solver: &Solver,
-    keep: usize,
+    target: Target,
 ) -> Result<PathBuf> {
     let json = |what: &str, r: serde_json::Result<Vec<u8>>| {
         r.map_err(|e| MufeError::Run(format!("serialising the {what} for a checkpoint: {e}")))
@@ -169,7 +171,7 @@ fn write_solver_checkpoint(
         packages: &packages,
     };
     let s = &solver.state;
-    write_checkpoint(domain, dir, &loaded.text, &part, s.step, s.time, keep)
+    write_checkpoint(domain, dir, &loaded.text, &part, s.step, s.time, target)
 }
 
 /// A checkpoint to continue from.

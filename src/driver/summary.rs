@@ -244,7 +244,7 @@ fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wal
             if let Some(f) = u.failure {
                 let plateau = f
                     .plateau_strain
-                    .map(|w| format!(" or no 0.1 % rise over {w} strain"))
+                    .map(|w| format!(" or no 1 % rise over {w} strain"))
                     .unwrap_or_default();
                 ends.push(format!(
                     "failure (ratio {} below peak{plateau}) + {} strain",

@@ -42,10 +42,24 @@ pub fn checkpoint_path(dir: &Path, step: u64) -> PathBuf {
 pub fn stage_checkpoint_path(dir: &Path, k: usize, name: &str) -> PathBuf {
     let safe: String = name
         .chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect();
     dir.join(CHECKPOINT_DIR)
         .join(format!("stage_{k}_{safe}.h5"))
+}
+
+/// Where a checkpoint goes.
+pub enum Target {
+    /// `step_<step>.h5`, then all but the newest `keep` such files are removed.
+    Rotation { keep: usize },
+    /// This path (a stage's end), outside the rotation.
+    Kept(PathBuf),
 }
 
 /// Keeps the checkpoint `from` also as `to` (a hard link, or a copy where the file system
@@ -104,9 +118,12 @@ pub fn write_checkpoint(
     part: &RankCheckpoint,
     step: u64,
     time: f64,
-    keep: usize,
+    target: Target,
 ) -> Result<PathBuf, MufeError> {
-    let final_path = checkpoint_path(dir, step);
+    let final_path = match &target {
+        Target::Rotation { .. } => checkpoint_path(dir, step),
+        Target::Kept(path) => path.clone(),
+    };
     let folder = dir.join(CHECKPOINT_DIR);
     let tmp = folder.join(format!(".step_{step:012}.h5.tmp"));
     let made = if domain.is_root() {
@@ -171,7 +188,10 @@ pub fn write_checkpoint(
     let renamed = if domain.is_root() {
         std::fs::rename(&tmp, &final_path)
             .map_err(|e| e.to_string())
-            .and_then(|()| prune(&folder, keep).map_err(|e| e.to_string()))
+            .and_then(|()| match target {
+                Target::Rotation { keep } => prune(&folder, keep).map_err(|e| e.to_string()),
+                Target::Kept(_) => Ok(()),
+            })
     } else {
         Ok(())
     };

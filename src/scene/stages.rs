@@ -72,7 +72,7 @@ pub struct UntilSpec {
     #[serde(default)]
     pub axial_strain: Option<f64>,
     /// Failure: the stress ratio σ_axial/σ_lateral has fallen `drop` (relative) below its
-    /// peak in this stage, or (with `plateau_strain`) has not risen by 0.1 % over that much
+    /// peak in this stage, or (with `plateau_strain`) has not risen by 1 % over that much
     /// axial strain (steady sliding without softening); the stage then goes on for
     /// `strain_margin` more axial strain.
     #[serde(default)]
@@ -103,7 +103,7 @@ pub struct FailureSpec {
     /// Axial strain run on after failure is detected (–).
     #[serde(default)]
     pub strain_margin: f64,
-    /// Axial strain over which a ratio that has not risen by 0.1 % counts as failure (–).
+    /// Axial strain over which a ratio that has not risen by 1 % counts as failure (–).
     #[serde(default)]
     pub plateau_strain: Option<f64>,
 }

@@ -325,42 +325,42 @@ pub fn draw_curve_plots<C: Case + ?Sized>(
     outcomes: &[CaseOutcome],
     out: &Path,
 ) -> Result<()> {
-        let (mut p, theory) = case.plot(outcomes);
-        let mut series = theory;
-        for o in outcomes {
-            series.push(Series {
-                label: format!("FE, MR = {:.4} ({} elements)", o.mr, o.elements),
-                points: o.curve.clone(),
+    let (mut p, theory) = case.plot(outcomes);
+    let mut series = theory;
+    for o in outcomes {
+        series.push(Series {
+            label: format!("FE, MR = {:.4} ({} elements)", o.mr, o.elements),
+            points: o.curve.clone(),
+            theory: false,
+        });
+    }
+    p.series = series;
+    let png = out.join(format!("{}.png", case.name()));
+    plot::draw(&png, &p).map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
+    if outcomes.iter().any(|o| !o.error_curve.is_empty()) {
+        let png = out.join(format!("{}_error.png", case.name()));
+        let series = outcomes
+            .iter()
+            .map(|o| Series {
+                label: format!("MR = {:.4}", o.mr),
+                points: o.error_curve.clone(),
                 theory: false,
-            });
-        }
-        p.series = series;
-        let png = out.join(format!("{}.png", case.name()));
-        plot::draw(&png, &p).map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
-        if outcomes.iter().any(|o| !o.error_curve.is_empty()) {
-            let png = out.join(format!("{}_error.png", case.name()));
-            let series = outcomes
-                .iter()
-                .map(|o| Series {
-                    label: format!("MR = {:.4}", o.mr),
-                    points: o.error_curve.clone(),
-                    theory: false,
-                })
-                .collect();
-            let (x_label, x_scale) = case.error_axis();
-            plot::draw(
-                &png,
-                &Plot {
-                    title: "signed error vs reference along the loading",
-                    x_label,
-                    y_label: "(FE − reference)/reference (%)",
-                    x_scale,
-                    y_scale: Scale::Linear,
-                    series,
-                },
-            )
-            .map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
-        }
+            })
+            .collect();
+        let (x_label, x_scale) = case.error_axis();
+        plot::draw(
+            &png,
+            &Plot {
+                title: "signed error vs reference along the loading",
+                x_label,
+                y_label: "(FE − reference)/reference (%)",
+                x_scale,
+                y_scale: Scale::Linear,
+                series,
+            },
+        )
+        .map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
+    }
     Ok(())
 }
 

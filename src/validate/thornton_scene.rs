@@ -36,7 +36,7 @@ pub struct ThorntonParams {
     pub inertial_number: f64,
     /// Relative drop below the peak ratio that counts as failure.
     pub drop: f64,
-    /// Axial strain without a 0.1 % rise of the ratio that counts as failure.
+    /// Axial strain without a 1 % rise of the ratio that counts as failure.
     pub plateau_strain: f64,
     /// Axial strain run on after failure.
     pub strain_margin: f64,
@@ -131,7 +131,11 @@ impl ThorntonInputs {
         let file = loaded.path.clone();
         let scene = &loaded.scene;
         let need = |field: &str, what: &str| {
-            InputError::new(&file, field, format!("the thornton_walls case needs {what}"))
+            InputError::new(
+                &file,
+                field,
+                format!("the thornton_walls case needs {what}"),
+            )
         };
         let packing = scene
             .packings

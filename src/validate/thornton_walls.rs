@@ -151,13 +151,19 @@ impl ThorntonWallsCase {
         );
         details.insert("contacts_at_peak".into(), json!(h.contacts[peak_row]));
         details.insert("max_kinetic_over_internal_stage2".into(), json!(max_ke_ie));
-        details.insert("stage1_sliding_contacts_at_end".into(), json!(stage1_sliding));
+        details.insert(
+            "stage1_sliding_contacts_at_end".into(),
+            json!(stage1_sliding),
+        );
         details.insert(
             "branched_from".into(),
             json!(branch_from.map(|f| f.display().to_string())),
         );
         details.insert("energy_balance_error".into(), json!(h.balance_error()));
-        details.insert("results".into(), json!(summary.results.display().to_string()));
+        details.insert(
+            "results".into(),
+            json!(summary.results.display().to_string()),
+        );
         details.insert("wall_s_run".into(), json!(wall_s));
         details.insert(
             "scene".into(),
@@ -230,7 +236,9 @@ impl Case for ThorntonWallsCase {
         record: Option<&Recorder>,
     ) -> Result<CaseOutcome> {
         let record = record.ok_or_else(|| {
-            MufeError::Run(format!("{NAME} runs through the driver and needs an output directory"))
+            MufeError::Run(format!(
+                "{NAME} runs through the driver and needs an output directory"
+            ))
         })?;
         Ok(self.run_friction(0, mr, overrides, params, record, None)?.0)
     }
@@ -246,7 +254,9 @@ impl Case for ThorntonWallsCase {
         report: &mut dyn FnMut(&mut CaseOutcome),
     ) -> Result<Vec<CaseOutcome>> {
         let record = record.ok_or_else(|| {
-            MufeError::Run(format!("{NAME} runs through the driver and needs an output directory"))
+            MufeError::Run(format!(
+                "{NAME} runs through the driver and needs an output directory"
+            ))
         })?;
         let count = if quick { 1 } else { FRICTIONS.len() };
         let mut outcomes = Vec::new();
@@ -331,7 +341,11 @@ impl Case for ThorntonWallsCase {
         plot::draw(&png, &p).map_err(|e| MufeError::Io(format!("{}: {e}", png.display())))?;
         let mut curves: Vec<Series> = Vec::new();
         for o in outcomes {
-            let mu = o.details.get("friction").and_then(|v| v.as_f64()).unwrap_or(0.0);
+            let mu = o
+                .details
+                .get("friction")
+                .and_then(|v| v.as_f64())
+                .unwrap_or(0.0);
             let end = o.curve.last().map_or(0.0, |c| c.0);
             curves.push(Series {
                 label: if curves.is_empty() {
