@@ -377,17 +377,28 @@ pub struct Exchange {
 /// memory MPI is still reading or writing. Dropping it without `end` waits for completion
 /// (the buffers must outlive the requests); forgetting it only leaks the buffers.
 pub struct PendingExchange<'d> {
-    /// Receive requests first (one per receive), then send requests.
-    requests: Vec<mpi::ffi::MPI_Request>,
+    buffers: ExchangeBuffers,
     n_recv: usize,
-    /// `(from rank, start in recv_buf, count)` per receive, in the order given to `begin`.
-    recvs: Vec<(usize, usize, usize)>,
-    recv_buf: Vec<f64>,
-    send_buf: Vec<f64>,
     tag: i32,
     done: bool,
     // Ties the exchange to the Domain (MPI must outlive it) and keeps it on its thread.
     _domain: PhantomData<&'d Domain>,
+}
+
+/// Everything an exchange allocates, kept by a caller that exchanges every step (the halo)
+/// and handed to [`Exchange::begin_reusing`] again, so that a step allocates nothing once
+/// the buffers have grown to the pattern's size.
+#[derive(Default)]
+pub struct ExchangeBuffers {
+    /// The messages sent, back to back in the order of the send counts.
+    pub send: Vec<f64>,
+    /// The messages received, back to back in the order of the receive counts.
+    pub recv: Vec<f64>,
+    /// Receive requests first (one per receive), then send requests.
+    requests: Vec<mpi::ffi::MPI_Request>,
+    /// `(from rank, start in recv, count)` per receive, in the order given to `begin`.
+    recvs: Vec<(usize, usize, usize)>,
+    statuses: Vec<mpi::ffi::MPI_Status>,
 }
 
 impl Exchange {
@@ -419,6 +430,25 @@ impl Exchange {
         sends: &[(usize, Vec<f64>)],
         recv_counts: &[(usize, usize)],
     ) -> Result<PendingExchange<'d>, MufeError> {
+        let mut buffers = ExchangeBuffers::default();
+        let send_counts: Vec<(usize, usize)> = sends.iter().map(|(r, d)| (*r, d.len())).collect();
+        for (_, data) in sends {
+            buffers.send.extend_from_slice(data);
+        }
+        self.begin_reusing(domain, buffers, &send_counts, recv_counts)
+    }
+
+    /// [`Exchange::begin`] with the caller's buffers: `buffers.send` holds the messages back
+    /// to back in the order of `send_counts` (`(to rank, number of f64)`); the receive
+    /// buffer and the request lists are resized in place. [`Exchange::end_reusing`] gives
+    /// the buffers back.
+    pub fn begin_reusing<'d>(
+        &self,
+        domain: &'d Domain,
+        mut buffers: ExchangeBuffers,
+        send_counts: &[(usize, usize)],
+        recv_counts: &[(usize, usize)],
+    ) -> Result<PendingExchange<'d>, MufeError> {
         if !(0..=Self::MAX_TAG).contains(&self.tag) {
             return Err(MufeError::Run(format!(
                 "exchange: tag {} outside 0..={}",
@@ -426,10 +456,10 @@ impl Exchange {
                 Self::MAX_TAG
             )));
         }
-        let bad_rank = sends
+        let bad_rank = send_counts
             .iter()
+            .chain(recv_counts)
             .map(|(r, _)| *r)
-            .chain(recv_counts.iter().map(|(r, _)| *r))
             .find(|&r| r >= domain.size);
         if let Some(r) = bad_rank {
             return Err(MufeError::Run(format!(
@@ -437,40 +467,42 @@ impl Exchange {
                 domain.size
             )));
         }
-        let too_big = sends
+        let too_big = send_counts
             .iter()
-            .map(|(_, d)| d.len())
-            .chain(recv_counts.iter().map(|(_, n)| *n))
+            .chain(recv_counts)
+            .map(|(_, n)| *n)
             .find(|&n| n > MAX_COUNT);
         if let Some(n) = too_big {
             return Err(MufeError::Run(format!(
                 "exchange: message of {n} values exceeds the MPI count limit"
             )));
         }
+        let sent: usize = send_counts.iter().map(|(_, n)| n).sum();
+        if sent != buffers.send.len() {
+            return Err(MufeError::Run(format!(
+                "exchange: send counts add up to {sent} values, the buffer holds {}",
+                buffers.send.len()
+            )));
+        }
 
-        let mut recvs = Vec::with_capacity(recv_counts.len());
+        buffers.recvs.clear();
         let mut start = 0usize;
         for &(from, count) in recv_counts {
-            recvs.push((from, start, count));
+            buffers.recvs.push((from, start, count));
             start += count;
         }
-        let recv_buf = vec![0.0f64; start];
-        let mut send_buf = Vec::with_capacity(sends.iter().map(|(_, d)| d.len()).sum());
-        for (_, data) in sends {
-            send_buf.extend_from_slice(data);
-        }
-
+        buffers.recv.clear();
+        buffers.recv.resize(start, 0.0);
+        buffers.requests.clear();
         let mut pending = PendingExchange {
-            requests: Vec::with_capacity(recvs.len() + sends.len()),
-            n_recv: recvs.len(),
-            recvs,
-            recv_buf,
-            send_buf,
+            n_recv: buffers.recvs.len(),
+            buffers,
             tag: self.tag,
             done: false,
             _domain: PhantomData,
         };
         let comm = domain.raw_comm();
+        let b = &mut pending.buffers;
         // SAFETY: the buffers are heap allocations owned by `pending`; they are never
         // resized or moved out until every request has completed (end or Drop waits), and
         // moving `pending` itself does not move the heap data. Ranks and counts were checked
@@ -478,8 +510,8 @@ impl Exchange {
         // find a posted receive.
         unsafe {
             let dtype = mpi::ffi::RSMPI_DOUBLE;
-            let base = pending.recv_buf.as_mut_ptr();
-            for &(from, start, count) in &pending.recvs {
+            let base = b.recv.as_mut_ptr();
+            for &(from, start, count) in &b.recvs {
                 let mut req = mpi::ffi::RSMPI_REQUEST_NULL;
                 mpi::ffi::MPI_Irecv(
                     base.add(start) as *mut c_void,
@@ -490,23 +522,23 @@ impl Exchange {
                     comm,
                     &mut req,
                 );
-                pending.requests.push(req);
+                b.requests.push(req);
             }
-            let base = pending.send_buf.as_ptr();
+            let base = b.send.as_ptr();
             let mut start = 0usize;
-            for (to, data) in sends {
+            for &(to, count) in send_counts {
                 let mut req = mpi::ffi::RSMPI_REQUEST_NULL;
                 mpi::ffi::MPI_Isend(
                     base.add(start) as *const c_void,
-                    data.len() as c_int,
+                    count as c_int,
                     dtype,
-                    *to as c_int,
+                    to as c_int,
                     self.tag,
                     comm,
                     &mut req,
                 );
-                pending.requests.push(req);
-                start += data.len();
+                b.requests.push(req);
+                start += count;
             }
         }
         Ok(pending)
@@ -518,17 +550,27 @@ impl Exchange {
     /// Returns an error if a message was shorter than its announced count (a pattern
     /// mismatch between the two ranks). A longer message is an MPI truncation error, which
     /// aborts the job.
-    pub fn end(
+    pub fn end(&self, pending: PendingExchange<'_>) -> Result<Vec<(usize, Vec<f64>)>, MufeError> {
+        let buffers = self.end_reusing(pending)?;
+        Ok(buffers
+            .received()
+            .map(|(from, data)| (from, data.to_vec()))
+            .collect())
+    }
+
+    /// [`Exchange::end`] without copies: waits, checks every receive's length and gives the
+    /// buffers back ([`ExchangeBuffers::received`] lists the messages).
+    pub fn end_reusing(
         &self,
         mut pending: PendingExchange<'_>,
-    ) -> Result<Vec<(usize, Vec<f64>)>, MufeError> {
-        let statuses = pending.wait_all();
-        let mut out = Vec::with_capacity(pending.recvs.len());
-        for (i, &(from, start, count)) in pending.recvs.iter().enumerate() {
+    ) -> Result<ExchangeBuffers, MufeError> {
+        pending.wait_all();
+        let b = &pending.buffers;
+        for (i, &(from, _, count)) in b.recvs.iter().enumerate() {
             let mut got: c_int = 0;
             // SAFETY: the status was filled by MPI_Waitall for this completed receive.
             unsafe {
-                mpi::ffi::MPI_Get_count(&statuses[i], mpi::ffi::RSMPI_DOUBLE, &mut got);
+                mpi::ffi::MPI_Get_count(&b.statuses[i], mpi::ffi::RSMPI_DOUBLE, &mut got);
             }
             if usize::try_from(got).ok() != Some(count) {
                 return Err(MufeError::Run(format!(
@@ -536,9 +578,18 @@ impl Exchange {
                     pending.tag
                 )));
             }
-            out.push((from, pending.recv_buf[start..start + count].to_vec()));
         }
-        Ok(out)
+        Ok(std::mem::take(&mut pending.buffers))
+    }
+}
+
+impl ExchangeBuffers {
+    /// The messages of the last exchange as `(from rank, data)`, in the order of the
+    /// receive counts.
+    pub fn received(&self) -> impl Iterator<Item = (usize, &[f64])> {
+        self.recvs
+            .iter()
+            .map(|&(from, start, count)| (from, &self.recv[start..start + count]))
     }
 }
 
@@ -548,23 +599,20 @@ impl PendingExchange<'_> {
         self.n_recv
     }
 
-    /// Completes every request; returns the statuses (receives first).
-    fn wait_all(&mut self) -> Vec<mpi::ffi::MPI_Status> {
-        let n = self.requests.len();
+    /// Completes every request; the statuses (receives first) are left in the buffers.
+    fn wait_all(&mut self) {
+        let b = &mut self.buffers;
+        let n = b.requests.len();
         // SAFETY: MPI_Status is a plain C struct; zeroed is a valid value and MPI overwrites
         // it. The requests are live (or already MPI_REQUEST_NULL, which Waitall accepts).
-        let mut statuses: Vec<mpi::ffi::MPI_Status> = vec![unsafe { std::mem::zeroed() }; n];
+        b.statuses.clear();
+        b.statuses.resize(n, unsafe { std::mem::zeroed() });
         if !self.done && n > 0 {
             unsafe {
-                mpi::ffi::MPI_Waitall(
-                    n as c_int,
-                    self.requests.as_mut_ptr(),
-                    statuses.as_mut_ptr(),
-                );
+                mpi::ffi::MPI_Waitall(n as c_int, b.requests.as_mut_ptr(), b.statuses.as_mut_ptr());
             }
         }
         self.done = true;
-        statuses
     }
 }
 

@@ -145,15 +145,17 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     run.first_step = run.solver.state.step;
     let total_steps = step_count(loaded, run.solver.model.dt, opts)?;
     let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
+    let halo_bytes = domain.all_gather_u64(run.hooks.halo.plan.bytes_per_step() as u64);
     if run.talk {
         print_model_summary(&run.solver, loaded, total_steps);
         if domain.size() > 1 {
+            let per_rank: Vec<String> = halo_bytes.iter().map(u64::to_string).collect();
             println!(
-                "ranks: {} (METIS), rank 0 owns {} grains and mirrors {} ghosts; halo {} bytes/step from rank 0",
+                "ranks: {} (METIS), rank 0 owns {} grains and mirrors {} ghosts; halo bytes sent per step by rank: {}",
                 domain.size(),
                 plan.owned.len(),
                 plan.ghosts.len(),
-                run.hooks.halo.plan.bytes_per_step()
+                per_rank.join(", ")
             );
         }
     }

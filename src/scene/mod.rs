@@ -420,6 +420,27 @@ pub struct LoadedScene {
     pub scene: Scene,
 }
 
+impl LoadedScene {
+    /// The fields of material `name` beyond E, ν and ρ (`law`, `yield_stress`, ...) as
+    /// written in the scene (after overrides), for a generator that copies the material.
+    pub fn material_extra_fields(&self, name: &str) -> Vec<(String, toml::Value)> {
+        let table: toml::Table = toml::from_str(&self.text).unwrap_or_default();
+        table
+            .get("materials")
+            .and_then(|m| m.get(name))
+            .and_then(|m| m.as_table())
+            .map(|t| {
+                t.iter()
+                    .filter(|(k, _)| {
+                        !matches!(k.as_str(), "youngs_modulus" | "poisson_ratio" | "density")
+                    })
+                    .map(|(k, v)| (k.clone(), v.clone()))
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+}
+
 /// Reads, overrides, parses and validates a scene file.
 pub fn load_scene(path: &Path, overrides: &[String]) -> Result<LoadedScene, InputError> {
     let file = path.display().to_string();

@@ -201,21 +201,7 @@ impl SceneInputs {
                 overrides,
             ));
         }
-        // the material table as given (after overrides), for fields beyond E, ν, ρ
-        let table: toml::Table = toml::from_str(&loaded.text).unwrap_or_default();
-        let material_extra = table
-            .get("materials")
-            .and_then(|m| m.get(&g0.material))
-            .and_then(|m| m.as_table())
-            .map(|t| {
-                t.iter()
-                    .filter(|(k, _)| {
-                        !matches!(k.as_str(), "youngs_modulus" | "poisson_ratio" | "density")
-                    })
-                    .map(|(k, v)| (k.clone(), v.clone()))
-                    .collect()
-            })
-            .unwrap_or_default();
+        let material_extra = loaded.material_extra_fields(&g0.material);
         Ok(Self {
             file,
             material_name: g0.material.clone(),

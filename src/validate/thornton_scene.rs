@@ -162,20 +162,7 @@ impl ThorntonInputs {
             .materials
             .get(&packing.material)
             .ok_or_else(|| need("packings[0].material", "a defined material"))?;
-        let table: toml::Table = toml::from_str(&loaded.text).unwrap_or_default();
-        let material_extra = table
-            .get("materials")
-            .and_then(|t| t.get(&packing.material))
-            .and_then(|t| t.as_table())
-            .map(|t| {
-                t.iter()
-                    .filter(|(k, _)| {
-                        !matches!(k.as_str(), "youngs_modulus" | "poisson_ratio" | "density")
-                    })
-                    .map(|(k, v)| (k.clone(), v.clone()))
-                    .collect()
-            })
-            .unwrap_or_default();
+        let material_extra = loaded.material_extra_fields(&packing.material);
         Ok(Self {
             file,
             material_name: packing.material.clone(),

@@ -152,6 +152,14 @@ impl ThorntonWallsCase {
         details.insert("contacts_at_peak".into(), json!(h.contacts[peak_row]));
         details.insert("max_kinetic_over_internal_stage2".into(), json!(max_ke_ie));
         details.insert(
+            "kinetic_over_internal_at_peak".into(),
+            json!(h.kinetic[peak_row] / h.internal[peak_row].max(f64::MIN_POSITIVE)),
+        );
+        details.insert(
+            "lateral_stress_at_peak_pa".into(),
+            json!(h.lateral[peak_row]),
+        );
+        details.insert(
             "stage1_sliding_contacts_at_end".into(),
             json!(stage1_sliding),
         );
@@ -195,10 +203,12 @@ impl ThorntonWallsCase {
         };
         if record.domain.is_root() {
             println!(
-                "  μ = {mu}: peak σ1/σ3 = {peak:.4} at axial strain {:.3e}; Thornton {theory:.4}, rigid DEM (walls, free rotations) {}; mean grain rotation at the peak {:.2e} rad; max ALLKE/ALLIE {max_ke_ie:.2e}; {} sliding contacts at the end of stage 1",
+                "  μ = {mu}: peak σ1/σ3 = {peak:.4} at axial strain {:.3e}; Thornton {theory:.4}, rigid DEM (walls, free rotations) {}; mean grain rotation at the peak {:.2e} rad; lateral σ at the peak {:.4e} Pa; ALLKE/ALLIE {:.1e} at the peak, {max_ke_ie:.1e} at most; {} sliding contacts at the end of stage 1",
                 strain(peak_row),
                 if dem_applies { format!("{dem:.4}") } else { format!("n/a for {} cells", p.cell_count()) },
                 h.rotation[peak_row],
+                h.lateral[peak_row],
+                h.kinetic[peak_row] / h.internal[peak_row].max(f64::MIN_POSITIVE),
                 stage1_sliding
             );
         }
@@ -389,6 +399,8 @@ struct History {
     contacts: Vec<f64>,
     kinetic: Vec<f64>,
     internal: Vec<f64>,
+    /// Mean of σx and σy (Pa).
+    lateral: Vec<f64>,
     balance: Vec<f64>,
     terms: Vec<Vec<f64>>,
 }
@@ -423,6 +435,11 @@ impl History {
             contacts: column("grain_pair_contacts")?,
             kinetic: column("kinetic_energy")?,
             internal: column("internal_energy")?,
+            lateral: column("sigma_x")?
+                .iter()
+                .zip(column("sigma_y")?)
+                .map(|(x, y)| 0.5 * (x + y))
+                .collect(),
             balance: column("energy_balance")?,
             terms,
         })
