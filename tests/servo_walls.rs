@@ -5,6 +5,9 @@
 //!   are in `/history` (only for the servo wall);
 //! - (the same scene restored from a JSON `State` mid-run continues bitwise identically:
 //!   `tests/state_restore.rs`);
+//! - a stage's own `damping` replaces `simulation.damping` while it runs
+//!   (`jobs/tests/two_spheres_stages.toml` with stage 2 undamped): ALLVD grows in stage 1
+//!   and stays put in stage 2, and the ledger still balances;
 //! - `jobs/fcc/fcc_cell_servo.toml` (14 spheres, five servo walls) gives the same
 //!   `/history` on 2 ranks as on 1 (1e-10): the walls move from the force summed over ranks.
 
@@ -168,4 +171,51 @@ fn servo_history_is_the_same_on_1_and_2_ranks() {
             );
         }
     }
+}
+
+/// `/history` of `jobs/tests/two_spheres_stages.toml` run with `sets`.
+fn two_spheres_history(name: &str, sets: &[&str]) -> Vec<(String, Vec<f64>)> {
+    let out = out_dir(name);
+    let mut args = vec![
+        "run".to_string(),
+        root("jobs/tests/two_spheres_stages.toml")
+            .display()
+            .to_string(),
+        "--quiet".into(),
+        "--out".into(),
+        out.display().to_string(),
+    ];
+    for s in sets {
+        args.push("--set".into());
+        args.push(s.to_string());
+    }
+    let o = Command::new(env!("CARGO_BIN_EXE_mufe"))
+        .args(&args)
+        .output()
+        .expect("mufe runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    history(&out.join("results.h5"))
+}
+
+#[test]
+fn a_stage_damping_replaces_the_scene_damping_while_the_stage_runs() {
+    // ALLVD gained in stage 2 (mass damping + the contacts' normal damping)
+    let stage2_gain = |h: &[(String, Vec<f64>)]| {
+        let (stage, vd) = (column(h, "stage"), column(h, "damping_dissipation"));
+        let first = stage.iter().position(|&s| s == 2.0).expect("stage 2 rows");
+        assert!(vd[first - 1] > 0.0, "stage 1 is damped");
+        vd[vd.len() - 1] - vd[first - 1]
+    };
+    let damped = two_spheres_history("stage_damping_on", &[]);
+    let undamped = two_spheres_history("stage_damping_off", &["stages[1].damping=0.0"]);
+    let (on, off) = (stage2_gain(&damped), stage2_gain(&undamped));
+    assert!(
+        on > 0.0 && off < 0.05 * on,
+        "stage-2 ALLVD: {off:e} undamped vs {on:e} damped"
+    );
+    let balance = column(&undamped, "energy_balance");
+    let work = column(&undamped, "external_work");
+    let scale = work.iter().fold(0.0f64, |m, w| m.max(w.abs()));
+    let worst = balance.iter().fold(0.0f64, |m, b| m.max(b.abs()));
+    assert!(worst <= 5e-3 * scale, "balance {worst:e} of {scale:e}");
 }

@@ -66,6 +66,8 @@ pub struct Stage {
     /// Some wall moves at a prescribed speed: the servo walls add integral action to
     /// follow the specimen's steady deformation (`crate::boundary::servo`).
     pub strains: bool,
+    /// Mass-proportional damping during the stage (1/s), replacing `simulation.damping`.
+    pub damping: Option<f64>,
 }
 
 /// A closed box of walls: one opposite pair per axis.
@@ -237,6 +239,7 @@ impl StagePlan {
                     })
                     .collect(),
                 strains: false,
+                damping: None,
                 until: Until {
                     max_time: f64::INFINITY,
                     stress_held: None,
@@ -530,6 +533,7 @@ fn build_stage(
         .fold(0.0, f64::max);
     Stage {
         name: st.name.clone(),
+        damping: st.damping,
         strains: modes
             .iter()
             .any(|m| matches!(m, WallMode::Velocity(v) if *v != 0.0)),

@@ -33,6 +33,11 @@ pub struct StageSpec {
     pub walls: BTreeMap<String, WallModeSpec>,
     /// What ends the stage.
     pub until: UntilSpec,
+    /// Mass-proportional damping during the stage (1/s), in place of
+    /// `simulation.damping`: e.g. damping to settle a consolidation stage, none while
+    /// shearing (it drags the moving grains and biases the failure).
+    #[serde(default)]
+    pub damping: Option<f64>,
 }
 
 /// How a wall moves during a stage (along its normal; positive = towards the grains).
@@ -184,6 +189,9 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
         }
         let u = &st.until;
         c.positive(&f("until.max_time"), u.max_time)?;
+        if let Some(d) = st.damping {
+            c.non_negative(&f("damping"), d)?;
+        }
         if let Some(h) = &u.stress_held {
             c.positive(&f("until.stress_held.tolerance"), h.tolerance)?;
             c.non_negative(&f("until.stress_held.time_constants"), h.time_constants)?;

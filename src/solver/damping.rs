@@ -96,21 +96,30 @@ pub(super) fn compute_grain_rigid_velocities(
         });
 }
 
+/// The mass-proportional damping α in force (1/s): the current stage's, else the scene's.
+pub(super) fn damping_in_force(
+    model: &Model,
+    stages: &crate::boundary::stages::StageProgress,
+) -> f64 {
+    model
+        .stages
+        .as_ref()
+        .and_then(|plan| plan.current(stages).damping)
+        .unwrap_or(model.damping)
+}
+
 /// Damping force on node n: −α m v − α_def m (v − v_rigid(x)) (N).
 #[inline(always)]
 pub(super) fn damping_force(
     model: &Model,
+    alpha: f64,
     rigid: &[RigidVelocity],
     n: usize,
     x: &[f64; 3],
     v: &[f64; 3],
 ) -> [f64; 3] {
     let m = model.mass[n];
-    let mut f = [
-        -model.damping * m * v[0],
-        -model.damping * m * v[1],
-        -model.damping * m * v[2],
-    ];
+    let mut f = [-alpha * m * v[0], -alpha * m * v[1], -alpha * m * v[2]];
     if model.deformation_damping > 0.0 {
         let vr = rigid[model.node_grain[n] as usize].at(x);
         for i in 0..3 {
@@ -125,6 +134,7 @@ pub(super) fn damping_force(
 /// mass only: mass added by scaling is numerical and must not weigh anything.
 pub(super) fn apply_body_and_damping_forces(
     model: &Model,
+    alpha: f64,
     state: &State,
     rigid: &mut [RigidVelocity],
     force: &mut [[f64; 3]],
@@ -146,7 +156,7 @@ pub(super) fn apply_body_and_damping_forces(
             for k in 0..f.len() {
                 let n = base + k;
                 let (m, mp, v) = (model.mass[n], model.physical_mass[n], state.v[n]);
-                let fd = damping_force(model, rigid, n, &state.x[n], &v);
+                let fd = damping_force(model, alpha, rigid, n, &state.x[n], &v);
                 for i in 0..3 {
                     f[k][i] += mp * g[i] + fd[i];
                     vn[k][i] = v[i] + dt * f[k][i] / m;

@@ -7,7 +7,9 @@
 //! Convention: at the start of step n the state holds x_n and v_{n−½};
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
 
-use super::damping::{apply_body_and_damping_forces, damping_force, RigidVelocity};
+use super::damping::{
+    apply_body_and_damping_forces, damping_force, damping_in_force, RigidVelocity,
+};
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::motions::drive_prescribed_motions;
 use super::state::{Reaction, State};
@@ -189,6 +191,8 @@ impl Solver {
         let state = &mut self.state;
         let scratch = &mut self.scratch;
         let timers = &mut self.timers;
+        // one damping for the whole step: its force and its work use the same α
+        let alpha = damping_in_force(model, &state.stages);
 
         // Internal forces first: they need only owned data, so they overlap the halo
         // exchange begun at the end of the previous step.
@@ -247,6 +251,7 @@ impl Solver {
         timers.time(Stage::Boundary, || {
             apply_body_and_damping_forces(
                 model,
+                alpha,
                 state,
                 &mut scratch.grain_rigid,
                 &mut scratch.force,
@@ -310,7 +315,7 @@ impl Solver {
         });
 
         let partials = timers.time(Stage::Integrate, || {
-            integrate_and_sum(model, state, scratch, dt)
+            integrate_and_sum(model, alpha, state, scratch, dt)
         });
         timers.time(Stage::Halo, || hooks.ghosts_out(&state.x, &state.v))?;
         if let Some(node) = partials.bad_node {
@@ -412,6 +417,7 @@ impl Solver {
 /// x_{n+1} = x_n + Δt v_{n+½} and v ← v_{n+½}.
 fn integrate_and_sum(
     model: &Model,
+    alpha: f64,
     state: &mut State,
     scratch: &mut Scratch,
     dt: f64,
@@ -433,7 +439,7 @@ fn integrate_and_sum(
                 let (m, mp) = (model.mass[n], model.physical_mass[n]);
                 let (a, b) = (v[k], vn[k]);
                 let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-                let fd = damping_force(model, rigid, n, &x[k], &a);
+                let fd = damping_force(model, alpha, rigid, n, &x[k], &a);
                 p.kinetic += 0.5 * m * ab;
                 p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
                 p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
