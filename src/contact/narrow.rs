@@ -524,11 +524,7 @@ fn locate_on_patch(
             normal: [0.0; 3],
         });
     }
-    let outward = |f: usize| {
-        let [a, b, c] = cm.facet[f].map(|n| x[n as usize]);
-        triangle_normal(a, b, c)
-    };
-    let mut best = (patch.closest(xs, cl.bary, outward(facet)), facet);
+    let mut best = (patch.closest(xs, cl.bary), facet);
     if let Some(k) = best.0.clamped_edge {
         let other = cm.facet_adjacent[facet][k];
         if other != NONE {
@@ -536,7 +532,7 @@ fn locate_on_patch(
             if let Some(p) = facet_patch(cm, x, o, |k| vertex_normal(o, k)) {
                 let [a, b, c] = cm.facet[o].map(|n| x[n as usize]);
                 let start = closest_point_on_triangle(xs, a, b, c).bary;
-                let candidate = p.closest(xs, start, outward(o));
+                let candidate = p.closest(xs, start);
                 if candidate.distance < best.0.distance {
                     best = (candidate, o);
                 }

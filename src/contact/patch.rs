@@ -42,6 +42,8 @@ const ITERATIONS: usize = 4;
 pub struct Patch {
     pub corners: [[f64; 3]; 3],
     pub normals: [[f64; 3]; 3],
+    /// The flat facet's outward unit normal (orients the patch normal).
+    pub outward: [f64; 3],
 }
 
 /// The closest point of a patch to a query point.
@@ -82,7 +84,11 @@ impl Patch {
                 return None;
             }
         }
-        Some(Self { corners, normals })
+        Some(Self {
+            corners,
+            normals,
+            outward: flat_normal,
+        })
     }
 
     /// Bound of the patch's distance from the flat facet (m): ½ max |(pⱼ − pᵢ)·nᵢ|.
@@ -121,8 +127,9 @@ impl Patch {
     }
 
     /// Closest patch point to `xs` by Gauss–Newton from the barycentric start `bary`,
-    /// clamped to the triangle. `outward` orients the normal (the flat facet's).
-    pub fn closest(&self, xs: [f64; 3], bary: [f64; 3], outward: [f64; 3]) -> PatchPoint {
+    /// clamped to the triangle.
+    pub fn closest(&self, xs: [f64; 3], bary: [f64; 3]) -> PatchPoint {
+        let outward = self.outward;
         let (mut u, mut v) = (bary[1], bary[2]);
         let mut clamped = None;
         for _ in 0..ITERATIONS {
@@ -203,6 +210,7 @@ mod tests {
         Patch {
             corners: [c[0].0, c[1].0, c[2].0],
             normals: [c[0].1, c[1].1, c[2].1],
+            outward: [0.0, 0.0, 1.0],
         }
     }
 
@@ -226,7 +234,6 @@ mod tests {
         let r = 1.0;
         let theta = 0.15; // corner edge ≈ 0.26 R, the coarse FCC contact fans
         let patch = sphere_facet(r, theta);
-        let outward = [0.0, 0.0, 1.0];
         let flat_sag = r - theta.cos() * r; // ≥ the flat facet's depth below the sphere
         let corner = patch.normals[0];
         for (towards, start, depth_tol) in [
@@ -241,7 +248,7 @@ mod tests {
         ] {
             let dir = scale(towards, 1.0 / norm(towards));
             let xs = scale(dir, r - 1e-4);
-            let pp = patch.closest(xs, start, outward);
+            let pp = patch.closest(xs, start);
             assert!(pp.clamped_edge.is_none());
             assert!(dot(pp.normal, dir) > 1.0 - 5e-5, "{:?}", pp.normal);
             assert!((pp.depth - 1e-4).abs() < depth_tol, "{} vs 1e-4", pp.depth);
@@ -256,7 +263,7 @@ mod tests {
         let flat = [0.0, 0.0, 1.0];
         let corners = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         let patch = Patch::of_facet(corners, flat, |_| flat).expect("smooth");
-        let pp = patch.closest([0.2, 0.3, -0.05], [1.0 / 3.0; 3], flat);
+        let pp = patch.closest([0.2, 0.3, -0.05], [1.0 / 3.0; 3]);
         assert!((pp.depth - 0.05).abs() < 1e-14 && (pp.normal[2] - 1.0).abs() < 1e-14);
         assert!((pp.bary[1] - 0.2).abs() < 1e-12 && (pp.bary[2] - 0.3).abs() < 1e-12);
         // a cube edge: corner normals at 45° to the face
