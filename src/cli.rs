@@ -123,6 +123,20 @@ pub enum Command {
         #[arg(long, default_value_t = 3)]
         level: u32,
     },
+    /// Draw the energy study figures of one or more runs (external work, strain energy,
+    /// plastic and frictional dissipation, dissipation indices; docs/RESULTS.md) and print
+    /// the energy ledger at the peak stress ratio and at the end of each run.
+    Plot {
+        /// results.h5 files, drawn side by side.
+        #[arg(required = true, value_name = "RESULTS.h5")]
+        results: Vec<PathBuf>,
+        /// Directory for the PNGs (default: the first file's directory).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Legend label of each file, in order (default: the file's directory name).
+        #[arg(long = "label", value_name = "NAME")]
+        labels: Vec<String>,
+    },
     /// Run analytic validation cases (hertz, mindlin, mindlin_cyclic, torsion, rolling,
     /// plastic_cube, plastic_spheres) over meshing ratios; print a table, write
     /// DIR/validation.json, one PNG per case and each run's results.h5 + energy.png.
@@ -606,6 +620,11 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             set,
             force,
         } => partition_command(&scene, &set, parts, out.as_deref(), margin, exact, force),
+        Command::Plot {
+            results,
+            out,
+            labels,
+        } => plot_command(&results, out, &labels),
         Command::Sand {
             out,
             grains,
@@ -636,6 +655,47 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             Ok(())
         }
     }
+}
+
+/// `mufe plot`: reads every file before drawing anything, so a bad file leaves no partial
+/// figures.
+fn plot_command(
+    results: &[PathBuf],
+    out: Option<PathBuf>,
+    labels: &[String],
+) -> Result<(), MufeError> {
+    use crate::io::energy_figures::{default_label, draw_energy_figures, ledger_table, RunHistory};
+    if labels.len() > results.len() {
+        return Err(InputError::new(
+            "<command line>",
+            "--label",
+            format!("{} labels for {} files", labels.len(), results.len()),
+        )
+        .into());
+    }
+    let runs = results
+        .iter()
+        .enumerate()
+        .map(|(i, path)| {
+            let label = labels
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| default_label(path));
+            RunHistory::read(path, &label)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let out = out.unwrap_or_else(|| {
+        results[0]
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .map_or_else(|| PathBuf::from("."), std::path::Path::to_path_buf)
+    });
+    check_out_dir(&out)?;
+    for path in draw_energy_figures(&runs, &out)? {
+        println!("wrote {}", path.display());
+    }
+    print!("{}", ledger_table(&runs));
+    Ok(())
 }
 
 /// One line per grain of a surface shape: its descriptors (docs/SHAPES.md).

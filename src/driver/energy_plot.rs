@@ -17,7 +17,7 @@ impl EnergyPlot {
     }
 
     pub fn draw(&self, path: &std::path::Path) -> Result<()> {
-        use crate::io::plot::{draw, Plot, Scale, Series};
+        use crate::io::plot::{draw, energy_unit, Plot, Scale, Series};
         let names = [
             "kinetic ALLKE",
             "internal ALLIE",
@@ -59,37 +59,5 @@ impl EnergyPlot {
             },
         )
         .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
-    }
-}
-
-/// The SI prefix that shows energies up to `largest` (J) as numbers between 1 and 1000:
-/// (unit, multiplier from joules).
-fn energy_unit(largest: f64) -> (&'static str, f64) {
-    const UNITS: [(&str, f64); 6] = [
-        ("J", 1.0),
-        ("mJ", 1e3),
-        ("µJ", 1e6),
-        ("nJ", 1e9),
-        ("pJ", 1e12),
-        ("fJ", 1e15),
-    ];
-    UNITS
-        .iter()
-        .copied()
-        .find(|&(_, k)| largest * k >= 1.0)
-        .unwrap_or(UNITS[UNITS.len() - 1])
-}
-
-#[cfg(test)]
-mod tests {
-    use super::energy_unit;
-
-    #[test]
-    fn energies_are_shown_between_one_and_a_thousand() {
-        assert_eq!(energy_unit(2.5).0, "J");
-        assert_eq!(energy_unit(0.7).0, "mJ");
-        assert_eq!(energy_unit(3.2e-6).0, "µJ");
-        assert_eq!(energy_unit(4.0e-10).0, "pJ");
-        assert_eq!(energy_unit(0.0).0, "fJ");
     }
 }

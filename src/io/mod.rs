@@ -7,6 +7,7 @@
 
 pub mod checkpoint;
 pub mod collective;
+pub mod energy_figures;
 pub mod plot;
 pub mod provenance;
 pub mod results;

@@ -173,6 +173,24 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
     Ok(())
 }
 
+/// The SI prefix that shows energies up to `largest` (J) as numbers between 1 and 1000:
+/// (unit, multiplier from joules).
+pub fn energy_unit(largest: f64) -> (&'static str, f64) {
+    const UNITS: [(&str, f64); 6] = [
+        ("J", 1.0),
+        ("mJ", 1e3),
+        ("µJ", 1e6),
+        ("nJ", 1e9),
+        ("pJ", 1e12),
+        ("fJ", 1e15),
+    ];
+    UNITS
+        .iter()
+        .copied()
+        .find(|&(_, k)| largest * k >= 1.0)
+        .unwrap_or(UNITS[UNITS.len() - 1])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -210,5 +228,14 @@ mod tests {
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
         assert!(bytes.len() > 5000);
+    }
+
+    #[test]
+    fn energies_are_shown_between_one_and_a_thousand() {
+        assert_eq!(energy_unit(2.5).0, "J");
+        assert_eq!(energy_unit(0.7).0, "mJ");
+        assert_eq!(energy_unit(3.2e-6).0, "µJ");
+        assert_eq!(energy_unit(4.0e-10).0, "pJ");
+        assert_eq!(energy_unit(0.0).0, "fJ");
     }
 }
