@@ -126,3 +126,32 @@ fn servo_state_round_trip_mid_run_continues_identically() {
     let servo = mid.contact.walls[1].servo.expect("servo state in State");
     assert!(servo.filtered_force > 0.0 && servo.displacement != 0.0);
 }
+
+#[test]
+fn a_branch_with_another_time_step_continues_the_clock_from_the_checkpoint() {
+    // a branch with more mass scaling (a longer Δt) must not restart time at n·Δt_new
+    let (_, mut original) = solver_for("jobs/demo/sphere_compression.toml");
+    advance(&mut original, 120);
+    let (t0, n0, dt0) = (original.state.time, original.state.step, original.model.dt);
+    let longer = format!("simulation.target_dt={:e}", 2.0 * dt0);
+    let (_, mut branch) = solver_with("jobs/demo/sphere_compression.toml", &[longer]);
+    let dt1 = branch.model.dt;
+    assert!(
+        dt1 > 1.5 * dt0,
+        "the branch's Δt {dt1:e} is longer than {dt0:e}"
+    );
+    branch.restore(original.state.clone()).unwrap();
+    assert_eq!((branch.state.time, branch.state.step), (t0, n0));
+    advance(&mut branch, 10);
+    let expected = t0 + 10.0 * dt1;
+    assert!(
+        (branch.state.time - expected).abs() < 1e-9 * expected,
+        "t = {:e} after 10 steps of {dt1:e} from {t0:e}",
+        branch.state.time
+    );
+    // an ordinary restart keeps the clock as it was: t_n = n·Δt exactly
+    let (_, mut same) = solver_for("jobs/demo/sphere_compression.toml");
+    same.restore(original.state.clone()).unwrap();
+    advance(&mut same, 10);
+    assert_eq!(same.state.time, (n0 + 10) as f64 * dt0);
+}

@@ -143,7 +143,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         checkpoint_stats: Default::default(),
     };
     run.first_step = run.solver.state.step;
-    let total_steps = step_count(loaded, run.solver.model.dt, opts)?;
+    let total_steps = step_count(loaded, &run.solver, opts)?;
     let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     let halo_bytes = domain.all_gather_u64(run.hooks.halo.plan.bytes_per_step() as u64);
     if run.talk {
@@ -204,9 +204,13 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
 /// it exceeds the scale guard's limit for what is actually run (`--max-steps` counts)
 /// and `--force` is not given. The estimate before meshing uses an approximate Δt; this
 /// is the exact count.
-fn step_count(loaded: &LoadedScene, dt: f64, opts: &RunOptions) -> Result<u64> {
+/// The step that reaches `simulation.duration` on the solver's clock.
+fn step_count(loaded: &LoadedScene, solver: &Solver, opts: &RunOptions) -> Result<u64> {
     let limit = crate::scene::estimate::MAX_STEPS;
-    let steps = (loaded.scene.simulation.duration / dt).ceil();
+    let dt = solver.model.dt;
+    let duration = loaded.scene.simulation.duration;
+    let state = &solver.state;
+    let steps = state.step_origin as f64 + ((duration - state.time_origin) / dt).ceil();
     let run = opts.max_steps.map_or(steps, |m| steps.min(m as f64));
     if !opts.force && (run > limit as f64 || run.is_nan()) {
         return Err(crate::error::InputError::new(

@@ -29,6 +29,13 @@ pub struct State {
     pub time: f64,
     /// n.
     pub step: u64,
+    /// The clock's anchor: t_n = time_origin + (n − step_origin) Δt. (0, 0) for a run
+    /// from t = 0; a branch from a checkpoint with another Δt (other mass scaling or
+    /// material) re-anchors it at the checkpoint, so time goes on from where it was.
+    #[serde(default)]
+    pub time_origin: f64,
+    #[serde(default)]
+    pub step_origin: u64,
     /// x_n (m).
     pub x: Vec<[f64; 3]>,
     /// v_{n−½} (m/s).
@@ -121,6 +128,11 @@ impl State {
         }
     }
 
+    /// t_n for step n at the step Δt, on this state's clock.
+    pub fn time_at_step(&self, step: u64, dt: f64) -> f64 {
+        self.time_origin + (step - self.step_origin) as f64 * dt
+    }
+
     /// Replaces this rank's additive totals.
     pub fn set_rank_totals(&mut self, totals: &RankTotals) {
         self.energy = totals.energy.clone();
@@ -141,6 +153,8 @@ impl State {
         let State {
             time,
             step,
+            time_origin,
+            step_origin,
             x: _,
             v: _,
             energy,
@@ -162,6 +176,8 @@ impl State {
         } = contact;
         self.time = *time;
         self.step = *step;
+        self.time_origin = *time_origin;
+        self.step_origin = *step_origin;
         self.energy = energy.clone();
         self.stages = stages.clone();
         self.supplied_energy = *supplied_energy;

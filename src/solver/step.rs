@@ -101,6 +101,8 @@ impl Solver {
         let state = State {
             time: 0.0,
             step: 0,
+            time_origin: 0.0,
+            step_origin: 0,
             x: model.x0.clone(),
             v: v0,
             energy: EnergyLedger::default(),
@@ -173,6 +175,11 @@ impl Solver {
             )));
         }
         self.state = state;
+        if self.state.time_at_step(self.state.step, m.dt) != self.state.time {
+            // a branch with another Δt: time goes on from the checkpoint's
+            self.state.time_origin = self.state.time;
+            self.state.step_origin = self.state.step;
+        }
         self.scratch.contact = ContactScratch::default();
         Ok(())
     }
@@ -350,7 +357,7 @@ impl Solver {
             }
         });
 
-        state.time = (state.step + 1) as f64 * dt;
+        state.time = state.time_at_step(state.step + 1, dt);
         state.step += 1;
 
         // Exploding energy: with every force accounted for, KE + U cannot exceed the energy
