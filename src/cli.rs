@@ -554,11 +554,11 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     .into());
                 }
             }
+            let selected = crate::validate::select_cases(&cases)?;
             let mrs = mr
                 .as_deref()
-                .map(crate::validate::runner::parse_mr_list)
+                .map(|m| crate::validate::runner::parse_mr_list(m, &selected))
                 .transpose()?;
-            let selected = crate::validate::select_cases(&cases)?;
             let mut params = crate::validate::scenes::Params::default();
             for p in &param {
                 params.set(p)?;

@@ -731,6 +731,18 @@ fn bad_servo_walls_are_refused() {
         ),
         (
             SERVO_SPHERE,
+            "walls[1].servo.periods=0.0",
+            "walls[1].servo.periods",
+            "> 0",
+        ),
+        (
+            FCC_SERVO,
+            "walls[1].servo={ stress = 5e4, area_of = \"cell\", periods = 0.5, time_constant = 1e-4 }",
+            "walls[1].servo.periods",
+            "not both",
+        ),
+        (
+            SERVO_SPHERE,
             "walls[1].servo.max_speed=-1.0",
             "walls[1].servo.max_speed",
             "> 0",

@@ -50,8 +50,16 @@
 //! mode on that stiffness, T = 2π√(M/k) (M the mass of all grains), and above the time a
 //! P wave needs to cross the specimen (L/c_p, c_p = √(E/ρ)); the default τ is the larger of
 //! [`DEFAULT_PERIODS`]·T and [`DEFAULT_TRANSITS`]·L/c_p, so the loop is one decade slower
-//! than the packing's own dynamics and the same dimensionless loop results for any
-//! material and size. `max_speed` caps |v| (default [`DEFAULT_SPEED_FRACTION`]·c_p: an
+//! than the specimen's rigid mode (ωτ = 4π) and the same dimensionless loop results for any
+//! material and size. That margin is for the hardest case, a lone grain between walls with
+//! little damping and a stiffness underestimated 8× (a coarse mesh): with τ = T/2 or T it
+//! overshoots by 17–18 % (the unit tests). A slow loop costs accuracy, though: in a
+//! triaxial stage the lateral walls must follow the specimen's dilation at a speed v, and
+//! until the integral has learnt v the proportional term lags by e/F* = v k τ/F*. At
+//! failure the 172-sphere cell of `mufe validate thornton_walls` dilates at the axial rate,
+//! and its lateral stress overshot the target by 29 % with τ = 2T against 7 % with τ = T/2
+//! (the same peak ratio; docs/BENCHMARKS.md). A packing, damped by its many contacts and
+//! its friction, runs stably at τ = T/2: the servo spec's `periods` sets it. `max_speed` caps |v| (default [`DEFAULT_SPEED_FRACTION`]·c_p: an
 //! impact at that speed loads a grain by ~ρ c_p v = 10⁻⁴ E, far below yield and breakage).
 //!
 //! # Stiffness estimate (Hertz, at the target load)
@@ -206,12 +214,22 @@ pub fn hertz_wall_stiffness(stress: f64, area: f64, radius: f64, e_prime: f64, e
     columns * contact_stiffness / (2.0 * grains_in_column)
 }
 
-/// Default τ (s): the larger of [`DEFAULT_PERIODS`] periods of mass `mass` (kg) on
-/// `stiffness` (N/m) and [`DEFAULT_TRANSITS`] P-wave transits across `extent` (m) at
-/// `wave_speed` (m/s).
-pub fn default_time_constant(mass: f64, stiffness: f64, extent: f64, wave_speed: f64) -> f64 {
+/// τ (s): the larger of `periods` periods of mass `mass` (kg) on `stiffness` (N/m) and
+/// [`DEFAULT_TRANSITS`] P-wave transits across `extent` (m) at `wave_speed` (m/s).
+pub fn time_constant_of(
+    periods: f64,
+    mass: f64,
+    stiffness: f64,
+    extent: f64,
+    wave_speed: f64,
+) -> f64 {
     let period = 2.0 * std::f64::consts::PI * (mass / stiffness).sqrt();
-    (DEFAULT_PERIODS * period).max(DEFAULT_TRANSITS * extent / wave_speed)
+    (periods * period).max(DEFAULT_TRANSITS * extent / wave_speed)
+}
+
+/// Default τ (s): [`time_constant_of`] at [`DEFAULT_PERIODS`].
+pub fn default_time_constant(mass: f64, stiffness: f64, extent: f64, wave_speed: f64) -> f64 {
+    time_constant_of(DEFAULT_PERIODS, mass, stiffness, extent, wave_speed)
 }
 
 /// The area a servo acts on (m²): given, or the lattice span of packing `area_of` across
@@ -276,9 +294,10 @@ pub fn servo_control(scene: &Scene, wall: &WallSpec, spec: &ServoSpec) -> ServoC
     let stiffness = spec
         .stiffness
         .unwrap_or_else(|| hertz_wall_stiffness(spec.stress, area, radius, e_prime, extent));
-    let time_constant = spec
-        .time_constant
-        .unwrap_or_else(|| default_time_constant(mass, stiffness, extent, wave_speed));
+    let time_constant = spec.time_constant.unwrap_or_else(|| {
+        let periods = spec.periods.unwrap_or(DEFAULT_PERIODS);
+        time_constant_of(periods, mass, stiffness, extent, wave_speed)
+    });
     let max_speed = spec
         .max_speed
         .unwrap_or(DEFAULT_SPEED_FRACTION * wave_speed);

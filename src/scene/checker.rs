@@ -147,8 +147,15 @@ pub(super) fn validate_servo(
             }
         }
     }
+    if servo.time_constant.is_some() && servo.periods.is_some() {
+        return Err(c.err(
+            f(".periods"),
+            "give either time_constant (s) or periods (of the specimen's lowest mode), not both",
+        ));
+    }
     for (field, v) in [
         (".time_constant", servo.time_constant),
+        (".periods", servo.periods),
         (".max_speed", servo.max_speed),
         (".stiffness", servo.stiffness),
     ] {

@@ -329,10 +329,18 @@ pub struct ServoSpec {
     /// must then be a coordinate axis.
     #[serde(default)]
     pub area_of: Option<String>,
-    /// Time constant τ of the closed loop (s), > 0. Default: the larger of 2 periods of
-    /// the specimen on its estimated contact stiffness and 20 P-wave transits across it.
+    /// Time constant τ of the closed loop (s), > 0. Default: the larger of `periods`
+    /// periods of the specimen on its estimated contact stiffness and 20 P-wave transits
+    /// across it.
     #[serde(default)]
     pub time_constant: Option<f64>,
+    /// τ in periods of the specimen's lowest mode on the estimated stiffness (–), > 0;
+    /// not with `time_constant`. Default 2: safe for a lone grain between walls even when
+    /// the stiffness is underestimated 8×; a packing tolerates ½, which lets the lateral
+    /// walls of a triaxial stage follow the dilation at failure 4× closer
+    /// (src/boundary/servo.rs).
+    #[serde(default)]
+    pub periods: Option<f64>,
     /// Largest wall speed (m/s), > 0. Default: 1e-4 × the largest P-wave speed √(E/ρ).
     #[serde(default)]
     pub max_speed: Option<f64>,

@@ -47,6 +47,11 @@ pub trait Case {
     fn sweep_mrs(&self) -> Vec<f64>;
     /// The one meshing ratio of the quick run (`--quick`, `cargo test`).
     fn quick_mr(&self) -> f64;
+    /// Meshing ratios given with `--mr` must lie in (0, this): 1 where MR is the element
+    /// size over the sphere radius.
+    fn max_mr(&self) -> f64 {
+        1.0
+    }
     /// Default meshing ratios at the contact (full sweep, or quick).
     fn default_mrs(&self, quick: bool) -> Vec<f64> {
         if quick {
@@ -471,21 +476,30 @@ fn speed_vs_error_plot(path: &Path, outcomes: &[CaseOutcome]) -> Result<()> {
     .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))
 }
 
-/// Parses `--mr 0.09,0.045`.
-pub fn parse_mr_list(s: &str) -> std::result::Result<Vec<f64>, InputError> {
+/// Parses `--mr 0.09,0.045` and checks every value against each selected case's bound.
+pub fn parse_mr_list(
+    s: &str,
+    cases: &[Box<dyn Case>],
+) -> std::result::Result<Vec<f64>, InputError> {
     s.split(',')
         .map(|p| {
             let v: f64 = p.trim().parse().map_err(|_| {
                 InputError::new("<command line>", "--mr", format!("'{p}' is not a number"))
             })?;
-            if v.is_finite() && v > 0.0 && v < 1.0 {
-                Ok(v)
-            } else {
-                Err(InputError::new(
+            match cases
+                .iter()
+                .find(|c| !(v.is_finite() && v > 0.0 && v < c.max_mr()))
+            {
+                None => Ok(v),
+                Some(c) => Err(InputError::new(
                     "<command line>",
                     "--mr",
-                    format!("meshing ratio must be in (0, 1), got {v}"),
-                ))
+                    format!(
+                        "meshing ratio of {} must be in (0, {}), got {v}",
+                        c.name(),
+                        c.max_mr()
+                    ),
+                )),
             }
         })
         .collect()

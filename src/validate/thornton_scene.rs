@@ -46,6 +46,10 @@ pub struct ThorntonParams {
     /// Stage 1: servo tolerance (relative) and hold (servo time constants).
     pub tolerance: f64,
     pub hold: f64,
+    /// Servo loop time constant in periods of the cell's rigid mode on its wall stiffness
+    /// (the servo spec's `periods`): ½ lets the lateral walls follow the dilation at
+    /// failure (src/boundary/servo.rs).
+    pub servo_periods: f64,
     /// Longest stage durations / (R/c_p).
     pub isotropic_max_time: f64,
     pub shear_max_time: f64,
@@ -81,6 +85,7 @@ impl Default for ThorntonParams {
             strain_margin: 2.0e-5,
             tolerance: 0.01,
             hold: 1.0,
+            servo_periods: 0.5,
             isotropic_max_time: 1.5e-3 / paper_time,
             shear_max_time: 2.0e-3 / paper_time,
             history_interval: 5.0e-6 / paper_time,
@@ -104,6 +109,7 @@ impl ThorntonParams {
             ("strain_margin", &mut self.strain_margin),
             ("tolerance", &mut self.tolerance),
             ("hold", &mut self.hold),
+            ("servo_periods", &mut self.servo_periods),
             ("isotropic_max_time", &mut self.isotropic_max_time),
             ("shear_max_time", &mut self.shear_max_time),
             ("history_interval", &mut self.history_interval),
@@ -197,7 +203,9 @@ pub fn thornton_walls_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams
         extra.push_str(&format!("{k} = {v}\n"));
     }
     let sigma = e(inputs.confining_stress);
-    let servo = format!("{{ servo = {{ stress = {sigma}, area_of = \"cell\" }} }}");
+    let periods = p.servo_periods;
+    let servo =
+        format!("{{ servo = {{ stress = {sigma}, area_of = \"cell\", periods = {periods} }} }}");
     let lateral = format!("x_min = {servo}, x_max = {servo}, y_min = {servo}, y_max = {servo}");
     let walls: String = [
         ("x_min", [lo, 0.0, 0.0], [1.0, 0.0, 0.0]),
