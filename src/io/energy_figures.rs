@@ -261,11 +261,17 @@ pub fn draw_energy_figures(runs: &[RunHistory], out: &Path) -> Result<Vec<PathBu
 }
 
 /// The ledger at the peak stress ratio and at the end of each run, as a Markdown table
-/// (energies in µJ).
+/// (energies in the unit of the largest external work, so small dissipations keep digits).
 pub fn ledger_table(runs: &[RunHistory]) -> String {
-    let mut s = String::from(
-        "| run | at | t (ms) | σ1/σ3 | ALLWK | ALLSE | ALLPD | ALLFD | ALLVD | ALLKE | \
-         ALLPD/ALLFD | recoverable ALLSE/(ALLSE+ALLPD) | friction index | balance/ALLWK |\n\
+    let largest = runs
+        .iter()
+        .flat_map(|r| r.external_work.iter())
+        .fold(0.0_f64, |m, w| m.max(w.abs()));
+    let (unit, per_joule) = energy_unit(largest);
+    let mut s = format!(
+        "| run | at | t (ms) | σ1/σ3 | ALLWK ({unit}) | ALLSE ({unit}) | ALLPD ({unit}) | \
+         ALLFD ({unit}) | ALLVD ({unit}) | ALLKE ({unit}) | ALLPD/ALLFD | \
+         recoverable ALLSE/(ALLSE+ALLPD) | friction index | balance/ALLWK |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for run in runs {
@@ -275,7 +281,7 @@ pub fn ledger_table(runs: &[RunHistory]) -> String {
             .into_iter()
             .chain([("end", None, run.last())]);
         for (at, ratio_value, row) in rows {
-            let uj = |v: f64| format!("{:.4}", v * 1e6);
+            let uj = |v: f64| format!("{:.4}", v * per_joule);
             s.push_str(&format!(
                 "| {} | {at} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.1e} |\n",
                 run.label,
@@ -338,7 +344,12 @@ mod tests {
         assert_eq!(row.time, 1e-4);
         assert!(run("b", None).peak().is_none());
         let table = ledger_table(&[r]);
-        assert!(table.contains("| a | peak | 0.1000 | 3.0000 |"), "{table}");
+        // ALLWK reaches 16 µJ: the table is in µJ; the peak row holds ALLWK, ALLSE, ALLPD
+        assert!(table.contains("ALLWK (µJ)"), "{table}");
+        assert!(
+            table.contains("| a | peak | 0.1000 | 3.0000 | 4.0000 | 1.0000 | 2.0000 |"),
+            "{table}"
+        );
         assert!(table.contains("| a | end | 0.4000 | – |"), "{table}");
     }
 

@@ -82,7 +82,7 @@ impl Default for ThorntonParams {
             inertial_number: 1.0e-4,
             drop: 0.05,
             plateau_strain: 2.0e-5,
-            strain_margin: 2.0e-5,
+            strain_margin: 1.0e-5,
             tolerance: 0.01,
             hold: 1.0,
             servo_periods: 0.5,
