@@ -41,13 +41,18 @@ const THEORY_STYLES: [(RGBColor, Option<(u32, u32)>); 4] = [
     (RGBColor(160, 120, 70), Some((4, 6))),
 ];
 
-const PALETTE: [RGBColor; 6] = [
+/// Nine colours (no greys: those are the theory curves'), so `mufe plot` of four runs with
+/// two quantities each draws eight distinguishable curves.
+const PALETTE: [RGBColor; 9] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
     RGBColor(148, 103, 189),
     RGBColor(255, 127, 14),
     RGBColor(23, 190, 207),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(188, 189, 34),
 ];
 
 fn bounds(series: &[Series], scale: Scale, pick: impl Fn(&(f64, f64)) -> f64) -> (f64, f64) {
