@@ -119,3 +119,32 @@ fn the_cell_runs_at_rest() {
         .expect("no kinetic energy in the summary");
     assert!(kinetic < 1e-20, "kinetic energy {kinetic} J");
 }
+
+/// "added mass X kg" of `mufe check`'s mass-scaling line.
+fn added_mass(out: &str) -> f64 {
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("mass scaling:"))
+        .unwrap_or_else(|| panic!("no mass-scaling line:\n{out}"));
+    let rest = line.split("added mass ").nth(1).expect(line);
+    rest.split(' ').next().unwrap().parse().expect(line)
+}
+
+#[test]
+fn check_counts_the_added_mass_of_every_copy_of_a_shape() {
+    // The 2000-sphere block is checked with one mesh built for its single shape; its added
+    // mass must be 500 times that of the 4-sphere block, whose grains are all built.
+    let block = root(BLOCK);
+    let block = block.to_str().unwrap();
+    let step = "simulation.target_dt=3e-8";
+    let (o, _) = mufe(&["check", block, "--set", step]);
+    let all = text(&o.stdout);
+    assert!(o.status.success(), "{all}\n{}", text(&o.stderr));
+    assert!(all.contains("each meshed and built once"), "{all}");
+    let cells = "packings[0].cells=[1,1,1]";
+    let (o, _) = mufe(&["check", block, "--set", step, "--set", cells]);
+    let four = text(&o.stdout);
+    assert!(o.status.success(), "{four}\n{}", text(&o.stderr));
+    let ratio = added_mass(&all) / added_mass(&four);
+    assert!((ratio - 500.0).abs() < 500.0 * 1e-9, "ratio {ratio}");
+}

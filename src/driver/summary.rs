@@ -85,12 +85,33 @@ fn print_summary(
         loaded.scene.simulation.duration
     );
     if m.scaled_elements > 0 {
+        // `mufe check` builds each distinct grain once: the scene's added mass is each
+        // mesh's (element and contact-node scaling, read off the node masses) times its
+        // copies, while the element count is the distinct meshes'.
+        let (scaled, added) = match copies {
+            None => (
+                format!("{} elements scaled", m.scaled_elements),
+                m.added_mass,
+            ),
+            Some(_) => (
+                format!(
+                    "{} elements of the distinct meshes scaled",
+                    m.scaled_elements
+                ),
+                m.grains
+                    .iter()
+                    .enumerate()
+                    .map(|(gi, g)| {
+                        let scaled: f64 = m.mass[g.nodes.clone()].iter().sum();
+                        let physical: f64 = m.physical_mass[g.nodes.clone()].iter().sum();
+                        (scaled - physical) * copy(gi) as f64
+                    })
+                    .sum(),
+            ),
+        };
         println!(
-            "mass scaling: {} elements scaled, added mass {:.4e} kg ({:.3}% of {:.4e} kg)",
-            m.scaled_elements,
-            m.added_mass,
-            100.0 * m.added_mass / phys,
-            phys
+            "mass scaling: {scaled}, added mass {added:.4e} kg ({:.3}% of {phys:.4e} kg)",
+            100.0 * added / phys,
         );
     }
     let cm = &m.contact;
@@ -126,7 +147,12 @@ fn print_summary(
                 st.element_dt,
                 (st.contact_dt / st.element_dt).min(1.0),
                 if st.scaled_nodes > 0 {
-                    format!("; {} contact nodes mass-scaled, added {:.4e} kg", st.scaled_nodes, st.added_mass)
+                    format!(
+                        "; {} contact nodes mass-scaled, added {:.4e} kg{}",
+                        st.scaled_nodes,
+                        st.added_mass,
+                        if copies.is_some() { " (in the distinct meshes)" } else { "" }
+                    )
                 } else {
                     String::new()
                 }
