@@ -59,8 +59,10 @@
 //! failure the 172-sphere cell of `mufe validate thornton_walls` dilates at the axial rate,
 //! and its lateral stress overshot the target by 29 % with τ = 2T against 7 % with τ = T/2
 //! (the same peak ratio; docs/BENCHMARKS.md). A packing, damped by its many contacts and
-//! its friction, runs stably at τ = T/2: the servo spec's `periods` sets it. `max_speed` caps |v| (default [`DEFAULT_SPEED_FRACTION`]·c_p: an
-//! impact at that speed loads a grain by ~ρ c_p v = 10⁻⁴ E, far below yield and breakage).
+//! its friction, runs stably at τ = T/2: the servo spec's `periods` sets it.
+//!
+//! `max_speed` caps |v| (default [`DEFAULT_SPEED_FRACTION`]·c_p: an impact at that speed
+//! loads a grain by ~ρ c_p v = 10⁻⁴ E, far below yield and breakage).
 //!
 //! # Stiffness estimate (Hertz, at the target load)
 //! One column of grains of radius R stands on each (2R)² of wall (exact for the (001)
@@ -227,11 +229,6 @@ pub fn time_constant_of(
     (periods * period).max(DEFAULT_TRANSITS * extent / wave_speed)
 }
 
-/// Default τ (s): [`time_constant_of`] at [`DEFAULT_PERIODS`].
-pub fn default_time_constant(mass: f64, stiffness: f64, extent: f64, wave_speed: f64) -> f64 {
-    time_constant_of(DEFAULT_PERIODS, mass, stiffness, extent, wave_speed)
-}
-
 /// The area a servo acts on (m²): given, or the lattice span of packing `area_of` across
 /// the wall normal (validated: the packing exists and the normal is an axis).
 pub fn servo_area(scene: &Scene, wall: &WallSpec, spec: &ServoSpec) -> f64 {
@@ -324,7 +321,7 @@ mod tests {
             let wave_speed = (self.e_prime / self.density).sqrt();
             let area = 4.0 * r * r;
             let k = hertz_wall_stiffness(stress, area, r, self.e_prime, 2.0 * r);
-            let tau = default_time_constant(mass, k, 2.0 * r, wave_speed);
+            let tau = time_constant_of(DEFAULT_PERIODS, mass, k, 2.0 * r, wave_speed);
             // the controller believes k; the plant is what it is
             let control = ServoControl::new(
                 stress,

@@ -200,11 +200,11 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     Ok(summary)
 }
 
-/// Steps to the scene's duration at step `dt`, refused (exit 2, before any output) when
-/// it exceeds the scale guard's limit for what is actually run (`--max-steps` counts)
-/// and `--force` is not given. The estimate before meshing uses an approximate Δt; this
-/// is the exact count.
-/// The step that reaches `simulation.duration` on the solver's clock.
+/// The step that reaches `simulation.duration` on the solver's clock (a branch with
+/// another Δt counts from its checkpoint), refused (exit 2, before any output) when it
+/// exceeds the scale guard's limit for what is actually run (`--max-steps` counts) and
+/// `--force` is not given. The estimate before meshing uses an approximate Δt; this is
+/// the exact count.
 fn step_count(loaded: &LoadedScene, solver: &Solver, opts: &RunOptions) -> Result<u64> {
     let limit = crate::scene::estimate::MAX_STEPS;
     let dt = solver.model.dt;
