@@ -123,6 +123,32 @@ pub enum Command {
         #[arg(long, default_value_t = 3)]
         level: u32,
     },
+    /// Import a labelled μCT image (NRRD; 0 = void, one integer label per grain) as a
+    /// scene of surface grains: one OBJ per label beside SCENE and SCENE itself, which
+    /// `mufe check` accepts (docs/SHAPES.md, "Label images").
+    Import {
+        /// The label image (.nrrd, raw or ascii encoding).
+        labels: PathBuf,
+        /// Scene file to write; the grains go to <stem>_grains/ beside it.
+        #[arg(long)]
+        out: PathBuf,
+        /// Voxel edge (m); default: the header's spacing with its `space units`.
+        #[arg(long)]
+        voxel_size: Option<f64>,
+        /// Surface edge to coarsen to, also the grains' mesh seeding (m); default 2 voxels.
+        #[arg(long)]
+        seeding: Option<f64>,
+        /// Taubin smoothing passes of the voxel surfaces.
+        #[arg(long, default_value_t = 10)]
+        smoothing: usize,
+        /// Gap to leave between grains that touch in the image (m, below half a voxel);
+        /// default 0: their contact faces coincide.
+        #[arg(long, default_value_t = 0.0)]
+        gap: f64,
+        /// Labels with fewer voxels are left out (and listed).
+        #[arg(long, default_value_t = 27)]
+        min_voxels: usize,
+    },
     /// Draw the energy study figures of one or more runs (external work, strain energy,
     /// plastic and frictional dissipation, dissipation indices; docs/RESULTS.md) and print
     /// the energy ledger at the peak stress ratio and at the end of each run.
@@ -625,6 +651,24 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             out,
             labels,
         } => plot_command(&results, out, &labels),
+        Command::Import {
+            labels,
+            out,
+            voxel_size,
+            seeding,
+            smoothing,
+            gap,
+            min_voxels,
+        } => {
+            let opts = crate::image::scene::ImportOptions {
+                voxel_size,
+                seeding,
+                smoothing,
+                gap,
+                min_voxels,
+            };
+            crate::image::scene::import_command(&labels, &out, &opts)
+        }
         Command::Sand {
             out,
             grains,

@@ -30,6 +30,7 @@ pub mod domain;
 pub mod driver;
 pub mod element;
 pub mod energy;
+pub mod image;
 pub mod io;
 pub mod material;
 pub mod math;

@@ -23,6 +23,7 @@
 
 pub mod block;
 pub mod import;
+pub mod joint;
 mod quality;
 pub mod smooth;
 mod sphere;

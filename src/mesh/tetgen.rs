@@ -45,6 +45,17 @@ pub(crate) fn tetrahedralize(
     radius_edge_ratio: f64,
     max_volume: Option<f64>,
 ) -> Result<TetMesh, MeshError> {
+    tetrahedralize_marked(points, facets, regions, radius_edge_ratio, max_volume).map(|(m, _)| m)
+}
+
+/// [`tetrahedralize`], also returning each tet's region marker (0: in no region).
+pub(crate) fn tetrahedralize_marked(
+    points: &[[f64; 3]],
+    facets: &[[u32; 3]],
+    regions: &[Region],
+    radius_edge_ratio: f64,
+    max_volume: Option<f64>,
+) -> Result<(TetMesh, Vec<i32>), MeshError> {
     let err = |e: &str| MeshError::TetGen(e.to_string());
     let mut tg = tritet::Tetgen::new(
         points.len(),
@@ -74,7 +85,7 @@ pub(crate) fn tetrahedralize(
         .map_err(err)?;
     }
 
-    let (nodes, mut tets) = {
+    let (nodes, mut tets, markers) = {
         let _guard = TETGEN_LOCK
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
@@ -112,7 +123,8 @@ pub(crate) fn tetrahedralize(
             }
             tets.push(t);
         }
-        (nodes, tets)
+        let markers: Vec<i32> = (0..ncell).map(|c| tg.out_cell_marker(c)).collect();
+        (nodes, tets, markers)
     };
 
     // Positive orientation: swap the last two nodes of negatively oriented tets.
@@ -122,7 +134,7 @@ pub(crate) fn tetrahedralize(
             t.swap(2, 3);
         }
     }
-    Ok(TetMesh { nodes, tets })
+    Ok((TetMesh { nodes, tets }, markers))
 }
 
 #[cfg(test)]
