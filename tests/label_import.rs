@@ -189,3 +189,60 @@ fn a_header_without_spacing_or_unit_is_refused_naming_the_field() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--voxel-size"));
 }
+
+#[test]
+fn a_virtual_sand_image_imports_as_its_grains_touching_without_overlap() {
+    let dir = workdir("sand");
+    let out = mufe(
+        &[
+            "sand",
+            "--out",
+            "sand",
+            "--grains",
+            "4",
+            "--size",
+            "1e-3",
+            "--image-voxel",
+            "8e-5",
+        ],
+        &dir,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = mufe(
+        &["import", "sand/labels.nrrd", "--out", "sand/imported.toml"],
+        &dir,
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("4 grains; 0 pairs with vertices inside each other"),
+        "{text}"
+    );
+    // every grain within 3 % of its voxels' volume, and some pairs in contact
+    for line in text.lines().filter(|l| l.starts_with("label ")) {
+        let pct: f64 = line
+            .split(" % from the voxels' volume")
+            .next()
+            .and_then(|s| s.rsplit(' ').next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(pct.abs() < 3.0, "{line}");
+    }
+    assert!(text.lines().any(|l| l.starts_with("pair ")), "{text}");
+    let out = mufe(&["check", "sand/imported.toml"], &dir);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("4 grains"));
+}

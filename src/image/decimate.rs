@@ -1,11 +1,13 @@
 //! Coarsening a voxel-fine surface to the seeding by edge collapse, shortest edge first.
 //!
-//! An edge shorter than [`COLLAPSE_BELOW`] × the seeding is collapsed (to its midpoint, or
-//! onto its locked end) when the surface stays a manifold (the link condition: the ends
+//! An edge shorter than [`COLLAPSE_BELOW`] × the seeding is collapsed to its midpoint
+//! when the surface stays a manifold (the link condition: the ends
 //! share exactly the two opposite vertices), no facet turns by more than 45°, none gets
 //! worse than the quality bound [`MIN_QUALITY`] (unless it already was), and no edge grows
-//! beyond the seeding. Locked vertices — those a grain shares with a touching grain —
-//! never move: the contact face keeps its voxel-fine, coincident triangles on both grains.
+//! beyond the seeding. Locked vertices — those a grain shares with a touching grain, and
+//! those near them — take part in no collapse and never move: the contact face keeps its
+//! voxel-fine, coincident triangles on both grains, and the free surfaces of two grains
+//! cannot be pushed through each other next to it.
 //! Finally the free vertices move along their normals by the one distance that gives back
 //! the volume collapse took away.
 
@@ -24,7 +26,7 @@ pub const MIN_QUALITY: f64 = 0.3;
 /// Smallest cosine between a facet's normal before and after a collapse.
 const MIN_TURN_COSINE: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
-/// Collapses `s` toward edges of `seeding`; `locked[i]`: vertex i stays where it is.
+/// Collapses `s` toward edges of `seeding`; `locked[i]`: vertex i stays, with its facets.
 /// Returns the compacted surface and its lock flags.
 pub fn decimate(s: &Surface, locked: &[bool], seeding: f64) -> (Surface, Vec<bool>) {
     let volume = signed_volume(s);
@@ -62,17 +64,11 @@ pub fn decimate(s: &Surface, locked: &[bool], seeding: f64) -> (Surface, Vec<boo
         {
             continue;
         }
-        let (la, lb) = (locked[a as usize], locked[b as usize]);
-        if la && lb {
+        if locked[a as usize] || locked[b as usize] {
             continue;
         }
-        // Keep a locked end; otherwise keep `a` at the midpoint.
-        let (keep, gone) = if lb { (b, a) } else { (a, b) };
-        let target = if la || lb {
-            points[keep as usize]
-        } else {
-            scale(add(points[a as usize], points[b as usize]), 0.5)
-        };
+        let (keep, gone) = (a, b);
+        let target = scale(add(points[a as usize], points[b as usize]), 0.5);
         ring(&facets, &around[keep as usize], keep, &mut ring_a);
         ring(&facets, &around[gone as usize], gone, &mut ring_b);
         if !ring_a.contains(&gone) {

@@ -46,6 +46,11 @@ pub struct ImportOptions {
 /// surface, which bulges off its triangles by up to a few hundredths of a voxel.
 pub const MIN_GAP_VOXELS: f64 = 0.1;
 
+/// Vertices within this many voxel edges of a contact face are left as extracted by the
+/// decimation: coarsening next to a contact could push one grain's free surface through
+/// its neighbour's.
+pub const FROZEN_BAND_VOXELS: f64 = 1.5;
+
 /// Default seeding in voxel edges.
 pub const DEFAULT_SEEDING_VOXELS: f64 = 2.0;
 
@@ -95,6 +100,8 @@ pub struct Imported {
     /// Voxel edges (m) and origin (m) used.
     pub spacing: [f64; 3],
     pub seeding: f64,
+    /// Wall time of each stage (name, s).
+    pub timings: Vec<(&'static str, f64)>,
 }
 
 /// Voxel spacing (m) and origin (m) of an image, from the options or the header.
@@ -150,8 +157,16 @@ pub fn import_labels(
             ),
         ));
     }
+    let mut timings = Vec::new();
+    let mut clock = std::time::Instant::now();
+    let mut lap = |name: &'static str, timings: &mut Vec<(&'static str, f64)>| {
+        timings.push((name, clock.elapsed().as_secs_f64()));
+        clock = std::time::Instant::now();
+    };
     let mut contours = extract(image, spacing, origin);
+    lap("extract", &mut timings);
     smooth(&mut contours, opts.smoothing);
+    lap("smooth", &mut timings);
     let voxel_volume = spacing[0] * spacing[1] * spacing[2];
     let (kept, skipped): (Vec<_>, Vec<_>) = contours
         .grains
@@ -160,8 +175,9 @@ pub fn import_labels(
     let mut grains: Vec<ImportedGrain> = kept
         .par_iter()
         .map(|g| {
-            let (surface, locked) = compact(&contours.points, &contours.shared, &g.facets);
-            let (mut surface, locked) = decimate(&surface, &locked, seeding);
+            let (surface, shared) = compact(&contours.points, &contours.shared, &g.facets);
+            let frozen = near_any(&surface.points, &shared, FROZEN_BAND_VOXELS * voxel);
+            let (mut surface, _) = decimate(&surface, &frozen, seeding);
             if opts.gap > 0.0 {
                 offset_inward(&mut surface, 0.5 * opts.gap);
             }
@@ -176,13 +192,14 @@ pub fn import_labels(
                 label: g.label,
                 voxels: g.voxels,
                 voxel_volume: g.voxels as f64 * voxel_volume,
-                shared: locked.iter().filter(|&&l| l).count(),
+                shared: shared.iter().filter(|&&l| l).count(),
                 descriptors: ShapeDescriptors::of(&surface),
                 surface,
                 mesh: None,
             })
         })
         .collect::<Result<_, InputError>>()?;
+    lap("decimate and check", &mut timings);
     if opts.gap == 0.0 {
         let inside: Vec<[f64; 3]> = {
             let deepest = image.deepest_voxels();
@@ -204,6 +221,7 @@ pub fn import_labels(
         for (g, m) in grains.iter_mut().zip(meshes) {
             g.mesh = Some(m);
         }
+        lap("mesh (TetGen, joint)", &mut timings);
     }
     let tolerance = 1e-9 * voxel;
     let candidates: Vec<(usize, usize)> = (0..grains.len())
@@ -218,12 +236,14 @@ pub fn import_labels(
             second_in_first: overlap_of(&grains[j].surface, &grains[i].surface, tolerance),
         })
         .collect();
+    lap("overlap", &mut timings);
     Ok(Imported {
         grains,
         pairs,
         skipped: skipped.iter().map(|g| (g.label, g.voxels)).collect(),
         spacing,
         seeding,
+        timings,
     })
 }
 
@@ -260,6 +280,31 @@ fn mesh_jointly(
         }
     }
     mesh_touching(&points, &facets, inside, seeding)
+}
+
+/// Vertices within `band` of a vertex flagged in `of` (the flagged ones included).
+fn near_any(points: &[[f64; 3]], of: &[bool], band: f64) -> Vec<bool> {
+    let cell = |p: [f64; 3]| p.map(|c| (c / band).floor() as i64);
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
+    for (i, p) in points.iter().enumerate().filter(|(i, _)| of[*i]) {
+        grid.entry(cell(*p)).or_default().push(i);
+    }
+    points
+        .iter()
+        .map(|p| {
+            let c = cell(*p);
+            (-1..=1).any(|dx| {
+                (-1..=1).any(|dy| {
+                    (-1..=1).any(|dz| {
+                        grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz])
+                            .is_some_and(|list| {
+                                list.iter().any(|&j| norm(sub(points[j], *p)) <= band)
+                            })
+                    })
+                })
+            })
+        })
+        .collect()
 }
 
 /// A grain's own surface from the shared vertex table.
@@ -372,14 +417,13 @@ pub fn report(imported: &Imported) -> String {
         let v = signed_volume(&g.surface);
         let _ = writeln!(
             t,
-            "label {}: {} voxels ({:.4e} m³); surface {} facets, {} vertices on contact faces;{} volume {:.4e} m³ ({:+.2} % of the voxels'); {}",
+            "label {}: {} voxels ({:.4e} m³); surface {} facets, {} vertices on contact faces;{} {:+.2} % from the voxels' volume; {}",
             g.label,
             g.voxels,
             g.voxel_volume,
             g.surface.facets.len(),
             g.shared,
             g.mesh.as_ref().map_or(String::new(), |m| format!(" {} tets, {} nodes;", m.tets.len(), m.nodes.len())),
-            v,
             100.0 * (v / g.voxel_volume - 1.0),
             g.descriptors
         );
@@ -415,6 +459,12 @@ pub fn report(imported: &Imported) -> String {
         imported.grains.len(),
         overlapping
     );
+    let stages: Vec<String> = imported
+        .timings
+        .iter()
+        .map(|(name, s)| format!("{name} {s:.2} s"))
+        .collect();
+    let _ = writeln!(t, "wall time: {}", stages.join(", "));
     t
 }
 

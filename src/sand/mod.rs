@@ -11,7 +11,7 @@
 
 mod scene;
 
-pub use scene::write_sand;
+pub use scene::{write_sand, write_sand_image};
 
 use crate::math::{add, norm, scale};
 use crate::mesh::import::{ShapeDescriptors, Surface};
@@ -76,40 +76,94 @@ impl Rng {
     }
 }
 
-/// The surface of grain `index` (metres, centred on its volume centroid).
-pub fn grain_surface(p: &SandParams, index: usize) -> Surface {
-    let mut rng =
-        Rng(p.seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ (index as u64).wrapping_mul(0x9e37_79b9));
-    let waves: Vec<(f64, [f64; 3], f64, f64)> = (0..WAVES)
-        .map(|_| {
-            let degree = 2.0 + (rng.unit() * 6.0).floor();
-            let amplitude = p.roughness * (2.0 * rng.unit() - 1.0) / degree;
-            (
-                degree,
-                rng.direction(),
-                2.0 * std::f64::consts::PI * rng.unit(),
-                amplitude,
-            )
-        })
-        .collect();
-    let c = 1.0;
-    let b = c * p.flatness;
-    let a = b * p.elongation;
-    let mut s = icosphere(p.level);
-    for u in s.points.iter_mut() {
+/// The star-shaped grain `index` of a sand: r(u) = ellipsoid(u)·max(1 + waves(u), ½) in
+/// the generator's frame, then shifted by the faceted surface's centroid and scaled to the
+/// requested size.
+pub struct GrainShape {
+    waves: Vec<(f64, [f64; 3], f64, f64)>,
+    semi_axes: [f64; 3],
+    /// Centroid of the faceted surface in the generator's frame.
+    centroid: [f64; 3],
+    /// Metres per generator unit.
+    scale: f64,
+}
+
+impl GrainShape {
+    pub fn new(p: &SandParams, index: usize) -> Self {
+        let mut rng =
+            Rng(p.seed.wrapping_mul(0x2545_f491_4f6c_dd1d)
+                ^ (index as u64).wrapping_mul(0x9e37_79b9));
+        let waves: Vec<(f64, [f64; 3], f64, f64)> = (0..WAVES)
+            .map(|_| {
+                let degree = 2.0 + (rng.unit() * 6.0).floor();
+                let amplitude = p.roughness * (2.0 * rng.unit() - 1.0) / degree;
+                (
+                    degree,
+                    rng.direction(),
+                    2.0 * std::f64::consts::PI * rng.unit(),
+                    amplitude,
+                )
+            })
+            .collect();
+        let c = 1.0;
+        let b = c * p.flatness;
+        let a = b * p.elongation;
+        let mut shape = GrainShape {
+            waves,
+            semi_axes: [a, b, c],
+            centroid: [0.0; 3],
+            scale: 1.0,
+        };
+        let mut s = icosphere(p.level);
+        for u in s.points.iter_mut() {
+            *u = scale(*u, shape.radius_along(*u));
+        }
+        let d = ShapeDescriptors::of(&s);
+        shape.centroid = d.centroid;
+        shape.scale = 0.5 * p.size / d.equivalent_radius;
+        shape
+    }
+
+    /// Radius along the unit vector `u` from the generator's origin (generator units).
+    fn radius_along(&self, u: [f64; 3]) -> f64 {
+        let [a, b, c] = self.semi_axes;
         let ellipsoid = 1.0 / ((u[0] / a).powi(2) + (u[1] / b).powi(2) + (u[2] / c).powi(2)).sqrt();
-        let wave: f64 = waves
+        let wave: f64 = self
+            .waves
             .iter()
             .map(|&(l, n, phase, amp)| {
-                amp * (l * std::f64::consts::PI * crate::math::dot(n, *u) + phase).sin()
+                amp * (l * std::f64::consts::PI * crate::math::dot(n, u) + phase).sin()
             })
             .sum();
-        *u = scale(*u, ellipsoid * (1.0 + wave).max(0.5));
+        ellipsoid * (1.0 + wave).max(0.5)
     }
-    let d = ShapeDescriptors::of(&s);
-    let k = 0.5 * p.size / d.equivalent_radius;
-    for x in s.points.iter_mut() {
-        *x = scale(crate::math::sub(*x, d.centroid), k);
+
+    /// |x|/r(x/|x|) of a point `x` relative to the grain's centroid (m): < 1 inside the
+    /// smooth shape (the faceted surface is its icosphere interpolation).
+    pub fn depth_ratio(&self, x: [f64; 3]) -> f64 {
+        let g = add(scale(x, 1.0 / self.scale), self.centroid);
+        let r = norm(g);
+        if r == 0.0 {
+            return 0.0;
+        }
+        r / self.radius_along(scale(g, 1.0 / r))
+    }
+
+    /// Largest distance of the smooth shape from the centroid (m), bounded from the
+    /// semi-axes and the wave amplitudes.
+    pub fn bounding_radius(&self) -> f64 {
+        let amplitude: f64 = self.waves.iter().map(|w| w.3.abs()).sum();
+        (self.semi_axes[0] * (1.0 + amplitude) + norm(self.centroid)) * self.scale
+    }
+}
+
+/// The surface of grain `index` (metres, centred on its volume centroid).
+pub fn grain_surface(p: &SandParams, index: usize) -> Surface {
+    let shape = GrainShape::new(p, index);
+    let mut s = icosphere(p.level);
+    for u in s.points.iter_mut() {
+        let g = scale(*u, shape.radius_along(*u));
+        *u = scale(crate::math::sub(g, shape.centroid), shape.scale);
     }
     s
 }

@@ -12,7 +12,7 @@ pub mod cache;
 pub mod checks;
 mod descriptors;
 pub mod formats;
-mod intersect;
+pub mod intersect;
 mod refine;
 
 use std::path::{Path, PathBuf};
