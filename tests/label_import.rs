@@ -246,3 +246,52 @@ fn a_virtual_sand_image_imports_as_its_grains_touching_without_overlap() {
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("4 grains"));
 }
+
+#[test]
+fn a_stated_gap_separates_the_grains_and_bad_gaps_are_refused() {
+    let image = three_touching_balls();
+    let gap = 0.2 * VOXEL;
+    let opts = ImportOptions {
+        voxel_size: Some(VOXEL),
+        gap,
+        ..ImportOptions::default()
+    };
+    let imported = import_labels(&image, "balls.nrrd", &opts).unwrap();
+    assert!(imported.grains.iter().all(|g| g.mesh.is_none()));
+    for p in &imported.pairs {
+        let (a, b) = (p.first_in_second, p.second_in_first);
+        assert_eq!(a.touching + b.touching + a.inside + b.inside, 0, "{p:?}");
+    }
+    // the faces moved apart by the gap: across the contact face the vertices of one grain
+    // are G from the other; at the rim, where vertex normals tilt, no less than G/2
+    let (s1, s2) = (&imported.grains[0].surface, &imported.grains[1].surface);
+    let near: Vec<f64> = s1
+        .points
+        .iter()
+        .map(|p| mufe::image::overlap::distance_to_surface(*p, s2))
+        .filter(|&d| d < 2.0 * gap)
+        .collect();
+    let closest = near.iter().copied().fold(f64::INFINITY, f64::min);
+    let at_gap = near
+        .iter()
+        .filter(|&&d| (d / gap - 1.0).abs() < 0.05)
+        .count();
+    assert!(closest > 0.5 * gap, "closest {closest:e} vs gap {gap:e}");
+    assert!(
+        at_gap as f64 > 0.7 * near.len() as f64,
+        "{at_gap} of {} near vertices at the gap",
+        near.len()
+    );
+    for bad in [0.05 * VOXEL, 0.5 * VOXEL, -VOXEL] {
+        let e = import_labels(
+            &image,
+            "balls.nrrd",
+            &ImportOptions {
+                gap: bad,
+                ..opts.clone()
+            },
+        )
+        .unwrap_err();
+        assert_eq!(e.item, "--gap", "{e}");
+    }
+}
