@@ -128,6 +128,10 @@ pub enum Command {
         #[arg(long)]
         image_voxel: Option<f64>,
     },
+    /// Internal: mesh the JSON surface spec on stdin into the disk cache (started by mufe
+    /// itself to mesh distinct shapes in parallel).
+    #[command(hide = true)]
+    MeshWorker,
     /// Import a labelled μCT image (NRRD; 0 = void, one integer label per grain) as a
     /// scene of surface grains: one OBJ per label beside SCENE and SCENE itself, which
     /// `mufe check` accepts (docs/SHAPES.md, "Label images").
@@ -656,6 +660,8 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             out,
             labels,
         } => plot_command(&results, out, &labels),
+        Command::MeshWorker => crate::mesh::import::run_mesh_worker()
+            .map_err(|e| InputError::new("<stdin>", "mesh-worker", e).into()),
         Command::Import {
             labels,
             out,

@@ -349,3 +349,66 @@ fn two_grains_of_virtual_sand_run_with_the_energy_ledger_balanced() {
         drift / largest
     );
 }
+
+/// Distinct shapes missing from the cache are meshed in `mufe mesh-worker` processes
+/// (issue 15, item 2), giving the meshes the in-process mesher gives.
+#[test]
+fn distinct_shapes_mesh_in_worker_processes_into_the_cache_alike() {
+    let dir = std::env::temp_dir().join(format!("mufe_workers_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mufe = env!("CARGO_BIN_EXE_mufe");
+    let run = |args: &[&str], envs: &[(&str, &str)]| {
+        let mut c = std::process::Command::new(mufe);
+        c.args(args).current_dir(&dir);
+        for (k, v) in envs {
+            c.env(k, v);
+        }
+        c.output().unwrap()
+    };
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = run(&["sand", "--out", "s", "--grains", "4", "--seed", "3"], &[]);
+    assert!(out.status.success());
+    let totals = |o: &std::process::Output| {
+        String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .find(|l| l.starts_with("totals:"))
+            .unwrap()
+            .to_string()
+    };
+    let with_workers = run(&["check", "s/scene.toml"], &[("MUFE_CACHE_DIR", "cache_w")]);
+    let note = String::from_utf8_lossy(&with_workers.stderr);
+    assert!(with_workers.status.success(), "{note}");
+    assert!(
+        note.contains("meshed 4 distinct surface shapes in up to"),
+        "{note}"
+    );
+    assert_eq!(std::fs::read_dir(dir.join("cache_w")).unwrap().count(), 4);
+    // an MPI rank meshes in-process: same meshes
+    let in_process = run(
+        &["check", "s/scene.toml"],
+        &[("MUFE_CACHE_DIR", "cache_p"), ("OMPI_COMM_WORLD_SIZE", "1")],
+    );
+    assert!(!String::from_utf8_lossy(&in_process.stderr).contains("worker"));
+    assert_eq!(totals(&with_workers), totals(&in_process));
+    for e in std::fs::read_dir(dir.join("cache_w")).unwrap() {
+        let name = e.unwrap().file_name();
+        assert_eq!(
+            std::fs::read(dir.join("cache_w").join(&name)).unwrap(),
+            std::fs::read(dir.join("cache_p").join(&name)).unwrap(),
+            "{name:?}"
+        );
+    }
+    // warm: nothing left for the workers
+    let warm = run(&["check", "s/scene.toml"], &[("MUFE_CACHE_DIR", "cache_w")]);
+    assert!(!String::from_utf8_lossy(&warm.stderr).contains("worker"));
+    // a worker fed garbage fails with exit 2
+    let mut c = std::process::Command::new(mufe)
+        .arg("mesh-worker")
+        .stdin(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write as _;
+    c.stdin.take().unwrap().write_all(b"{not json").unwrap();
+    assert_eq!(c.wait_with_output().unwrap().status.code(), Some(2));
+}

@@ -24,6 +24,31 @@ pub fn mesh_shape(shape: &ShapeSpec) -> Result<TetMesh, mesh::MeshError> {
     }
 }
 
+/// Meshes the scene's distinct surface shapes that are not in the disk cache in worker
+/// processes, one per thread of the run (`mesh::import::premesh_in_workers`), so that the
+/// serial passes below only load them.
+pub fn premesh_surfaces(loaded: &LoadedScene) {
+    let distinct: BTreeMap<String, &mesh::import::SurfaceSpec> = loaded
+        .scene
+        .grains
+        .iter()
+        .filter_map(|g| match &g.shape {
+            ShapeSpec::Surface(s) => Some((serde_json::to_string(s).unwrap_or_default(), s)),
+            _ => None,
+        })
+        .collect();
+    let specs: Vec<&mesh::import::SurfaceSpec> = distinct.into_values().collect();
+    let workers = rayon::current_num_threads();
+    let start = std::time::Instant::now();
+    let meshed = mesh::import::premesh_in_workers(&specs, workers);
+    if meshed > 0 {
+        eprintln!(
+            "note: meshed {meshed} distinct surface shapes in up to {workers} worker processes ({:.2} s)",
+            start.elapsed().as_secs_f64()
+        );
+    }
+}
+
 /// Builds the model of the given grains (all grains on one rank: `owned = 0..n`).
 pub fn build_model(
     loaded: &LoadedScene,
@@ -65,6 +90,7 @@ pub fn build_model_with_ghosts(
         })
         .collect();
 
+    premesh_surfaces(loaded);
     let mut cache: BTreeMap<String, Arc<TetMesh>> = BTreeMap::new();
     let mut grains = Vec::new();
     let mut x0: Vec<[f64; 3]> = Vec::new();

@@ -28,6 +28,7 @@ pub struct GlobalMesh {
 impl GlobalMesh {
     pub fn build(loaded: &LoadedScene) -> Result<Self, InputError> {
         let scene = &loaded.scene;
+        super::assemble::premesh_surfaces(loaded);
         let mut cache: BTreeMap<String, (Arc<TetMesh>, usize)> = BTreeMap::new();
         let (mut meshes, mut node_offset, mut element_offset, mut surface_nodes, mut bounds) =
             (Vec::new(), vec![0], vec![0], Vec::new(), Vec::new());

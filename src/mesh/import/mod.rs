@@ -295,15 +295,7 @@ pub fn mesh_surface_cached(
     let (mut mesh, hit) = match prepared {
         Prepared::Volume(m) => (m, false),
         Prepared::Surface(s) => {
-            let key = format!(
-                "mufe surface mesher {MESHER_VERSION}\nfile {} bytes fnv64 {:016x}\nseeding {:e}\nfactor {:e}\nrepair {}\norigin {:?}\n",
-                bytes.len(),
-                cache::fnv64(&bytes),
-                spec.seeding,
-                spec.factor(),
-                spec.repair,
-                spec.origin
-            );
+            let key = cache_key(spec, &bytes);
             match cache_dir.and_then(|d| cache::load(d, &key)) {
                 Some(m) => (m, true),
                 None => {
@@ -318,6 +310,103 @@ pub fn mesh_surface_cached(
     };
     rotate(&mut mesh.nodes, spec.rotation);
     Ok((mesh, hit))
+}
+
+/// The disk-cache key of a surface shape: mesher version, the file's length and hash, and
+/// every meshing option.
+fn cache_key(spec: &SurfaceSpec, bytes: &[u8]) -> String {
+    format!(
+        "mufe surface mesher {MESHER_VERSION}\nfile {} bytes fnv64 {:016x}\nseeding {:e}\nfactor {:e}\nrepair {}\norigin {:?}\n",
+        bytes.len(),
+        cache::fnv64(bytes),
+        spec.seeding,
+        spec.factor(),
+        spec.repair,
+        spec.origin
+    )
+}
+
+/// The executable that runs `mufe mesh-worker`, set by the `mufe` binary at start-up when
+/// it is not an MPI rank; without it (library use, tests, MPI runs) shapes mesh in-process.
+static WORKER_EXE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+
+/// Lets [`premesh_in_workers`] start `exe mesh-worker` processes.
+pub fn enable_worker_processes(exe: PathBuf) {
+    let _ = WORKER_EXE.set(exe);
+}
+
+/// Meshes the surface shapes of `specs` that are not in the disk cache yet in up to
+/// `workers` `mufe mesh-worker` processes at once, each leaving its mesh in the cache for
+/// the caller's serial pass, which then only loads them. Processes, not threads, because
+/// TetGen keeps process-wide state. Returns how many shapes the workers meshed. A worker
+/// that fails is ignored: the serial pass meets the same error and reports it in context.
+/// Does nothing without a cache, without [`enable_worker_processes`], or for fewer than
+/// two uncached shapes or workers.
+pub fn premesh_in_workers(specs: &[&SurfaceSpec], workers: usize) -> usize {
+    let (Some(exe), Some(dir)) = (WORKER_EXE.get(), cache::cache_dir()) else {
+        return 0;
+    };
+    let mut missing: Vec<&SurfaceSpec> = Vec::new();
+    let mut keys = std::collections::BTreeSet::new();
+    for spec in specs {
+        let Ok(bytes) = std::fs::read(&spec.file) else {
+            continue;
+        };
+        if Format::from_path(Path::new(&spec.file)) == Some(Format::Msh) {
+            continue; // may be a volume mesh, used as is
+        }
+        let key = cache_key(spec, &bytes);
+        if cache::load(&dir, &key).is_none() && keys.insert(key) {
+            missing.push(spec);
+        }
+    }
+    if missing.len() < 2 || workers < 2 {
+        return 0;
+    }
+    let mut running: std::collections::VecDeque<std::process::Child> = Default::default();
+    let mut meshed = 0;
+    let mut finish = |child: std::process::Child| {
+        if child.wait_with_output().is_ok_and(|o| o.status.success()) {
+            meshed += 1;
+        }
+    };
+    for spec in missing {
+        if running.len() == workers {
+            if let Some(child) = running.pop_front() {
+                finish(child);
+            }
+        }
+        let Ok(json) = serde_json::to_string(spec) else {
+            continue;
+        };
+        let child = std::process::Command::new(exe)
+            .arg("mesh-worker")
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn();
+        if let Ok(mut child) = child {
+            if let Some(mut stdin) = child.stdin.take() {
+                let _ = std::io::Write::write_all(&mut stdin, json.as_bytes());
+            }
+            running.push_back(child);
+        }
+    }
+    for child in running {
+        finish(child);
+    }
+    meshed
+}
+
+/// `mufe mesh-worker`: meshes the JSON surface spec read from stdin into the disk cache.
+pub fn run_mesh_worker() -> Result<(), String> {
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut std::io::stdin(), &mut text).map_err(|e| e.to_string())?;
+    let spec: SurfaceSpec = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    let dir = cache::cache_dir().ok_or("no mesh cache directory")?;
+    mesh_surface_cached(&spec, Some(&dir))
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 /// Subdivides the surface to edges ≤ `seeding` and fills it with tets.
