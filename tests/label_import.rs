@@ -65,6 +65,21 @@ fn mufe(args: &[&str], dir: &Path) -> std::process::Output {
         .unwrap()
 }
 
+/// `mufe import LABELS --out SCENE` succeeds with `grains` grains and no overlapping pair;
+/// returns its report.
+fn import_without_overlap(labels: &str, scene: &str, grains: usize, dir: &Path) -> String {
+    let out = mufe(&["import", labels, "--out", scene], dir);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary = format!("{grains} grains; 0 pairs with vertices inside each other");
+    assert!(text.contains(&summary), "{text}");
+    text
+}
+
 #[test]
 fn three_touching_labels_become_three_grains_that_meet_without_overlap() {
     let image = three_touching_balls();
@@ -105,17 +120,7 @@ fn the_imported_scene_checks_and_starts_stress_free() {
     let dir = workdir("run");
     let image = three_touching_balls();
     write_nrrd(&dir.join("balls.nrrd"), &image, [VOXEL; 3]).unwrap();
-    let out = mufe(&["import", "balls.nrrd", "--out", "balls.toml"], &dir);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(
-        text.contains("3 grains; 0 pairs with vertices inside each other"),
-        "{text}"
-    );
+    import_without_overlap("balls.nrrd", "balls.toml", 3, &dir);
     for l in 1..=3 {
         assert!(dir.join(format!("balls_grains/label_{l}.msh")).is_file());
     }
@@ -212,20 +217,7 @@ fn a_virtual_sand_image_imports_as_its_grains_touching_without_overlap() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let out = mufe(
-        &["import", "sand/labels.nrrd", "--out", "sand/imported.toml"],
-        &dir,
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(
-        text.contains("4 grains; 0 pairs with vertices inside each other"),
-        "{text}"
-    );
+    let text = import_without_overlap("sand/labels.nrrd", "sand/imported.toml", 4, &dir);
     // every grain within 3 % of its voxels' volume, and some pairs in contact
     for line in text.lines().filter(|l| l.starts_with("label ")) {
         let pct: f64 = line
