@@ -10,6 +10,8 @@ pub struct Progress {
     start: Instant,
     last: Instant,
     last_fraction: f64,
+    /// Fraction done at the first update since `start` (a restart starts part-way).
+    start_fraction: f64,
     label: String,
 }
 
@@ -23,6 +25,7 @@ impl Progress {
             start: now,
             last: now,
             last_fraction: 0.0,
+            start_fraction: f64::NAN,
             label: label.to_string(),
         }
     }
@@ -35,11 +38,10 @@ impl Progress {
         let now = Instant::now();
         let since = now.duration_since(self.last);
         let elapsed = now.duration_since(self.start).as_secs_f64();
-        let eta = if fraction > 0.0 {
-            elapsed * (1.0 - fraction) / fraction
-        } else {
-            f64::NAN
-        };
+        if self.start_fraction.is_nan() {
+            self.start_fraction = fraction;
+        }
+        let eta = remaining_time(elapsed, self.start_fraction, fraction);
         if self.terminal {
             if since < Duration::from_millis(200) {
                 return;
@@ -80,6 +82,7 @@ impl Progress {
             self.label = label.to_string();
             self.start = Instant::now();
             self.last_fraction = 0.0;
+            self.start_fraction = f64::NAN;
         }
     }
 
@@ -88,6 +91,17 @@ impl Progress {
         if self.enabled && self.terminal {
             println!();
         }
+    }
+}
+
+/// Time left (s) at the rate seen since `start_fraction`: `elapsed` for the fraction done
+/// since then. NaN before any progress.
+fn remaining_time(elapsed: f64, start_fraction: f64, fraction: f64) -> f64 {
+    let done = fraction - start_fraction;
+    if done > 0.0 {
+        elapsed * (1.0 - fraction) / done
+    } else {
+        f64::NAN
     }
 }
 
@@ -105,5 +119,19 @@ pub fn format_secs(s: f64) -> String {
             (s / 3600.0) as u64,
             ((s % 3600.0) / 60.0) as u64
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::remaining_time;
+
+    #[test]
+    fn the_eta_counts_only_the_progress_made_since_this_process_started() {
+        // fresh run: 10 % in 60 s → 540 s left
+        assert!((remaining_time(60.0, 0.0, 0.1) - 540.0).abs() < 1e-9);
+        // restarted at 33.5 %: 1 % more in 30 s → 65.5 % left takes 1965 s, not 60 s
+        assert!((remaining_time(30.0, 0.335, 0.345) - 1965.0).abs() < 1e-6);
+        assert!(remaining_time(5.0, 0.335, 0.335).is_nan());
     }
 }
