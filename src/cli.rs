@@ -133,7 +133,7 @@ pub enum Command {
     #[command(hide = true)]
     MeshWorker,
     /// Import a labelled μCT image (NRRD; 0 = void, one integer label per grain) as a
-    /// scene of surface grains: one OBJ per label beside SCENE and SCENE itself, which
+    /// scene of grains: one volume mesh per label beside SCENE and SCENE itself, which
     /// `mufe check` accepts (docs/SHAPES.md, "Label images").
     Import {
         /// The label image (.nrrd, raw or ascii encoding).

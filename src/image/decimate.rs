@@ -88,7 +88,7 @@ pub fn decimate(s: &Surface, locked: &[bool], seeding: f64) -> (Surface, Vec<boo
             continue;
         }
         // The opposite vertices lose an edge: keep them at valence ≥ 3.
-        if common.iter().any(|&v| valence(&around[v as usize]) < 4) {
+        if common.iter().any(|&v| around[v as usize].len() < 4) {
             continue;
         }
         let acceptable = around[keep as usize]
@@ -145,24 +145,14 @@ pub fn decimate(s: &Surface, locked: &[bool], seeding: f64) -> (Surface, Vec<boo
         }
     }
 
-    // Compact.
-    let mut new_id = vec![u32::MAX; points.len()];
-    let mut out = Surface::default();
-    let mut out_locked = Vec::new();
-    for (f, tri) in facets.iter().enumerate() {
-        if !facet_alive[f] {
-            continue;
-        }
-        let t = tri.map(|v| {
-            if new_id[v as usize] == u32::MAX {
-                new_id[v as usize] = out.points.len() as u32;
-                out.points.push(points[v as usize]);
-                out_locked.push(locked[v as usize]);
-            }
-            new_id[v as usize]
-        });
-        out.facets.push(t);
-    }
+    let alive = facets
+        .iter()
+        .zip(&facet_alive)
+        .filter(|(_, &a)| a)
+        .map(|(f, _)| *f);
+    let (points, facets, old) = crate::mesh::compact_cells(&points, alive);
+    let mut out = Surface { points, facets };
+    let out_locked: Vec<bool> = old.iter().map(|&v| locked[v as usize]).collect();
     restore_volume(&mut out, &out_locked, volume);
     (out, out_locked)
 }
@@ -170,17 +160,16 @@ pub fn decimate(s: &Surface, locked: &[bool], seeding: f64) -> (Surface, Vec<boo
 /// Moves the free vertices along their area-weighted normals by the one distance d with
 /// V(d) = `volume` to first order (d = ΔV / free area).
 fn restore_volume(s: &mut Surface, locked: &[bool], volume: f64) {
-    let mut normals = vec![[0.0; 3]; s.points.len()];
-    let mut free_area = 0.0;
-    for f in &s.facets {
-        let p = f.map(|v| s.points[v as usize]);
-        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-        for &v in f {
-            normals[v as usize] = add(normals[v as usize], n);
-        }
-        let frees = f.iter().filter(|&&v| !locked[v as usize]).count();
-        free_area += 0.5 * norm(n) * frees as f64 / 3.0;
-    }
+    let normals = super::vertex_normals(s);
+    let free_area: f64 = s
+        .facets
+        .iter()
+        .map(|f| {
+            let p = f.map(|v| s.points[v as usize]);
+            let frees = f.iter().filter(|&&v| !locked[v as usize]).count();
+            0.5 * norm(cross(sub(p[1], p[0]), sub(p[2], p[0]))) * frees as f64 / 3.0
+        })
+        .sum();
     if free_area <= 0.0 {
         return;
     }
@@ -203,10 +192,6 @@ fn ring(facets: &[[u32; 3]], around: &[u32], v: u32, out: &mut Vec<u32>) {
             }
         }
     }
-}
-
-fn valence(around: &[u32]) -> usize {
-    around.len()
 }
 
 /// 4√3 A / (l₀² + l₁² + l₂²): 1 for an equilateral triangle, 0 for a degenerate one.

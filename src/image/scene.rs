@@ -3,9 +3,10 @@
 //! Pipeline: voxel size (command line, else the header's spacing with its unit) →
 //! [`contour::extract`] → [`contour::smooth`] → per grain, [`decimate::decimate`] with its
 //! contact faces locked → an optional gap (every vertex moved inward by half of it) →
-//! surface checks → overlap of every pair of grains whose boxes meet. Each grain is written
-//! as an OBJ (metres, full precision, relative to its volume centroid, which is its
-//! `centre` in the scene), so the touching faces of two grains land on the same points in
+//! surface checks → one joint TetGen run (`mesh::joint`; without a gap) → overlap of every
+//! pair of grains whose boxes meet. Each grain is written as a Gmsh volume mesh (an OBJ
+//! surface with a gap), in metres at full precision relative to its volume centroid, its
+//! `centre` in the scene, so the touching faces of two grains land on the same points in
 //! the run to within a rounding of the coordinates.
 
 use std::fmt::Write as _;
@@ -18,10 +19,9 @@ use super::decimate::decimate;
 use super::overlap::{boxes_meet, overlap_of, PairOverlap};
 use super::LabelImage;
 use crate::error::{num, InputError};
-use crate::math::{add, cross, norm, scale, sub};
+use crate::math::{norm, scale, sub};
 use crate::mesh::import::checks::{check, signed_volume};
-use crate::mesh::import::formats::write_msh_volume;
-use crate::mesh::import::formats::write_obj;
+use crate::mesh::import::formats::{surface_from_soup, write_msh_volume, write_obj};
 use crate::mesh::import::{ShapeDescriptors, Surface};
 use crate::mesh::joint::mesh_touching;
 use crate::mesh::TetMesh;
@@ -97,7 +97,7 @@ pub struct Imported {
     pub pairs: Vec<PairReport>,
     /// Labels left out: (label, voxels).
     pub skipped: Vec<(u32, usize)>,
-    /// Voxel edges (m) and origin (m) used.
+    /// Voxel edges used (m).
     pub spacing: [f64; 3],
     pub seeding: f64,
     /// Wall time of each stage (name, s).
@@ -254,32 +254,23 @@ fn mesh_jointly(
     inside: &[[f64; 3]],
     seeding: f64,
 ) -> Result<Vec<TetMesh>, crate::mesh::MeshError> {
-    let mut id: std::collections::HashMap<[u64; 3], u32> = Default::default();
-    let mut points = Vec::new();
-    let mut seen = std::collections::HashSet::new();
-    let mut facets = Vec::new();
-    for g in grains {
-        let ids: Vec<u32> = g
-            .surface
-            .points
+    let union = surface_from_soup(grains.iter().flat_map(|g| {
+        g.surface
+            .facets
             .iter()
-            .map(|p| {
-                *id.entry(p.map(f64::to_bits)).or_insert_with(|| {
-                    points.push(*p);
-                    (points.len() - 1) as u32
-                })
-            })
-            .collect();
-        for f in &g.surface.facets {
-            let t = f.map(|v| ids[v as usize]);
-            let mut key = t;
+            .map(|f| f.map(|v| g.surface.points[v as usize]))
+    }));
+    let mut seen = std::collections::HashSet::new();
+    let facets: Vec<[u32; 3]> = union
+        .facets
+        .into_iter()
+        .filter(|f| {
+            let mut key = *f;
             key.sort_unstable();
-            if seen.insert(key) {
-                facets.push(t);
-            }
-        }
-    }
-    mesh_touching(&points, &facets, inside, seeding)
+            seen.insert(key)
+        })
+        .collect();
+    mesh_touching(&union.points, &facets, inside, seeding)
 }
 
 /// Vertices within `band` of a vertex flagged in `of` (the flagged ones included).
@@ -307,34 +298,16 @@ fn near_any(points: &[[f64; 3]], of: &[bool], band: f64) -> Vec<bool> {
         .collect()
 }
 
-/// A grain's own surface from the shared vertex table.
+/// A grain's own surface from the shared vertex table, with its shared flags.
 fn compact(points: &[[f64; 3]], shared: &[bool], facets: &[[u32; 3]]) -> (Surface, Vec<bool>) {
-    let mut id = std::collections::HashMap::new();
-    let mut s = Surface::default();
-    let mut locked = Vec::new();
-    for f in facets {
-        let t = f.map(|v| {
-            *id.entry(v).or_insert_with(|| {
-                s.points.push(points[v as usize]);
-                locked.push(shared[v as usize]);
-                (s.points.len() - 1) as u32
-            })
-        });
-        s.facets.push(t);
-    }
-    (s, locked)
+    let (points, facets, old) = crate::mesh::compact_cells(points, facets.iter().copied());
+    let locked = old.iter().map(|&v| shared[v as usize]).collect();
+    (Surface { points, facets }, locked)
 }
 
 /// Moves every vertex inward along its area-weighted normal by `d`.
 fn offset_inward(s: &mut Surface, d: f64) {
-    let mut normals = vec![[0.0; 3]; s.points.len()];
-    for f in &s.facets {
-        let p = f.map(|v| s.points[v as usize]);
-        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-        for &v in f {
-            normals[v as usize] = add(normals[v as usize], n);
-        }
-    }
+    let normals = super::vertex_normals(s);
     for (p, n) in s.points.iter_mut().zip(&normals) {
         let l = norm(*n);
         if l > 0.0 {

@@ -84,16 +84,8 @@ pub fn mesh_touching(
                     "grain {g}: no tetrahedra in its region (is its inside point inside it?)"
                 )));
             }
-            let mut id: std::collections::HashMap<u32, u32> = Default::default();
-            let mut m = TetMesh::default();
-            for tet in tets {
-                m.tets.push(tet.map(|v| {
-                    *id.entry(v).or_insert_with(|| {
-                        m.nodes.push(nodes[v as usize]);
-                        (m.nodes.len() - 1) as u32
-                    })
-                }));
-            }
+            let (nodes, tets, _) = super::compact_cells(&nodes, tets);
+            let m = TetMesh { nodes, tets };
             super::validate(&m)?;
             Ok(m)
         })

@@ -47,6 +47,27 @@ pub struct TetMesh {
     pub tets: Vec<[u32; 4]>,
 }
 
+/// The points used by `cells` (triangles or tets over `points`), renumbered densely in
+/// order of first use: (those points, the cells over them, each new point's old index).
+pub fn compact_cells<const N: usize>(
+    points: &[[f64; 3]],
+    cells: impl IntoIterator<Item = [u32; N]>,
+) -> (Vec<[f64; 3]>, Vec<[u32; N]>, Vec<u32>) {
+    let mut new_id = vec![u32::MAX; points.len()];
+    let (mut used, mut out, mut old) = (Vec::new(), Vec::new(), Vec::new());
+    for cell in cells {
+        out.push(cell.map(|v| {
+            if new_id[v as usize] == u32::MAX {
+                new_id[v as usize] = used.len() as u32;
+                used.push(points[v as usize]);
+                old.push(v);
+            }
+            new_id[v as usize]
+        }));
+    }
+    (used, out, old)
+}
+
 /// Boundary of a tet mesh: triangles with outward normals (counter-clockwise seen from outside).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfaceMesh {

@@ -40,6 +40,11 @@ fn entry_path(dir: &Path, key: &str) -> PathBuf {
     dir.join(format!("{:016x}.mesh", fnv64(key.as_bytes())))
 }
 
+/// Whether an entry for `key` exists (not checked: [`load`] does that).
+pub fn contains(dir: &Path, key: &str) -> bool {
+    entry_path(dir, key).is_file()
+}
+
 /// The cached mesh for `key`, if a valid entry exists.
 pub fn load(dir: &Path, key: &str) -> Option<TetMesh> {
     let bytes = std::fs::read(entry_path(dir, key)).ok()?;

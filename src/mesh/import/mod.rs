@@ -341,7 +341,8 @@ pub fn enable_worker_processes(exe: PathBuf) {
 /// TetGen keeps process-wide state. Returns how many shapes the workers meshed. A worker
 /// that fails is ignored: the serial pass meets the same error and reports it in context.
 /// Does nothing without a cache, without [`enable_worker_processes`], or for fewer than
-/// two uncached shapes or workers.
+/// two uncached shapes or workers. A corrupt entry counts as cached here; the serial pass
+/// finds it invalid and re-meshes in-process.
 pub fn premesh_in_workers(specs: &[&SurfaceSpec], workers: usize) -> usize {
     let (Some(exe), Some(dir)) = (WORKER_EXE.get(), cache::cache_dir()) else {
         return 0;
@@ -356,7 +357,7 @@ pub fn premesh_in_workers(specs: &[&SurfaceSpec], workers: usize) -> usize {
             continue; // may be a volume mesh, used as is
         }
         let key = cache_key(spec, &bytes);
-        if cache::load(&dir, &key).is_none() && keys.insert(key) {
+        if !cache::contains(&dir, &key) && keys.insert(key) {
             missing.push(spec);
         }
     }
