@@ -22,8 +22,10 @@
 //! element, so the minimum dihedral angle matters).
 
 pub mod block;
+pub mod ellipsoid;
 pub mod import;
 pub mod joint;
+mod lattice;
 mod quality;
 pub mod smooth;
 mod sphere;

@@ -3,7 +3,9 @@
 //! ratios; the documented error metric compares the FE curve with the reference over the
 //! whole loading range.
 
+pub mod elliptic_hertz;
 pub mod hertz;
+pub mod hertz_ellipsoid;
 pub mod mindlin_cyclic;
 pub mod plastic_cube;
 pub mod plastic_spheres;
@@ -23,8 +25,9 @@ use runner::{Case, CaseOutcome};
 pub const QUICK_TOLERANCE_FACTOR: f64 = 1.5;
 
 /// All cases, in the order they run.
-pub const CASE_NAMES: [&str; 8] = [
+pub const CASE_NAMES: [&str; 9] = [
     "hertz",
+    "hertz_ellipsoid",
     "mindlin",
     "mindlin_cyclic",
     "torsion",
@@ -46,6 +49,7 @@ pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> 
         .map(|n| -> Result<Box<dyn Case>, InputError> {
             match n.as_str() {
                 "hertz" => Ok(Box::new(hertz::HertzCase)),
+                "hertz_ellipsoid" => Ok(Box::new(hertz_ellipsoid::HertzEllipsoidCase)),
                 "mindlin" => Ok(Box::new(two_sphere::TwoSphereCase {
                     kind: two_sphere::Kind::Mindlin,
                 })),

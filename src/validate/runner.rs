@@ -115,6 +115,22 @@ pub trait Case {
         let inputs = case_inputs(self.name(), self.shipped_scene(), overrides)?;
         Ok(case_scene(self.name(), &inputs, params)?)
     }
+    /// Writes the generated scene (and any file it reads) into `dir`
+    /// (`mufe validate --write-scenes`); returns the files written.
+    fn write_scene_files(
+        &self,
+        dir: &Path,
+        overrides: &[String],
+        params: &Params,
+    ) -> Result<Vec<PathBuf>> {
+        let text = self.generated_scene(overrides, params)?;
+        // the written file must parse as it stands
+        parse_scene(self.name(), &text, &[])?;
+        let path = dir.join(format!("{}.toml", self.name()));
+        std::fs::write(&path, text)
+            .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
+        Ok(vec![path])
+    }
     /// Label and scale of the x axis of the error plot.
     fn error_axis(&self) -> (&'static str, Scale) {
         ("load", Scale::Linear)
@@ -213,14 +229,7 @@ pub fn write_scenes(
         .map_err(|e| MufeError::Io(format!("{}: cannot create directory: {e}", dir.display())))?;
     let mut written = Vec::new();
     for case in cases {
-        let name = case.name();
-        let text = case.generated_scene(overrides, params)?;
-        // the written file must parse as it stands
-        parse_scene(name, &text, &[])?;
-        let path = dir.join(format!("{name}.toml"));
-        std::fs::write(&path, text)
-            .map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
-        written.push(path);
+        written.extend(case.write_scene_files(dir, overrides, params)?);
     }
     Ok(written)
 }

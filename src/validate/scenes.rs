@@ -221,7 +221,7 @@ impl SceneInputs {
         format!("materials.{}.{field}", self.material_name)
     }
 
-    fn material_block(&self) -> String {
+    pub(crate) fn material_block(&self) -> String {
         let m = &self.material;
         let mut s = format!(
             "[materials.{}]\nyoungs_modulus = {}\npoisson_ratio = {:?}\ndensity = {:?}\n",
@@ -438,6 +438,7 @@ pub struct Params {
     pub torsion: TwoSphereParams,
     pub rolling: TwoSphereParams,
     pub thornton_walls: super::thornton_scene::ThorntonParams,
+    pub hertz_ellipsoid: super::hertz_ellipsoid::HertzEllipsoidParams,
 }
 
 impl Default for Params {
@@ -449,6 +450,7 @@ impl Default for Params {
             torsion: TwoSphereParams::torsion(),
             rolling: TwoSphereParams::rolling(),
             thornton_walls: Default::default(),
+            hertz_ellipsoid: Default::default(),
         }
     }
 }
@@ -525,6 +527,7 @@ impl Params {
             "torsion" => self.torsion.fields(),
             "rolling" => self.rolling.fields(),
             "thornton_walls" => self.thornton_walls.fields(),
+            "hertz_ellipsoid" => self.hertz_ellipsoid.fields(),
             other => {
                 return Err(bad(format!(
                     "unknown case '{other}' (known: {})",

@@ -14,6 +14,7 @@ mod descriptors;
 pub mod formats;
 pub mod intersect;
 mod refine;
+pub mod zones;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -82,6 +83,10 @@ pub struct SurfaceSpec {
     /// `centroid` (default) or `file`: which point of the shape is placed at `centre`.
     #[serde(default)]
     pub origin: SurfaceOrigin,
+    /// Zones of finer facets and elements around points of the shape (grain frame, before
+    /// rotation); see [`zones`]. Default none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub refine: Vec<zones::SurfaceRefinement>,
     /// Checked geometry, filled when the scene is loaded (not input).
     #[serde(skip)]
     pub geometry: Option<Arc<SurfaceGeometry>>,
@@ -146,6 +151,35 @@ impl SurfaceSpec {
                 return Err(bad(
                     field,
                     format!("must be a finite number > 0, got {}", num(v)),
+                ));
+            }
+        }
+        for (i, z) in self.refine.iter().enumerate() {
+            let f = |name: &str| format!("refine[{i}].{name}");
+            if let Some(k) = (0..3).find(|&k| !z.point[k].is_finite()) {
+                return Err(bad(&f(&format!("point[{k}]")), "must be finite".into()));
+            }
+            if !(z.seeding.is_finite() && z.seeding > 0.0 && z.seeding <= self.seeding) {
+                return Err(bad(
+                    &f("seeding"),
+                    format!(
+                        "must be > 0 and at most the shape's seeding {}, got {}",
+                        num(self.seeding),
+                        num(z.seeding)
+                    ),
+                ));
+            }
+            if !(z.radius.is_finite() && z.radius >= 0.0) {
+                return Err(bad(
+                    &f("radius"),
+                    format!("must be a finite length ≥ 0, got {}", num(z.radius)),
+                ));
+            }
+            let (lo, hi) = (super::sphere::MIN_GROWTH, super::sphere::MAX_GROWTH);
+            if !(lo..=hi).contains(&z.growth) {
+                return Err(bad(
+                    &f("growth"),
+                    format!("must be in [{lo}, {hi}], got {}", num(z.growth)),
                 ));
             }
         }
@@ -299,7 +333,7 @@ pub fn mesh_surface_cached(
             match cache_dir.and_then(|d| cache::load(d, &key)) {
                 Some(m) => (m, true),
                 None => {
-                    let m = fill(&s, spec.seeding)?;
+                    let m = fill(&s, spec.seeding, &spec.refine)?;
                     if let Some(d) = cache_dir {
                         cache::store(d, &key, &m);
                     }
@@ -323,7 +357,11 @@ fn cache_key(spec: &SurfaceSpec, bytes: &[u8]) -> String {
         spec.factor(),
         spec.repair,
         spec.origin
-    )
+    ) + &if spec.refine.is_empty() {
+        String::new()
+    } else {
+        format!("refine {}\n", serde_json::to_string(&spec.refine).unwrap_or_default())
+    }
 }
 
 /// The executable that runs `mufe mesh-worker`, set by the `mufe` binary at start-up when
@@ -410,9 +448,15 @@ pub fn run_mesh_worker() -> Result<(), String> {
         .map_err(|e| e.to_string())
 }
 
-/// Subdivides the surface to edges ≤ `seeding` and fills it with tets.
-fn fill(s: &Surface, seeding: f64) -> Result<TetMesh, MeshError> {
-    let fine = refine::subdivide(s, seeding, MAX_FACETS).ok_or(MeshError::TooLarge {
+/// Subdivides the surface to edges ≤ the size field (`seeding`, finer in the `zones`) and
+/// fills it with tets, seeding the interior near the zones ([`zones::interior_points`]).
+fn fill(
+    s: &Surface,
+    seeding: f64,
+    zones: &[zones::SurfaceRefinement],
+) -> Result<TetMesh, MeshError> {
+    let field = zones::SizeField { seeding, zones };
+    let fine = refine::subdivide_to(s, |x| field.at(x), MAX_FACETS).ok_or(MeshError::TooLarge {
         field: "seeding".into(),
         limit: MAX_FACETS,
     })?;
@@ -424,7 +468,12 @@ fn fill(s: &Surface, seeding: f64) -> Result<TetMesh, MeshError> {
         .map(|p| norm(*p))
         .fold(0.0, f64::max)
         .max(f64::MIN_POSITIVE);
-    let points: Vec<[f64; 3]> = fine.points.iter().map(|p| p.map(|c| c / size)).collect();
+    let mut points: Vec<[f64; 3]> = fine.points.iter().map(|p| p.map(|c| c / size)).collect();
+    points.extend(
+        zones::interior_points(&fine, field)
+            .into_iter()
+            .map(|p| p.map(|c| c / size)),
+    );
     let h = seeding / size;
     let max_volume = h * h * h / (6.0 * std::f64::consts::SQRT_2);
     let mut mesh = tetrahedralize(

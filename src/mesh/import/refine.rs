@@ -10,8 +10,13 @@ use std::collections::HashMap;
 use super::Surface;
 use crate::math::{add, norm, scale, sub};
 
-/// Splits edges longer than `h` until none is; `None` if that would exceed `max_facets`.
-pub fn subdivide(s: &Surface, h: f64, max_facets: usize) -> Option<Surface> {
+/// Splits every edge longer than the size `h` (at its midpoint) there until none is;
+/// `None` if that would exceed `max_facets`.
+pub fn subdivide_to(
+    s: &Surface,
+    h: impl Fn([f64; 3]) -> f64,
+    max_facets: usize,
+) -> Option<Surface> {
     let mut s = s.clone();
     loop {
         let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
@@ -21,8 +26,8 @@ pub fn subdivide(s: &Surface, h: f64, max_facets: usize) -> Option<Surface> {
             for k in 0..3 {
                 let (a, b) = (f[k], f[(k + 1) % 3]);
                 let key = (a.min(b), a.max(b));
-                if len(&s, a, b) > h && !mid.contains_key(&key) {
-                    let p = scale(add(s.points[a as usize], s.points[b as usize]), 0.5);
+                let p = scale(add(s.points[a as usize], s.points[b as usize]), 0.5);
+                if len(&s, a, b) > h(p) && !mid.contains_key(&key) {
                     s.points.push(p);
                     mid.insert(key, (s.points.len() - 1) as u32);
                 }
@@ -79,7 +84,7 @@ mod tests {
 
     #[test]
     fn subdivided_cube_is_closed_with_short_edges_and_same_volume() {
-        let s = subdivide(&cube(), 0.3, 1_000_000).unwrap();
+        let s = subdivide_to(&cube(), |_| 0.3, 1_000_000).unwrap();
         check(&s).unwrap();
         assert!((signed_volume(&s) - 1.0).abs() < 1e-12);
         for f in &s.facets {
@@ -92,6 +97,18 @@ mod tests {
                 );
             }
         }
-        assert!(subdivide(&cube(), 1e-3, 1000).is_none());
+        assert!(subdivide_to(&cube(), |_| 1e-3, 1000).is_none());
+        // a size field: fine near one corner only
+        let graded = subdivide_to(
+            &cube(),
+            |x| if norm(x) < 0.3 { 0.05 } else { 1.0 },
+            1_000_000,
+        )
+        .unwrap();
+        check(&graded).unwrap();
+        assert!(
+            graded.facets.len() > 4 * cube().facets.len()
+                && graded.facets.len() < s.facets.len() * 4
+        );
     }
 }
