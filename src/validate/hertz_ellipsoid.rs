@@ -47,7 +47,7 @@ pub const WINDOW: (f64, f64) = (0.01, 0.02);
 pub const TARGET: f64 = 0.05;
 
 /// Meshing ratio of the quick run and of the shipped STL.
-pub const QUICK_MR: f64 = 0.0028;
+pub const QUICK_MR: f64 = 0.0019;
 
 /// Largest |x²/A² + y²/B² + z²/C² − 1| accepted for the case's STL (binary STL stores
 /// f32 coordinates: ~1e-7 relative).
@@ -127,7 +127,11 @@ fn load_setup(overrides: &[String]) -> Result<Setup> {
             .and_then(|_| std::fs::write(dir.join(STL_NAME), SHIPPED_STL))
             .map_err(|e| MufeError::Io(format!("{}: {e}", dir.display())))?;
         let path = dir.join(format!("{NAME}.toml"));
-        parse_scene(&path.display().to_string(), SCENE, overrides)?
+        let loaded = parse_scene(&path.display().to_string(), SCENE, overrides);
+        let setup = loaded.map_err(MufeError::from).and_then(|l| setup_from(&l));
+        // the copy is read once, here
+        let _ = std::fs::remove_dir_all(&dir);
+        return setup;
     };
     setup_from(&loaded)
 }
@@ -472,7 +476,9 @@ impl Case for HertzEllipsoidCase {
         let scene_path = dir.join(format!("{NAME}.toml"));
         std::fs::write(&scene_path, &text)
             .map_err(|e| MufeError::Io(format!("{}: {e}", scene_path.display())))?;
-        let loaded = parse_scene(&scene_path.display().to_string(), &text, overrides)?;
+        // the overrides are in the generated scene already (material, and the STL's size):
+        // applied again, a scale would count twice
+        let loaded = parse_scene(&scene_path.display().to_string(), &text, &[])?;
         let mut solver = case_solver(&loaded)?;
         let mesh = recorded_mesh(record, &loaded)?;
         let mut output = CaseOutput::open(record, NAME, mr, &loaded, mesh.as_ref(), &solver)?;
