@@ -36,6 +36,7 @@ fn spec(file: &Path, units: &str, seeding: f64) -> SurfaceSpec {
         rotation: [0.0; 3],
         repair: false,
         origin: SurfaceOrigin::Centroid,
+        refine: Vec::new(),
         geometry: None,
     }
 }
@@ -232,6 +233,66 @@ fn imported_ellipsoid_meshes_to_its_volume_and_20k_facets_check_fast() {
         (axes[0] / 1e-3 - a).abs() < 0.01 && (axes[2] / 1e-3 - c).abs() < 0.01,
         "{axes:?}"
     );
+}
+
+/// `refine` zones make the elements below a surface point fine, not only the facets: at
+/// depths of 1–4 zone seedings under the point the tets stay near the zone's size, while
+/// without the zone they grow with the depth; a zone coarser than the shape is refused.
+#[test]
+fn a_refine_zone_makes_the_elements_below_the_point_fine() {
+    use mufe::mesh::import::zones::SurfaceRefinement;
+    let d = dir("zone");
+    let mut s = icosphere(3);
+    s.points
+        .iter_mut()
+        .for_each(|p| *p = [p[0], 0.8 * p[1], 0.7 * p[2]].map(|x| x as f32 as f64));
+    write(&d.join("e.stl"), |o| write_stl_binary(&s, o));
+    // a zone at the x tip of a 1 × 0.8 × 0.7 mm ellipsoid (file origin)
+    let plain = spec(&d.join("e.stl"), "mm", 1.5e-4);
+    let mut zoned = plain.clone();
+    zoned.origin = SurfaceOrigin::File;
+    zoned.refine = vec![SurfaceRefinement {
+        point: [1e-3, 0.0, 0.0],
+        seeding: 1e-5,
+        radius: 2e-5,
+        growth: 0.2,
+    }];
+    let mut plain = plain;
+    plain.origin = SurfaceOrigin::File;
+    // mean edge of the tets whose centroid is at depth 1–4 seedings below the x tip
+    let below = |m: &TetMesh| {
+        let (mut sum, mut n) = (0.0, 0);
+        for t in &m.tets {
+            let x = t.map(|i| m.nodes[i as usize]);
+            let c = [0, 1, 2].map(|k| x.iter().map(|p| p[k]).sum::<f64>() / 4.0);
+            let depth = 1e-3 - c[0];
+            if (1e-5..4e-5).contains(&depth) && c[1].hypot(c[2]) < 2e-5 {
+                let mut e = 0.0;
+                for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                    e += ((0..3).map(|k| (x[i][k] - x[j][k]).powi(2)).sum::<f64>()).sqrt();
+                }
+                sum += e / 6.0;
+                n += 1;
+            }
+        }
+        (if n > 0 { sum / n as f64 } else { f64::INFINITY }, n)
+    };
+    let (m_plain, m_zoned) = (
+        mesh_surface_cached(&plain, None).unwrap().0,
+        mesh_surface_cached(&zoned, None).unwrap().0,
+    );
+    let ((e_plain, n_plain), (e_zoned, n_zoned)) = (below(&m_plain), below(&m_zoned));
+    println!("tets 1–4 zone seedings below the point: without the zone {n_plain} (mean edge {e_plain:.2e} m), with it {n_zoned} ({e_zoned:.2e} m); {} vs {} tets in all", m_plain.tets.len(), m_zoned.tets.len());
+    assert!(
+        n_zoned > 20 && e_zoned < 2.0e-5,
+        "{n_zoned} tets, mean edge {e_zoned:e}"
+    );
+    assert!(e_plain > 3.0 * e_zoned, "{e_plain:e} vs {e_zoned:e}");
+    assert!((volume(&m_zoned) / volume(&m_plain) - 1.0).abs() < 1e-3);
+    let mut bad = zoned.clone();
+    bad.refine[0].seeding = 2e-4;
+    let e = mesh_surface_cached(&bad, None).unwrap_err().to_string();
+    assert!(e.contains("refine[0].seeding"), "{e}");
 }
 
 #[test]

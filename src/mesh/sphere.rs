@@ -514,6 +514,7 @@ pub(crate) fn unit_surface(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::{add, cross, dot};
     use crate::mesh::{
         extract_surface, facet_normals, quality, surface_node_geometry, tet_volume, SurfaceMesh,
     };

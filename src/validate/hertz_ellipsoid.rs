@@ -20,7 +20,7 @@ use super::elliptic_hertz::EllipticHertz;
 use super::record::{recorded_mesh, CaseOutput, Recorder};
 use super::reference::{FiniteSphereTable, Hertz};
 use super::runner::{case_solver, load_case_scene, Case, CaseOutcome, Probe};
-use super::scenes::{Params, SceneInputs};
+use super::scenes::{HertzEllipsoidParams, Params, SceneInputs};
 use crate::error::{num, InputError, MufeError, Result};
 use crate::io::plot::{self, Plot, Scale, Series};
 use crate::material::ElasticParameters;
@@ -52,56 +52,6 @@ pub const QUICK_MR: f64 = 0.0019;
 /// Largest |x²/A² + y²/B² + z²/C² − 1| accepted for the case's STL (binary STL stores
 /// f32 coordinates: ~1e-7 relative).
 const ELLIPSOID_TOLERANCE: f64 = 1e-5;
-
-/// Generator parameters (`--param hertz_ellipsoid.KEY=VALUE`), lengths in R_e, times in
-/// R_e/c_p: the same dimensionless drive as the sphere case's (`hertz`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct HertzEllipsoidParams {
-    /// Exponential drive δ = δ0 (e^{t/τ} − 1) of each plate (R_e/c_p, R_e).
-    pub tau: f64,
-    pub delta0: f64,
-    /// Mass scaling of the fine tip elements (R_e/c_p).
-    pub target_dt: f64,
-    /// Facet edge away from the tips (R_e).
-    pub seeding: f64,
-    /// Radius of the fine tip patch (R_e) and growth of the edge beyond it (–).
-    pub tip_radius: f64,
-    pub growth: f64,
-    /// History sampling interval (R_e/c_p).
-    pub history_interval: f64,
-}
-
-impl Default for HertzEllipsoidParams {
-    /// The `hertz` case's τ, δ0 and target_dt in units of R_e instead of R; a tip patch of
-    /// 1.2 × the major semi-axis at the window's low end (as the sphere's pole patch),
-    /// growth 0.12, bulk facets of R_e/7.
-    fn default() -> Self {
-        let sphere = super::scenes::HertzParams::default();
-        Self {
-            tau: sphere.tau,
-            delta0: sphere.delta0,
-            target_dt: sphere.target_dt,
-            seeding: 0.14,
-            tip_radius: 0.014,
-            growth: 0.12,
-            history_interval: sphere.history_interval,
-        }
-    }
-}
-
-impl HertzEllipsoidParams {
-    pub(super) fn fields(&mut self) -> Vec<(&'static str, &mut f64)> {
-        vec![
-            ("tau", &mut self.tau),
-            ("delta0", &mut self.delta0),
-            ("target_dt", &mut self.target_dt),
-            ("seeding", &mut self.seeding),
-            ("tip_radius", &mut self.tip_radius),
-            ("growth", &mut self.growth),
-            ("history_interval", &mut self.history_interval),
-        ]
-    }
-}
 
 /// What the case scene gives: material and ellipsoid.
 struct Setup {

@@ -312,6 +312,57 @@ impl Default for HertzParams {
     }
 }
 
+/// `hertz_ellipsoid` (an ellipsoid between plates, `super::hertz_ellipsoid`): generator
+/// parameters (`--param hertz_ellipsoid.KEY=VALUE`), lengths in R_e, times in
+/// R_e/c_p: the same dimensionless drive as the sphere case's (`hertz`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HertzEllipsoidParams {
+    /// Exponential drive δ = δ0 (e^{t/τ} − 1) of each plate (R_e/c_p, R_e).
+    pub tau: f64,
+    pub delta0: f64,
+    /// Mass scaling of the fine tip elements (R_e/c_p).
+    pub target_dt: f64,
+    /// Facet edge away from the tips (R_e).
+    pub seeding: f64,
+    /// Radius of the fine tip patch (R_e) and growth of the edge beyond it (–).
+    pub tip_radius: f64,
+    pub growth: f64,
+    /// History sampling interval (R_e/c_p).
+    pub history_interval: f64,
+}
+
+impl Default for HertzEllipsoidParams {
+    /// The `hertz` case's τ, δ0 and target_dt in units of R_e instead of R; a tip patch of
+    /// 1.2 × the major semi-axis at the window's low end (as the sphere's pole patch),
+    /// growth 0.12, bulk facets of R_e/7.
+    fn default() -> Self {
+        let sphere = HertzParams::default();
+        Self {
+            tau: sphere.tau,
+            delta0: sphere.delta0,
+            target_dt: sphere.target_dt,
+            seeding: 0.14,
+            tip_radius: 0.014,
+            growth: 0.12,
+            history_interval: sphere.history_interval,
+        }
+    }
+}
+
+impl HertzEllipsoidParams {
+    fn fields(&mut self) -> Vec<(&'static str, &mut f64)> {
+        vec![
+            ("tau", &mut self.tau),
+            ("delta0", &mut self.delta0),
+            ("target_dt", &mut self.target_dt),
+            ("seeding", &mut self.seeding),
+            ("tip_radius", &mut self.tip_radius),
+            ("growth", &mut self.growth),
+            ("history_interval", &mut self.history_interval),
+        ]
+    }
+}
+
 /// Two identical spheres touching at the origin (Mindlin, torsion, rolling).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TwoSphereParams {
@@ -438,7 +489,7 @@ pub struct Params {
     pub torsion: TwoSphereParams,
     pub rolling: TwoSphereParams,
     pub thornton_walls: super::thornton_scene::ThorntonParams,
-    pub hertz_ellipsoid: super::hertz_ellipsoid::HertzEllipsoidParams,
+    pub hertz_ellipsoid: HertzEllipsoidParams,
 }
 
 impl Default for Params {
