@@ -127,6 +127,11 @@ pub enum Command {
         /// for `mufe import`.
         #[arg(long)]
         image_voxel: Option<f64>,
+        /// Write a box of six walls and two stages instead (pack by a servo-driven top
+        /// wall, then compress at a constant strain rate), with frames: the shape demo of
+        /// jobs/shapes/ (docs/SHAPES.md, "Demo").
+        #[arg(long = "box")]
+        in_box: bool,
     },
     /// Internal: mesh the JSON surface spec on stdin into the disk cache (started by mufe
     /// itself to mesh distinct shapes in parallel).
@@ -691,6 +696,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             seeding,
             level,
             image_voxel,
+            in_box,
         } => {
             let p = crate::sand::SandParams {
                 grains,
@@ -717,7 +723,12 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                 }
             }
             check_out_dir(&out)?;
-            let path = crate::sand::write_sand(&out, &p).map_err(|e| {
+            let write = if in_box {
+                crate::sand::write_sand_box
+            } else {
+                crate::sand::write_sand
+            };
+            let path = write(&out, &p).map_err(|e| {
                 MufeError::Io(format!("{}: cannot write the sand: {e}", out.display()))
             })?;
             println!("wrote {grains} grains and {}", path.display());

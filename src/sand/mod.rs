@@ -9,8 +9,10 @@
 //! (each facet stays inside its own cone), so the files pass the import checks by
 //! construction.
 
+mod box_scene;
 mod scene;
 
+pub use box_scene::write_sand_box;
 pub use scene::{write_sand, write_sand_image};
 
 use crate::math::{add, norm, scale};

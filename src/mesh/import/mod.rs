@@ -30,7 +30,7 @@ use crate::error::{num, InputError};
 use crate::math::{norm, sub};
 
 /// Bumped whenever a change to this pipeline changes the meshes (invalidates the cache).
-const MESHER_VERSION: u32 = 1;
+const MESHER_VERSION: u32 = 2;
 
 /// Largest surface after subdivision (facets): ~100 M tets.
 const MAX_FACETS: usize = 4_000_000;
@@ -483,6 +483,13 @@ fn fill(
         super::sphere::RADIUS_EDGE_RATIO,
         Some(max_volume),
     )?;
+    // TetGen's slivers set the explicit step: move the interior nodes as the sphere
+    // mesher does (the surface stays exactly as checked)
+    let mut fixed = vec![false; mesh.nodes.len()];
+    for &v in &super::extract_surface(&mesh).nodes {
+        fixed[v as usize] = true;
+    }
+    super::smooth::smooth_interior(&mut mesh, &fixed);
     mesh.nodes.iter_mut().for_each(|p| *p = p.map(|c| c * size));
     super::validate(&mesh)?;
     Ok(mesh)

@@ -99,16 +99,25 @@ mod tests {
         }
         assert!(subdivide_to(&cube(), |_| 1e-3, 1000).is_none());
         // a size field: fine near one corner only
-        let graded = subdivide_to(
-            &cube(),
-            |x| if norm(x) < 0.3 { 0.05 } else { 1.0 },
-            1_000_000,
-        )
-        .unwrap();
+        let corner = |x: [f64; 3]| if norm(x) < 0.8 { 0.05 } else { 1.0 };
+        let graded = subdivide_to(&cube(), corner, 1_000_000).unwrap();
+        let uniform = subdivide_to(&cube(), |_| 0.05, 1_000_000).unwrap();
         check(&graded).unwrap();
+        assert!((signed_volume(&graded) - 1.0).abs() < 1e-12);
         assert!(
-            graded.facets.len() > 4 * cube().facets.len()
-                && graded.facets.len() < s.facets.len() * 4
+            graded.facets.len() > 48 && 2 * graded.facets.len() < uniform.facets.len(),
+            "{} graded, {} uniform",
+            graded.facets.len(),
+            uniform.facets.len()
         );
+        for f in &graded.facets {
+            for k in 0..3 {
+                let (p, q) = (
+                    graded.points[f[k] as usize],
+                    graded.points[f[(k + 1) % 3] as usize],
+                );
+                assert!(norm(sub(p, q)) <= corner(scale(add(p, q), 0.5)));
+            }
+        }
     }
 }

@@ -246,7 +246,10 @@ mod tests {
             seeding: 0.25,
             zones: std::slice::from_ref(&zone),
         };
-        let pts = interior_points(&s, field);
+        // as `fill` does: the surface is subdivided to the field first (a coarse facet's
+        // diametral ball would reach deep inside and keep every lattice point out)
+        let fine = super::super::refine::subdivide_to(&s, |x| field.at(x), 1_000_000).unwrap();
+        let pts = interior_points(&fine, field);
         assert!(pts.len() > 100, "{}", pts.len());
         for p in &pts {
             assert!(p.iter().all(|&c| c > 0.0 && c < 1.0), "{p:?} outside");
