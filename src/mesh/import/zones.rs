@@ -14,8 +14,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::Surface;
-use crate::image::overlap::point_triangle_distance;
-use crate::math::{norm, sub};
+use crate::math::{norm, point_triangle_distance, sub};
 use crate::mesh::lattice::{
     add_nested_bcc, lattice_rotation, mat_vec, transpose, Aabb, DiametralBalls, BALL_MARGIN,
     LATTICE_FACTOR, SKIN_DEPTH,
