@@ -191,16 +191,7 @@ fn write_run_files(
     dir: &Path,
     stl_ref: &str,
 ) -> Result<String> {
-    let re = setup.equivalent_radius();
-    let surface = TipRefinedEllipsoid {
-        semi_axes: setup.semi_axes,
-        seeding: p.seeding * re,
-        tip_seeding,
-        tip_radius: p.tip_radius * re,
-        growth: p.growth,
-    }
-    .surface()
-    .map_err(|e| MufeError::Run(format!("{NAME}: {e}")))?;
+    let surface = tip_refined_surface(setup, p, tip_seeding)?;
     std::fs::create_dir_all(dir).map_err(|e| MufeError::Io(format!("{}: {e}", dir.display())))?;
     let stl = dir.join(STL_NAME);
     let mut out = std::io::BufWriter::new(
@@ -401,7 +392,9 @@ impl Case for HertzEllipsoidCase {
             &setup,
             &params.hertz_ellipsoid,
             s,
-            shipped_facets(&setup, &params.hertz_ellipsoid, s)?,
+            tip_refined_surface(&setup, &params.hertz_ellipsoid, s)?
+                .facets
+                .len(),
             STL_NAME,
         ))
     }
@@ -693,9 +686,15 @@ fn stl_facet_count(path: &Path) -> Option<u64> {
     Some(u32::from_le_bytes(bytes.get(80..84)?.try_into().ok()?) as u64)
 }
 
-fn shipped_facets(setup: &Setup, p: &HertzEllipsoidParams, tip_seeding: f64) -> Result<usize> {
+/// The case's ellipsoid with facets of `tip_seeding` at its tips (bulk and patch sizes
+/// from `p`, in units of R_e).
+fn tip_refined_surface(
+    setup: &Setup,
+    p: &HertzEllipsoidParams,
+    tip_seeding: f64,
+) -> Result<crate::mesh::import::Surface> {
     let re = setup.equivalent_radius();
-    Ok(TipRefinedEllipsoid {
+    TipRefinedEllipsoid {
         semi_axes: setup.semi_axes,
         seeding: p.seeding * re,
         tip_seeding,
@@ -703,9 +702,7 @@ fn shipped_facets(setup: &Setup, p: &HertzEllipsoidParams, tip_seeding: f64) -> 
         growth: p.growth,
     }
     .surface()
-    .map_err(|e| MufeError::Run(format!("{NAME}: {e}")))?
-    .facets
-    .len())
+    .map_err(|e| MufeError::Run(format!("{NAME}: {e}")))
 }
 
 /// Writes the case scene and its STL (at the quick MR) into `dir` for the material and
