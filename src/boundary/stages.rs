@@ -38,6 +38,8 @@ pub struct Until {
     pub stress_held: Option<(f64, f64)>,
     pub axial_strain: Option<f64>,
     pub failure: Option<FailureRule>,
+    /// (wall index, normal force in N).
+    pub wall_force: Option<(usize, f64)>,
 }
 
 /// When a stage counts the specimen as failed (`crate::scene::stages::FailureSpec`).
@@ -128,6 +130,7 @@ pub enum StageEnd {
     StressHeld,
     AxialStrain,
     Failure,
+    WallForce,
 }
 
 impl StageEnd {
@@ -137,6 +140,7 @@ impl StageEnd {
             StageEnd::StressHeld => "stress held",
             StageEnd::AxialStrain => "axial strain reached",
             StageEnd::Failure => "failure + margin",
+            StageEnd::WallForce => "wall force reached",
         }
     }
 }
@@ -245,6 +249,7 @@ impl StagePlan {
                     stress_held: None,
                     axial_strain: None,
                     failure: None,
+                    wall_force: None,
                 },
             }]
         };
@@ -399,6 +404,11 @@ impl StagePlan {
                 p.held_since = None;
             }
         }
+        if let Some((w, force)) = until.wall_force {
+            if p.wall_forces.get(w).is_some_and(|&f| f >= force) {
+                end = Some(StageEnd::WallForce);
+            }
+        }
         if let Some((strain, ratio)) = axial {
             let point = RatioPoint {
                 ratio,
@@ -550,6 +560,10 @@ fn build_stage(
                 strain_margin: f.strain_margin,
                 plateau_strain: f.plateau_strain,
             }),
+            wall_force: u.wall_force.as_ref().and_then(|wf| {
+                let w = scene.walls.iter().position(|w| w.name == wf.wall)?;
+                Some((w, wf.force))
+            }),
         },
     }
 }
@@ -589,6 +603,13 @@ mod tests {
 
     /// One closed FCC cell (R = 1 mm, a = 2√2 mm) in a box of six walls touching it.
     fn cell_scene(stages: &str) -> Scene {
+        parse_scene("cell.toml", &cell_text(stages), &[])
+            .expect("scene parses")
+            .scene
+    }
+
+    /// The text of [`cell_scene`].
+    fn cell_text(stages: &str) -> String {
         let r = 1.0e-3;
         let a = 2.0 * std::f64::consts::SQRT_2 * r;
         let (lo, hi) = (-r, a + r);
@@ -625,9 +646,7 @@ sphere = {{ radius = {r:e}, seeding = 5e-4 }}
                 &format!("[[walls]]\nname = \"{name}\"\npoint = {point:?}\nnormal = {normal:?}\n");
         }
         text += stages;
-        parse_scene("cell.toml", &text, &[])
-            .expect("scene parses")
-            .scene
+        text
     }
 
     const SERVO: &str = r#"{ servo = { stress = 5.0e4, area_of = "cell" } }"#;
@@ -675,6 +694,53 @@ until = { axial_strain = 0.01, max_time = 1.0 }
         assert_eq!(r.reason, StageEnd::AxialStrain);
         // ε = r t: 0.01 at t = 1 ms (the first step moves nothing: the speed is set after it)
         assert!((r.end - 1.0e-3).abs() <= 2.0 * dt, "ended at {}", r.end);
+    }
+
+    #[test]
+    fn a_wall_force_ends_the_stage_once_the_filtered_force_reaches_it() {
+        let scene = cell_scene(
+            r#"
+[[stages]]
+name = "pack"
+walls = { top = { velocity = 0.5 } }
+until = { wall_force = { wall = "bottom", force = 0.2 }, max_time = 1.0 }
+
+[[stages]]
+name = "hold"
+until = { max_time = 1.0e-4 }
+"#,
+        );
+        let plan = StagePlan::build(&scene).expect("staged");
+        let bottom = scene.walls.iter().position(|w| w.name == "bottom").unwrap();
+        let dt = 1e-7;
+        // the bottom wall is loaded from step 1000 on, with 1 N
+        let p = drive(&plan, dt, 20_000, |n, _| {
+            let mut f = vec![0.0; 6];
+            f[bottom] = if n >= 1000 { 1.0 } else { 0.0 };
+            f
+        });
+        let r = &p.done[0];
+        assert_eq!(r.reason, StageEnd::WallForce);
+        // after the filter's delay, well before the time limit
+        assert!(
+            r.end > 1000.0 * dt && r.end < 1000.0 * dt + 5.0 * plan.filter_time + 10.0 * dt,
+            "{}",
+            r.end
+        );
+        assert_eq!(p.done.len(), 2);
+        // an unknown wall is an input error naming the field
+        let bad = parse_scene(
+            "cell.toml",
+            &cell_text(
+                "[[stages]]\nname = \"p\"\nuntil = { wall_force = { wall = \"floor\", force = 1.0 }, max_time = 1.0 }\n",
+            ),
+            &[],
+        )
+        .unwrap_err();
+        assert!(
+            bad.to_string().contains("stages[0].until.wall_force.wall"),
+            "{bad}"
+        );
     }
 
     #[test]

@@ -1,15 +1,17 @@
 //! `mufe sand --box`: the virtual sand in a closed box of six walls, with two stages —
-//! *pack* (the top wall at a constant speed with mass damping until the tallest column of
-//! grains is closed and pressed by [`PACK_EXTRA`]) and *compress* (the top wall at a
+//! *pack* (the top wall at a constant speed with mass damping until the bottom wall carries
+//! [`PACK_STRESS`]: the grains have been pushed together down to the floor) and *compress* (the top wall at a
 //! constant strain rate, undamped, by [`END_STRAIN`]) — and frames for ParaView. The shape
 //! demo of `jobs/shapes/` is this output.
 //!
 //! Each grain lies on its flat side (its shortest axis vertical, as flat grains settle)
 //! turned by a random azimuth (the surface shape's `rotation`, from the sand's seed), in a
 //! cell of a grid whose spacing per axis is the largest extent of any turned grain along
-//! it plus a small gap: the grains start apart, and the pack stage closes the columns'
-//! gaps. (A servo-driven wall approaches a free gap only at F*/(kτ), millimetres per
-//! second: the first version of this demo spent its 2 ms pack stage 8 µm from the grains.)
+//! it plus a small gap: the grains start apart, and the pack stage closes the gaps.
+//! (A servo-driven wall approaches a free gap only at F*/(kτ), millimetres per second: a
+//! first version spent its 2 ms pack stage 8 µm above the grains; a pack to a precomputed
+//! strain — the tallest column closed on its grains' extreme points — left the columns
+//! open, as irregular grains nest past their extreme points.)
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -22,8 +24,10 @@ use crate::mesh::import::{bounding_box, rotate};
 const GAP: f64 = 0.02;
 /// Speed of the top wall in the pack stage (m/s).
 const PACK_SPEED: f64 = 0.5;
-/// Axial strain of the pack stage beyond the closure of the tallest column (–).
-pub const PACK_EXTRA: f64 = 1.0e-3;
+/// Stress on the bottom wall that ends the pack stage (Pa).
+pub const PACK_STRESS: f64 = 2.0e3;
+/// Longest pack stage, as axial strain of the top wall (–).
+const PACK_MAX_STRAIN: f64 = 0.3;
 /// Axial strain rate of the compress stage (1/s) and its strain (–).
 const STRAIN_RATE: f64 = 50.0;
 pub const END_STRAIN: f64 = 3.0e-3;
@@ -49,14 +53,12 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
     let per_row = (n as f64).cbrt().ceil() as usize;
     let mut extent = [0.0_f64; 3];
     let mut rotations = Vec::with_capacity(n);
-    let mut heights = Vec::with_capacity(n);
     for i in 0..n {
         let mut s = grain_surface(p, i);
         let w = orientation(p.seed, i);
         let mut turned = s.points.clone();
         rotate(&mut turned, w);
         let (lo, hi) = bounding_box(&turned);
-        heights.push(hi[2] - lo[2]);
         for k in 0..3 {
             // the centroid is the origin: the cell must hold the farther side twice
             extent[k] = extent[k].max(2.0 * (-lo[k]).max(hi[k]));
@@ -76,17 +78,11 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
         per_row as f64 * cell[1],
         layers as f64 * cell[2],
     ];
-    // the tallest column of grains, stacked on their extreme points
-    let mut columns = vec![0.0; per_row * per_row];
-    for (i, h) in heights.iter().enumerate() {
-        columns[i % (per_row * per_row)] += h;
-    }
-    let tallest = columns.iter().fold(0.0_f64, |a, &b| a.max(b));
-    let pack_strain = (span[2] - tallest) / span[2] + PACK_EXTRA;
+    let pack_force = PACK_STRESS * span[0] * span[1];
     let c_p = (7.0e10_f64 / 2650.0).sqrt();
     // mass scaling to a step of a third of the regular tet at the seeding
     let target_dt = 0.3 * 0.565 * p.seeding / c_p;
-    let pack_time = 1.5 * pack_strain * span[2] / PACK_SPEED;
+    let pack_time = PACK_MAX_STRAIN * span[2] / PACK_SPEED;
     let compress_time = 1.5 * END_STRAIN / STRAIN_RATE;
     let mut t = String::new();
     let _ = writeln!(
@@ -94,8 +90,8 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
         "# Virtual sand in a box, written by `mufe sand --box --grains {n} --seed {} --elongation {} --flatness {} --roughness {} --size {:e} --seeding {:e}`\n\
          # (src/sand/box_scene.rs; docs/SHAPES.md, \"Demo\"). {n} grains of equivalent diameter {:.3} mm, lying\n\
          # flat at random azimuths, start on a {per_row}×{per_row}×{layers} grid in a box of six frictional walls ({:.3} × {:.3} × {:.3} mm).\n\
-         # Stage pack: the top wall at {PACK_SPEED} m/s with mass damping to {:.3} % axial strain (the tallest column\n\
-         # closed and pressed by {:.1} %); stage compress: the top wall at {STRAIN_RATE} 1/s, undamped, by {:.1} % more.\n\
+         # Stage pack: the top wall at {PACK_SPEED} m/s with mass damping until the bottom wall carries {:.0} kPa\n\
+         # ({:.4} N); stage compress: the top wall at {STRAIN_RATE} 1/s, undamped, by {:.1} % more.\n\
          #   mpirun -n 2 mufe run jobs/shapes/scene.toml --out out/shapes    (frames: out/shapes/results.xdmf)",
         p.seed,
         p.elongation,
@@ -107,8 +103,8 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
         span[0] * 1e3,
         span[1] * 1e3,
         span[2] * 1e3,
-        100.0 * pack_strain,
-        100.0 * PACK_EXTRA,
+        PACK_STRESS / 1e3,
+        pack_force,
         100.0 * END_STRAIN
     );
     let _ = writeln!(
@@ -155,12 +151,12 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
         t,
         "[[stages]]\nname = \"pack\"\ndamping = 2.0e4   # 1/s: settles the grains into the pack (ALLVD)\n\
          walls = {{ top = {{ velocity = {PACK_SPEED:e} }} }}   # m/s\n\
-         until = {{ axial_strain = {pack_strain:.6e}, max_time = {pack_time:.6e} }}\n\n\
+         until = {{ wall_force = {{ wall = \"bottom\", force = {pack_force:.6e} }}, max_time = {pack_time:.6e} }}   # N, s\n\n\
          [[stages]]\nname = \"compress\"\ndamping = 0.0\n\
          walls = {{ top = {{ strain_rate = {STRAIN_RATE:e} }} }}   # 1/s\n\
          until = {{ axial_strain = {END_STRAIN:e}, max_time = {compress_time:.6e} }}\n\n\
-         [output]\nhistory_interval = 1.0e-6   # s\nframe_interval = {:.3e}   # s: ~20 frames\n",
-        (pack_strain * span[2] / PACK_SPEED + END_STRAIN / STRAIN_RATE) / 20.0
+         [output]\nhistory_interval = 1.0e-6   # s\nframe_interval = {:.3e}   # s\n",
+        2.0e-5
     );
     let path = dir.join("scene.toml");
     std::fs::write(&path, t)?;

@@ -82,6 +82,21 @@ pub struct UntilSpec {
     /// `strain_margin` more axial strain.
     #[serde(default)]
     pub failure: Option<FailureSpec>,
+    /// The normal force of a wall (low-pass filtered like the servo's) has reached `force`:
+    /// e.g. a wall driven at a constant speed packs loose grains until the opposite wall
+    /// carries load.
+    #[serde(default)]
+    pub wall_force: Option<WallForceSpec>,
+}
+
+/// See [`UntilSpec::wall_force`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WallForceSpec {
+    /// Name of the wall.
+    pub wall: String,
+    /// Normal force (N), > 0, compressive (the wall pushing on the grains).
+    pub force: f64,
 }
 
 /// See [`UntilSpec::stress_held`].
@@ -225,6 +240,15 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
         }
         if let Some(e) = u.axial_strain {
             c.positive(&f("until.axial_strain"), e)?;
+        }
+        if let Some(wf) = &u.wall_force {
+            c.positive(&f("until.wall_force.force"), wf.force)?;
+            if !scene.walls.iter().any(|w| w.name == wf.wall) {
+                return Err(c.err(
+                    f("until.wall_force.wall"),
+                    format!("no wall named '{}'", echo(&wf.wall)),
+                ));
+            }
         }
         if let Some(fl) = &u.failure {
             c.positive(&f("until.failure.drop"), fl.drop)?;
