@@ -79,6 +79,15 @@ pub fn height_ratio(x: &[[f64; 3]; 4]) -> f64 {
     step_measure(x) * 6f64.sqrt() / mean_edge
 }
 
+/// [`smooth_interior`] with every boundary node fixed: the surface stays exactly as meshed.
+pub fn smooth_off_surface(mesh: &mut TetMesh) -> SmoothingReport {
+    let mut fixed = vec![false; mesh.nodes.len()];
+    for &v in &super::extract_surface(mesh).nodes {
+        fixed[v as usize] = true;
+    }
+    smooth_interior(mesh, &fixed)
+}
+
 /// Moves the nodes not `fixed` to raise the smallest shape ratio of their elements (see
 /// the module docs). `fixed` has one entry per node.
 pub fn smooth_interior(mesh: &mut TetMesh, fixed: &[bool]) -> SmoothingReport {

@@ -453,12 +453,7 @@ pub fn mesh_sphere(spec: &SphereMeshSpec) -> Result<TetMesh, MeshError> {
         max_volume: None,
     }];
     let mut mesh = tetrahedralize(&points, &facets, &regions, RADIUS_EDGE_RATIO, None)?;
-    let on_surface = super::extract_surface(&mesh).nodes;
-    let mut fixed = vec![false; mesh.nodes.len()];
-    for &v in &on_surface {
-        fixed[v as usize] = true;
-    }
-    super::smooth::smooth_interior(&mut mesh, &fixed);
+    super::smooth::smooth_off_surface(&mut mesh);
     for p in mesh.nodes.iter_mut() {
         *p = scale(*p, big_r);
     }

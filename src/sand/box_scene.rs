@@ -16,8 +16,8 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::{grain_surface, SandParams};
-use crate::mesh::import::formats::write_stl_binary;
+use super::scene::write_grain_stl;
+use super::SandParams;
 use crate::mesh::import::{bounding_box, rotate};
 
 /// Gap between the cells of the start grid and between grains and walls (× size).
@@ -54,20 +54,15 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
     let mut extent = [0.0_f64; 3];
     let mut rotations = Vec::with_capacity(n);
     for i in 0..n {
-        let mut s = grain_surface(p, i);
+        let (s, _) = write_grain_stl(dir, p, i)?;
         let w = orientation(p.seed, i);
-        let mut turned = s.points.clone();
+        let mut turned = s.points;
         rotate(&mut turned, w);
         let (lo, hi) = bounding_box(&turned);
         for k in 0..3 {
             // the centroid is the origin: the cell must hold the farther side twice
             extent[k] = extent[k].max(2.0 * (-lo[k]).max(hi[k]));
         }
-        s.points.iter_mut().for_each(|x| *x = x.map(|c| c * 1e3));
-        let mut f = std::io::BufWriter::new(std::fs::File::create(
-            dir.join(format!("grain_{i:03}.stl")),
-        )?);
-        write_stl_binary(&s, &mut f)?;
         rotations.push(w);
     }
     let gap = GAP * p.size;

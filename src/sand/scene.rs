@@ -9,19 +9,30 @@ use super::{grain_surface, GrainShape, SandParams};
 use crate::math::norm;
 use crate::mesh::import::formats::write_stl_binary;
 
+/// Writes grain `i` of the sand as `dir/grain_NNN.stl` (binary, millimetres: sizes of order
+/// one, well resolved in f32); returns its surface in metres and the file name.
+pub(super) fn write_grain_stl(
+    dir: &Path,
+    p: &SandParams,
+    i: usize,
+) -> std::io::Result<(crate::mesh::import::Surface, String)> {
+    let s = grain_surface(p, i);
+    let mut mm = s.clone();
+    mm.points.iter_mut().for_each(|x| *x = x.map(|c| c * 1e3));
+    let name = format!("grain_{i:03}.stl");
+    let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join(&name))?);
+    write_stl_binary(&mm, &mut f)?;
+    Ok((s, name))
+}
+
 /// Writes the grains and the scene into `dir` (created if needed); returns the scene path.
 pub fn write_sand(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
     std::fs::create_dir_all(dir)?;
     let mut names = Vec::with_capacity(p.grains);
     let mut bound: f64 = 0.0;
     for i in 0..p.grains {
-        let mut s = grain_surface(p, i);
+        let (s, name) = write_grain_stl(dir, p, i)?;
         bound = bound.max(s.points.iter().map(|x| norm(*x)).fold(0.0, f64::max));
-        // Millimetres in the file: sizes of order one, well resolved in f32.
-        s.points.iter_mut().for_each(|x| *x = x.map(|c| c * 1e3));
-        let name = format!("grain_{i:03}.stl");
-        let mut f = std::io::BufWriter::new(std::fs::File::create(dir.join(&name))?);
-        write_stl_binary(&s, &mut f)?;
         names.push(name);
     }
     let per_row = (p.grains as f64).sqrt().ceil() as usize;

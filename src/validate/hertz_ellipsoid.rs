@@ -25,7 +25,7 @@ use crate::error::{num, InputError, MufeError, Result};
 use crate::io::plot::{self, Plot, Scale, Series};
 use crate::material::ElasticParameters;
 use crate::mesh::ellipsoid::{fit_axis_aligned_ellipsoid, TipRefinedEllipsoid};
-use crate::mesh::import::formats::{self, Format, Imported};
+use crate::mesh::import::{formats, Prepared};
 use crate::scene::{parse_scene, LoadedScene, ShapeSpec};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -112,29 +112,17 @@ fn setup_from(loaded: &LoadedScene) -> Result<Setup> {
             "the ellipsoid must be axis-aligned (it is loaded along z)".into(),
         ));
     }
-    let path = Path::new(&spec.file);
-    let read = std::fs::read(path)
-        .map_err(|e| e.to_string())
-        .and_then(|bytes| {
-            let format = Format::from_path(path).ok_or("not .stl, .obj or .msh")?;
-            formats::read(format, &bytes).map_err(|(item, m)| format!("{item}: {m}"))
-        });
-    let surface = match read {
-        Ok(Imported::Surface(s)) => s,
-        Ok(Imported::Volume(_)) => {
+    // the surface as the import reads it: units, scale, checks, origin (before rotation)
+    let points = match crate::mesh::import::prepare(spec, false) {
+        Ok((Prepared::Surface(s), _)) => s.points,
+        Ok((Prepared::Volume(_), _)) => {
             return Err(bad(
                 "grains[0].shape.surface.file",
                 "needs a surface file, not a volume mesh".into(),
             ))
         }
-        Err(m) => return Err(bad("grains[0].shape.surface.file", m)),
+        Err(e) => return Err(e.for_grain(&file, 0).into()),
     };
-    let factor = spec.unit_factor().unwrap_or(1.0) * spec.scale;
-    let points: Vec<[f64; 3]> = surface
-        .points
-        .iter()
-        .map(|p| p.map(|c| c * factor))
-        .collect();
     let fit = fit_axis_aligned_ellipsoid(&points).filter(|f| f.1 <= ELLIPSOID_TOLERANCE);
     let Some((semi_axes, _)) = fit else {
         return Err(bad(
@@ -182,15 +170,14 @@ fn setup_from(loaded: &LoadedScene) -> Result<Setup> {
     })
 }
 
-/// The scene of one run and the STL it reads (written into `dir`), for tip facets of
-/// `tip_seeding`. `stl_ref` is the file name the scene gives.
+/// The scene of one run and the STL it reads (written into `dir` as [`STL_NAME`]), for tip
+/// facets of `tip_seeding`; returns the scene text and the STL's facet count.
 fn write_run_files(
     setup: &Setup,
     p: &HertzEllipsoidParams,
     tip_seeding: f64,
     dir: &Path,
-    stl_ref: &str,
-) -> Result<String> {
+) -> Result<(String, usize)> {
     let surface = tip_refined_surface(setup, p, tip_seeding)?;
     std::fs::create_dir_all(dir).map_err(|e| MufeError::Io(format!("{}: {e}", dir.display())))?;
     let stl = dir.join(STL_NAME);
@@ -201,25 +188,16 @@ fn write_run_files(
     formats::write_stl_binary(&surface, &mut out)
         .map_err(|e| MufeError::Io(format!("{}: {e}", stl.display())))?;
     drop(out);
-    Ok(scene_text(
-        setup,
-        p,
-        tip_seeding,
-        surface.facets.len(),
-        stl_ref,
-    ))
+    let facets = surface.facets.len();
+    Ok((scene_text(setup, p, tip_seeding, facets), facets))
 }
 
 /// Points of the exponential plate speed.
 const DRIVE_POINTS: usize = 48;
 
-fn scene_text(
-    setup: &Setup,
-    p: &HertzEllipsoidParams,
-    tip_seeding: f64,
-    facets: usize,
-    stl_ref: &str,
-) -> String {
+/// The scene of a run whose STL (`STL_NAME`, beside the scene) has `facets` facets.
+fn scene_text(setup: &Setup, p: &HertzEllipsoidParams, tip_seeding: f64, facets: usize) -> String {
+    let stl_ref = STL_NAME;
     let u = setup.inputs.units();
     let h = &setup.theory;
     let re = setup.equivalent_radius();
@@ -395,7 +373,6 @@ impl Case for HertzEllipsoidCase {
             tip_refined_surface(&setup, &params.hertz_ellipsoid, s)?
                 .facets
                 .len(),
-            STL_NAME,
         ))
     }
 
@@ -415,7 +392,7 @@ impl Case for HertzEllipsoidCase {
             Some(r) => r.run_dir(NAME, mr),
             None => std::env::temp_dir().join(format!("mufe-{NAME}-{}-mr{mr}", std::process::id())),
         };
-        let text = write_run_files(&setup, p, tip_seeding, &dir, STL_NAME)?;
+        let (text, stl_facets) = write_run_files(&setup, p, tip_seeding, &dir)?;
         let scene_path = dir.join(format!("{NAME}.toml"));
         std::fs::write(&scene_path, &text)
             .map_err(|e| MufeError::Io(format!("{}: {e}", scene_path.display())))?;
@@ -540,10 +517,7 @@ impl Case for HertzEllipsoidCase {
                 [WINDOW.0 * re, WINDOW.1 * re]
             )),
         );
-        details.insert(
-            "stl_facets".into(),
-            json!(stl_facet_count(&dir.join(STL_NAME))),
-        );
+        details.insert("stl_facets".into(), json!(stl_facets));
         details.insert("scene".into(), super::runner::scene_details(&setup.inputs));
         details.insert(
             "added_mass_fraction".into(),
@@ -681,11 +655,6 @@ fn finite_body_estimate(
     Some([at(sizes[0])?, at(sizes[1])?])
 }
 
-fn stl_facet_count(path: &Path) -> Option<u64> {
-    let bytes = std::fs::read(path).ok()?;
-    Some(u32::from_le_bytes(bytes.get(80..84)?.try_into().ok()?) as u64)
-}
-
 /// The case's ellipsoid with facets of `tip_seeding` at its tips (bulk and patch sizes
 /// from `p`, in units of R_e).
 fn tip_refined_surface(
@@ -711,7 +680,7 @@ fn tip_refined_surface(
 pub fn write_shipped_files(dir: &Path, overrides: &[String], params: &Params) -> Result<PathBuf> {
     let setup = load_setup(overrides)?;
     let s = QUICK_MR * 2.0 * setup.equivalent_radius();
-    let text = write_run_files(&setup, &params.hertz_ellipsoid, s, dir, STL_NAME)?;
+    let (text, _) = write_run_files(&setup, &params.hertz_ellipsoid, s, dir)?;
     let path = dir.join(format!("{NAME}.toml"));
     std::fs::write(&path, text).map_err(|e| MufeError::Io(format!("{}: {e}", path.display())))?;
     Ok(path)

@@ -485,11 +485,7 @@ fn fill(
     )?;
     // TetGen's slivers set the explicit step: move the interior nodes as the sphere
     // mesher does (the surface stays exactly as checked)
-    let mut fixed = vec![false; mesh.nodes.len()];
-    for &v in &super::extract_surface(&mesh).nodes {
-        fixed[v as usize] = true;
-    }
-    super::smooth::smooth_interior(&mut mesh, &fixed);
+    super::smooth::smooth_off_surface(&mut mesh);
     mesh.nodes.iter_mut().for_each(|p| *p = p.map(|c| c * size));
     super::validate(&mesh)?;
     Ok(mesh)
