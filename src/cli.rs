@@ -122,7 +122,7 @@ pub enum Command {
         /// Icosphere level of the surfaces: 20·4^level facets (1 … 6).
         #[arg(long, default_value_t = 3)]
         level: u32,
-        /// Also write DIR/labels.nrrd: the grains packed 0.9 equivalent diameters apart
+        /// Also write DIR/labels.nrrd and DIR/labels.tif: the grains packed 0.9 equivalent diameters apart
         /// (neighbours meet over faces) and voxelised with this voxel edge (m), an input
         /// for `mufe import`.
         #[arg(long)]
@@ -137,11 +137,12 @@ pub enum Command {
     /// itself to mesh distinct shapes in parallel).
     #[command(hide = true)]
     MeshWorker,
-    /// Import a labelled μCT image (NRRD; 0 = void, one integer label per grain) as a
+    /// Import a labelled μCT image (NRRD or 3-D TIFF; 0 = void, one integer label per grain) as a
     /// scene of grains: one volume mesh per label beside SCENE and SCENE itself, which
     /// `mufe check` accepts (docs/SHAPES.md, "Label images").
     Import {
-        /// The label image (.nrrd, raw or ascii encoding).
+        /// The label image: .nrrd/.nhdr (raw or ascii encoding) or a .tif/.tiff stack (one
+        /// grayscale page per slice; ImageJ spacing).
         labels: PathBuf,
         /// Scene file to write; the grains go to <stem>_grains/ beside it.
         #[arg(long)]

@@ -230,6 +230,15 @@ fn a_virtual_sand_image_imports_as_its_grains_touching_without_overlap() {
         assert!(pct.abs() < 3.0, "{line}");
     }
     assert!(text.lines().any(|l| l.starts_with("pair ")), "{text}");
+    // the TIFF stack of the same image gives the same grains (voxels per label, no overlap)
+    let tiff = import_without_overlap("sand/labels.tif", "sand/from_tiff.toml", 4, &dir);
+    let voxels = |t: &str| -> Vec<String> {
+        t.lines()
+            .filter(|l| l.starts_with("label "))
+            .map(|l| l.split(" voxels").next().unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(voxels(&text), voxels(&tiff), "{tiff}");
     let out = mufe(&["check", "sand/imported.toml"], &dir);
     assert!(
         out.status.success(),

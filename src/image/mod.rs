@@ -1,6 +1,6 @@
 //! Labelled 3-D images (μCT segmentations): one integer label per voxel, 0 = void, every
 //! grain a distinct label. `mufe import` turns one into a scene of surface grains
-//! (docs/SHAPES.md, "Label images"): [`nrrd`] reads the file, [`contour`] extracts one
+//! (docs/SHAPES.md, "Label images"): [`nrrd`] or [`tiff`] reads the file, [`contour`] extracts one
 //! closed surface per label whose shared faces coincide where labels touch, [`decimate`]
 //! coarsens the free surfaces to the seeding, [`scene`] writes the grain files and the
 //! scene and reports any overlap left between touching grains.
@@ -10,6 +10,7 @@ pub mod decimate;
 pub mod nrrd;
 pub mod overlap;
 pub mod scene;
+pub mod tiff;
 
 /// A labelled voxel grid. Voxel (i, j, k) is centred at `origin + (i, j, k) ⊙ spacing`;
 /// `labels` is stored with i fastest (the NRRD order).

@@ -479,7 +479,7 @@ pub fn import_command(
         .into());
     }
     let file = labels.display().to_string();
-    let image = super::nrrd::read_nrrd(labels)?;
+    let image = super::tiff::read_label_image(labels)?;
     let imported = import_labels(&image, &file, opts)?;
     if imported.grains.is_empty() {
         return Err(

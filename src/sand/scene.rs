@@ -85,7 +85,8 @@ pub fn write_sand(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
 /// enough that neighbours overlap, so the image has contacts.
 pub const IMAGE_SPACING: f64 = 0.9;
 
-/// Writes `dir/labels.nrrd`: the grains of `p` packed on a cubic grid [`IMAGE_SPACING`]
+/// Writes `dir/labels.nrrd` and the same image as a 3-D TIFF stack `dir/labels.tif`
+/// (without the origin, which TIFF cannot hold): the grains of `p` packed on a cubic grid [`IMAGE_SPACING`]
 /// equivalent diameters apart and voxelised at `voxel` (m). A voxel centre inside several
 /// grains goes to the one it is deepest in (smallest |x|/r), so overlapping neighbours meet
 /// over a face, as touching grains do in a segmented scan. Returns the path and the image.
@@ -162,5 +163,6 @@ pub fn write_sand_image(
     };
     let path = dir.join("labels.nrrd");
     crate::image::nrrd::write_nrrd(&path, &image, [voxel; 3])?;
+    crate::image::tiff::write_tiff(&dir.join("labels.tif"), &image, [voxel; 3])?;
     Ok((path, image))
 }
