@@ -206,7 +206,7 @@ pub fn read_label_image(path: &Path) -> Result<LabelImage, InputError> {
         Some("tif" | "tiff") => read_tiff(path),
         Some("nrrd" | "nhdr") | None => super::nrrd::read_nrrd(path),
         Some(other) => Err(InputError::new(
-            &path.display().to_string(),
+            path.display().to_string(),
             "file",
             format!(
                 "'.{}' is not a label image format; use .nrrd, .nhdr, .tif or .tiff",
