@@ -55,40 +55,47 @@ pub fn det3(m: &[f64; 9]) -> f64 {
         + m[2] * (m[3] * m[7] - m[4] * m[6])
 }
 
-/// Distance from `p` to the triangle abc (closest-point regions, Ericson §5.1.5).
+/// Distance from `p` to the triangle abc.
 pub fn point_triangle_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
+    let w = closest_on_triangle(p, a, b, c);
+    let q = [0, 1, 2].map(|k| w[0] * a[k] + w[1] * b[k] + w[2] * c[k]);
+    norm(sub(p, q))
+}
+
+/// Barycentric coordinates (of a, b, c) of the point of the triangle abc closest to `p`
+/// (closest-point regions, Ericson §5.1.5).
+pub fn closest_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
     let (ab, ac, ap) = (sub(b, a), sub(c, a), sub(p, a));
     let (d1, d2) = (dot(ab, ap), dot(ac, ap));
     if d1 <= 0.0 && d2 <= 0.0 {
-        return norm(ap);
+        return [1.0, 0.0, 0.0];
     }
     let bp = sub(p, b);
     let (d3, d4) = (dot(ab, bp), dot(ac, bp));
     if d3 >= 0.0 && d4 <= d3 {
-        return norm(bp);
+        return [0.0, 1.0, 0.0];
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
         let v = d1 / (d1 - d3);
-        return norm(sub(ap, ab.map(|x| x * v)));
+        return [1.0 - v, v, 0.0];
     }
     let cp = sub(p, c);
     let (d5, d6) = (dot(ab, cp), dot(ac, cp));
     if d6 >= 0.0 && d5 <= d6 {
-        return norm(cp);
+        return [0.0, 0.0, 1.0];
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
         let w = d2 / (d2 - d6);
-        return norm(sub(ap, ac.map(|x| x * w)));
+        return [1.0 - w, 0.0, w];
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return norm(sub(bp, sub(c, b).map(|x| x * w)));
+        return [0.0, 1.0 - w, w];
     }
     let denom = 1.0 / (va + vb + vc);
     let (v, w) = (vb * denom, vc * denom);
-    let q = [0, 1, 2].map(|k| a[k] + ab[k] * v + ac[k] * w);
-    norm(sub(p, q))
+    [1.0 - v - w, v, w]
 }

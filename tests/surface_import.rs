@@ -37,6 +37,8 @@ fn spec(file: &Path, units: &str, seeding: f64) -> SurfaceSpec {
         repair: false,
         origin: SurfaceOrigin::Centroid,
         refine: Vec::new(),
+        remesh: true,
+        curvature: None,
         geometry: None,
     }
 }
@@ -81,7 +83,13 @@ fn round_trips_stl_binary_ascii_obj_msh_give_the_same_mesh() {
             .0
     };
     let reference = mesh("g.stl");
-    assert!(reference.tets.len() > 500);
+    // at least half the tets of regular ones of edge = seeding filling the grain
+    let regular = 2.5e-4f64.powi(3) / (6.0 * 2f64.sqrt());
+    assert!(
+        reference.tets.len() as f64 > 0.5 * volume(&reference) / regular,
+        "{} tets",
+        reference.tets.len()
+    );
     for f in ["g_ascii.stl", "g.obj", "g.msh"] {
         assert!(mesh(f) == reference, "{f} meshes differently");
     }
@@ -288,7 +296,24 @@ fn a_refine_zone_makes_the_elements_below_the_point_fine() {
         "{n_zoned} tets, mean edge {e_zoned:e}"
     );
     assert!(e_plain > 3.0 * e_zoned, "{e_plain:e} vs {e_zoned:e}");
-    assert!((volume(&m_zoned) / volume(&m_plain) - 1.0).abs() < 1e-3);
+    // both remeshed onto the file's surface: the volume lost is the chord sag of edges h
+    // at radius of curvature ρ, at most h²/(8ρ) × area / volume (ρ = c²/a = 0.49 mm at the
+    // x tip, area/volume ≈ 3/∛(abc)); the zone's finer tip loses less
+    let input = mufe::mesh::import::checks::signed_volume(&s) * 1e-9;
+    let (loss_plain, loss_zoned) = (
+        1.0 - volume(&m_plain) / input,
+        1.0 - volume(&m_zoned) / input,
+    );
+    let sag_bound = 1.5e-4f64.powi(2) / (8.0 * 0.49e-3) * 3.0 / (0.56f64.cbrt() * 1e-3);
+    println!("volume lost: {loss_plain:.4} without the zone, {loss_zoned:.4} with it, bound {sag_bound:.4}");
+    assert!(
+        loss_plain > 0.0 && loss_plain < sag_bound,
+        "{loss_plain} vs {sag_bound}"
+    );
+    assert!(
+        loss_zoned < loss_plain + 1e-3,
+        "{loss_zoned} vs {loss_plain}"
+    );
     let mut bad = zoned.clone();
     bad.refine[0].seeding = 2e-4;
     let e = mesh_surface_cached(&bad, None).unwrap_err().to_string();
@@ -472,4 +497,70 @@ fn distinct_shapes_mesh_in_worker_processes_into_the_cache_alike() {
     use std::io::Write as _;
     c.stdin.take().unwrap().write_all(b"{not json").unwrap();
     assert_eq!(c.wait_with_output().unwrap().status.code(), Some(2));
+}
+
+/// Remeshing: a fine STL is coarsened onto its own surface to the seeding, and curvature
+/// sizing makes the facets at the tips of a prolate spheroid as fine as 2·mr·ρ there
+/// (ρ = a²/c) and 2·mr·a at the equator; curvature sizing without remeshing is refused.
+#[test]
+fn remeshing_coarsens_a_fine_file_and_curvature_sizing_follows_the_radius() {
+    let d = dir("curvature");
+    let (a, c) = (0.5, 1.5); // mm
+    let mut s = icosphere(5);
+    s.points
+        .iter_mut()
+        .for_each(|p| *p = [a * p[0], a * p[1], c * p[2]].map(|x| x as f32 as f64));
+    write(&d.join("spheroid.stl"), |o| write_stl_binary(&s, o));
+    let mut coarse = spec(&d.join("spheroid.stl"), "mm", 2e-4);
+    let boundary = |m: &TetMesh| {
+        let b = mufe::mesh::extract_surface(m);
+        let mut edges = Vec::new();
+        for f in &b.facets {
+            for k in 0..3 {
+                let (p, q) = (m.nodes[f[k] as usize], m.nodes[f[(k + 1) % 3] as usize]);
+                let mid = [0, 1, 2].map(|i| 0.5 * (p[i] + q[i]));
+                let l = (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt();
+                edges.push((mid, l));
+            }
+        }
+        (b.facets.len(), edges)
+    };
+    let mean = |edges: &[([f64; 3], f64)], pick: &dyn Fn([f64; 3]) -> bool| {
+        let l: Vec<f64> = edges.iter().filter(|e| pick(e.0)).map(|e| e.1).collect();
+        l.iter().sum::<f64>() / l.len().max(1) as f64
+    };
+    let m = mesh_surface_cached(&coarse, None).unwrap().0;
+    let (facets, edges) = boundary(&m);
+    let all = mean(&edges, &|_| true);
+    println!(
+        "{} file facets → {facets} at seeding 0.2 mm (mean edge {all:.3e} m)",
+        s.facets.len()
+    );
+    assert!(facets < s.facets.len() / 10, "{facets} facets");
+    assert!((all / 2e-4 - 1.0).abs() < 0.2, "mean edge {all:e}");
+
+    let mr = 0.1;
+    coarse.curvature = Some(mufe::mesh::import::remesh::CurvatureSizing {
+        mr,
+        min_seeding: 1e-5,
+        growth: 0.3,
+    });
+    let m = mesh_surface_cached(&coarse, None).unwrap().0;
+    let (_, edges) = boundary(&m);
+    let tip = mean(&edges, &|x| x[2].abs() > 0.98 * c * 1e-3);
+    let equator = mean(&edges, &|x| x[2].abs() < 0.05e-3);
+    let (want_tip, want_equator) = (2.0 * mr * a * a / c * 1e-3, 2.0 * mr * a * 1e-3);
+    println!("curvature mr {mr}: tip edge {tip:.3e} m (2·mr·a²/c = {want_tip:.3e}), equator {equator:.3e} m (2·mr·a = {want_equator:.3e})");
+    assert!(
+        (tip / want_tip - 1.0).abs() < 0.3,
+        "tip {tip:e} vs {want_tip:e}"
+    );
+    assert!(
+        (equator / want_equator - 1.0).abs() < 0.3,
+        "equator {equator:e} vs {want_equator:e}"
+    );
+
+    coarse.remesh = false;
+    let e = mesh_surface_cached(&coarse, None).unwrap_err().to_string();
+    assert!(e.contains("curvature") && e.contains("remesh"), "{e}");
 }

@@ -162,20 +162,5 @@ impl LabelImage {
     }
 }
 
-/// Area-weighted vertex normals of a closed surface (unnormalised: the sum of the
-/// doubled area vectors of the facets around each vertex).
-pub fn vertex_normals(s: &crate::mesh::import::Surface) -> Vec<[f64; 3]> {
-    use crate::math::{add, cross, sub};
-    let mut normals = vec![[0.0; 3]; s.points.len()];
-    for f in &s.facets {
-        let p = f.map(|v| s.points[v as usize]);
-        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-        for &v in f {
-            normals[v as usize] = add(normals[v as usize], n);
-        }
-    }
-    normals
-}
-
 /// Deepest erosion level looked for by [`LabelImage::deepest_voxels`].
 pub const MAX_DEPTH: u8 = 4;

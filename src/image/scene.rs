@@ -307,7 +307,7 @@ fn compact(points: &[[f64; 3]], shared: &[bool], facets: &[[u32; 3]]) -> (Surfac
 
 /// Moves every vertex inward along its area-weighted normal by `d`.
 fn offset_inward(s: &mut Surface, d: f64) {
-    let normals = super::vertex_normals(s);
+    let normals = s.vertex_normals();
     for (p, n) in s.points.iter_mut().zip(&normals) {
         let l = norm(*n);
         if l > 0.0 {

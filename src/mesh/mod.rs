@@ -22,6 +22,7 @@
 //! element, so the minimum dihedral angle matters).
 
 pub mod block;
+pub mod collapse;
 pub mod ellipsoid;
 pub mod import;
 pub mod joint;

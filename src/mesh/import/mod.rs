@@ -14,6 +14,7 @@ mod descriptors;
 pub mod formats;
 pub mod intersect;
 mod refine;
+pub mod remesh;
 pub mod zones;
 
 use std::path::{Path, PathBuf};
@@ -30,7 +31,7 @@ use crate::error::{num, InputError};
 use crate::math::{norm, sub};
 
 /// Bumped whenever a change to this pipeline changes the meshes (invalidates the cache).
-const MESHER_VERSION: u32 = 2;
+const MESHER_VERSION: u32 = 5;
 
 /// Largest surface after subdivision (facets): ~100 M tets.
 const MAX_FACETS: usize = 4_000_000;
@@ -87,13 +88,42 @@ pub struct SurfaceSpec {
     /// rotation); see [`zones`]. Default none.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub refine: Vec<zones::SurfaceRefinement>,
+    /// Remesh the surface to the seeding (and the zones and curvature sizing) on the file's
+    /// own geometry ([`remesh`]); `false` keeps the file's facets, only splitting those
+    /// longer than the size. Default true.
+    #[serde(default = "yes")]
+    pub remesh: bool,
+    /// Finer facets where the surface is curved (needs `remesh`); see
+    /// [`remesh::CurvatureSizing`]. Default none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub curvature: Option<remesh::CurvatureSizing>,
     /// Checked geometry, filled when the scene is loaded (not input).
     #[serde(skip)]
     pub geometry: Option<Arc<SurfaceGeometry>>,
 }
 
+impl Surface {
+    /// Area-weighted vertex normals of a closed surface (unnormalised: the sum of the
+    /// doubled area vectors of the facets around each vertex).
+    pub fn vertex_normals(&self) -> Vec<[f64; 3]> {
+        let mut normals = vec![[0.0; 3]; self.points.len()];
+        for f in &self.facets {
+            let p = f.map(|v| self.points[v as usize]);
+            let n = crate::math::cross(sub(p[1], p[0]), sub(p[2], p[0]));
+            for &v in f {
+                normals[v as usize] = crate::math::add(normals[v as usize], n);
+            }
+        }
+        normals
+    }
+}
+
 fn one() -> f64 {
     1.0
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// What the scene needs to know of a surface shape before meshing.
@@ -108,6 +138,9 @@ pub struct SurfaceGeometry {
     pub min_edge: f64,
     /// Exact (elements, nodes) of an MSH volume mesh used as is.
     pub volume_mesh: Option<(usize, usize)>,
+    /// With `remesh`: the facets the remeshed surface will have (∫ dA / A(h)) and the
+    /// smallest edge the size field asks for (m).
+    pub remeshed: Option<(f64, f64)>,
 }
 
 impl SurfaceSpec {
@@ -180,6 +213,38 @@ impl SurfaceSpec {
                 return Err(bad(
                     &f("growth"),
                     format!("must be in [{lo}, {hi}], got {}", num(z.growth)),
+                ));
+            }
+        }
+        if let Some(c) = &self.curvature {
+            if !self.remesh {
+                return Err(bad(
+                    "curvature",
+                    "curvature sizing remeshes the surface; it needs remesh = true".into(),
+                ));
+            }
+            if !(c.mr.is_finite() && c.mr > 0.0 && c.mr <= 0.5) {
+                return Err(bad(
+                    "curvature.mr",
+                    format!("must be in (0, 0.5], got {}", num(c.mr)),
+                ));
+            }
+            if !(c.min_seeding.is_finite() && c.min_seeding > 0.0 && c.min_seeding <= self.seeding)
+            {
+                return Err(bad(
+                    "curvature.min_seeding",
+                    format!(
+                        "must be > 0 and at most the shape's seeding {}, got {}",
+                        num(self.seeding),
+                        num(c.min_seeding)
+                    ),
+                ));
+            }
+            let (lo, hi) = (super::sphere::MIN_GROWTH, super::sphere::MAX_GROWTH);
+            if !(lo..=hi).contains(&c.growth) {
+                return Err(bad(
+                    "curvature.growth",
+                    format!("must be in [{lo}, {hi}], got {}", num(c.growth)),
                 ));
             }
         }
@@ -305,12 +370,21 @@ pub fn inspect(spec: &SurfaceSpec) -> Result<SurfaceGeometry, MeshError> {
             .fold(0.0, f64::max),
         None => surface.points.iter().map(|p| norm(*p)).fold(0.0, f64::max),
     };
+    let remeshed = (spec.remesh && volume_mesh.is_none()).then(|| {
+        let field = zones::SizeField {
+            seeding: spec.seeding,
+            zones: &spec.refine,
+        };
+        let reference = remesh::Reference::new(&surface, field, spec.curvature.as_ref());
+        (reference.expected_facets(), reference.smallest_size())
+    });
     Ok(SurfaceGeometry {
         descriptors: ShapeDescriptors::of(&surface),
         bounding_radius,
         facets: surface.facets.len(),
         min_edge,
         volume_mesh,
+        remeshed,
     })
 }
 
@@ -333,7 +407,7 @@ pub fn mesh_surface_cached(
             match cache_dir.and_then(|d| cache::load(d, &key)) {
                 Some(m) => (m, true),
                 None => {
-                    let m = fill(&s, spec.seeding, &spec.refine)?;
+                    let m = fill(&s, spec)?;
                     if let Some(d) = cache_dir {
                         cache::store(d, &key, &m);
                     }
@@ -361,7 +435,11 @@ fn cache_key(spec: &SurfaceSpec, bytes: &[u8]) -> String {
         String::new()
     } else {
         format!("refine {}\n", serde_json::to_string(&spec.refine).unwrap_or_default())
-    }
+    } + &format!(
+        "remesh {}\ncurvature {}\n",
+        spec.remesh,
+        serde_json::to_string(&spec.curvature).unwrap_or_default()
+    )
 }
 
 /// The executable that runs `mufe mesh-worker`, set by the `mufe` binary at start-up when
@@ -448,18 +526,40 @@ pub fn run_mesh_worker() -> Result<(), String> {
         .map_err(|e| e.to_string())
 }
 
-/// Subdivides the surface to edges ≤ the size field (`seeding`, finer in the `zones`) and
-/// fills it with tets, seeding the interior near the zones ([`zones::interior_points`]).
-fn fill(
-    s: &Surface,
-    seeding: f64,
-    zones: &[zones::SurfaceRefinement],
-) -> Result<TetMesh, MeshError> {
-    let field = zones::SizeField { seeding, zones };
-    let fine = refine::subdivide_to(s, |x| field.at(x), MAX_FACETS).ok_or(MeshError::TooLarge {
+/// Remeshes the surface to the size field (`seeding`, finer in the zones and where curved;
+/// or, with `remesh = false`, subdivides it to edges ≤ the size) and fills it with tets,
+/// seeding the interior near the zones ([`zones::interior_points`]).
+fn fill(s: &Surface, spec: &SurfaceSpec) -> Result<TetMesh, MeshError> {
+    let seeding = spec.seeding;
+    let field = zones::SizeField {
+        seeding,
+        zones: &spec.refine,
+    };
+    let too_large = || MeshError::TooLarge {
         field: "seeding".into(),
         limit: MAX_FACETS,
-    })?;
+    };
+    let subdivided = || refine::subdivide_to(s, |x| field.at(x), MAX_FACETS).ok_or_else(too_large);
+    let fine = if spec.remesh {
+        let reference = remesh::Reference::new(s, field, spec.curvature.as_ref());
+        if reference.expected_facets() > MAX_FACETS as f64 {
+            return Err(too_large());
+        }
+        let remeshed = remesh::remesh(s, &reference);
+        match checks::check(&remeshed) {
+            Ok(()) => remeshed,
+            Err((place, defect)) => {
+                // never expected; the file's own facets are a valid surface to mesh
+                eprintln!(
+                    "warning: {}: remeshing gave an invalid surface ({place}: {defect}); meshing the file's facets subdivided instead",
+                    spec.file
+                );
+                subdivided()?
+            }
+        }
+    } else {
+        subdivided()?
+    };
     // TetGen's tolerances are relative and its volume bound goes through text: work at
     // order-one coordinates.
     let size = fine
@@ -474,14 +574,14 @@ fn fill(
             .into_iter()
             .map(|p| p.map(|c| c / size)),
     );
-    let h = seeding / size;
-    let max_volume = h * h * h / (6.0 * std::f64::consts::SQRT_2);
+    // no volume bound: the lattice sets the interior size, and a bound would split every
+    // surface facet with area^1.5 above it (most facets of edge ≈ seeding)
     let mut mesh = tetrahedralize(
         &points,
         &fine.facets,
         &[],
         super::sphere::RADIUS_EDGE_RATIO,
-        Some(max_volume),
+        None,
     )?;
     // TetGen's slivers set the explicit step: move the interior nodes as the sphere
     // mesher does (the surface stays exactly as checked)

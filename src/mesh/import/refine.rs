@@ -19,23 +19,40 @@ pub fn subdivide_to(
 ) -> Option<Surface> {
     let mut s = s.clone();
     loop {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let len =
-            |s: &Surface, a: u32, b: u32| norm(sub(s.points[a as usize], s.points[b as usize]));
-        for f in &s.facets {
-            for k in 0..3 {
-                let (a, b) = (f[k], f[(k + 1) % 3]);
-                let key = (a.min(b), a.max(b));
-                let p = scale(add(s.points[a as usize], s.points[b as usize]), 0.5);
-                if len(&s, a, b) > h(p) && !mid.contains_key(&key) {
-                    s.points.push(p);
-                    mid.insert(key, (s.points.len() - 1) as u32);
-                }
-            }
-        }
-        if mid.is_empty() {
+        if split_edges_once(&mut s, |length, mid| length > h(mid)).is_empty() {
             return Some(s);
         }
+        if s.facets.len() > max_facets {
+            return None;
+        }
+    }
+}
+
+/// Splits at its midpoint every edge for which `split(length, midpoint)` holds, and cuts
+/// the facets by the pattern of their split edges; returns the new vertex of each split
+/// edge (keyed by its ends, lower index first).
+pub fn split_edges_once(
+    s: &mut Surface,
+    split: impl Fn(f64, [f64; 3]) -> bool,
+) -> HashMap<(u32, u32), u32> {
+    let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+    let len = |s: &Surface, a: u32, b: u32| norm(sub(s.points[a as usize], s.points[b as usize]));
+    for i in 0..s.facets.len() {
+        let f = s.facets[i];
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            let key = (a.min(b), a.max(b));
+            let p = scale(add(s.points[a as usize], s.points[b as usize]), 0.5);
+            if !mid.contains_key(&key) && split(len(s, a, b), p) {
+                s.points.push(p);
+                mid.insert(key, (s.points.len() - 1) as u32);
+            }
+        }
+    }
+    if mid.is_empty() {
+        return mid;
+    }
+    {
         let mut facets = Vec::with_capacity(2 * s.facets.len());
         for f in &s.facets {
             let m = |k: usize| {
@@ -58,7 +75,7 @@ pub fn subdivide_to(
                     let (a, b, c) = (f[k], f[(k + 1) % 3], f[(k + 2) % 3]);
                     let (x, y) = (splits[k].unwrap_or(0), splits[(k + 1) % 3].unwrap_or(0));
                     facets.push([x, b, y]);
-                    if len(&s, a, y) <= len(&s, x, c) {
+                    if len(s, a, y) <= len(s, x, c) {
                         facets.extend([[a, x, y], [a, y, c]]);
                     } else {
                         facets.extend([[a, x, c], [x, y, c]]);
@@ -70,11 +87,9 @@ pub fn subdivide_to(
                 }
             }
         }
-        if facets.len() > max_facets {
-            return None;
-        }
         s.facets = facets;
     }
+    mid
 }
 
 #[cfg(test)]

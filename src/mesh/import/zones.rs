@@ -161,16 +161,13 @@ impl<'a> SurfaceQuery<'a> {
 /// Interior points that make the tets follow the size field near the zones (`s` the
 /// surface as it will be meshed, the same frame as the zones).
 pub fn interior_points(s: &Surface, field: SizeField) -> Vec<[f64; 3]> {
-    if field.zones.is_empty() {
-        return Vec::new();
-    }
     let big = field.seeding;
     let finest = field.zones.iter().map(|z| z.seeding).fold(big, f64::min);
     let levels = (big / finest).log2().round().max(0.0) as u32;
     let rot_t = transpose(&lattice_rotation());
     // level ℓ (size big/2^ℓ) is visited inside the boxes of the balls where h < big·2^(½−ℓ);
     // level 0 over the whole reach of each zone
-    let boxes: Vec<Vec<Aabb>> = (0..=levels)
+    let mut boxes: Vec<Vec<Aabb>> = (0..=levels)
         .map(|l| {
             let threshold = if l == 0 {
                 big
@@ -189,6 +186,18 @@ pub fn interior_points(s: &Surface, field: SizeField) -> Vec<[f64; 3]> {
                 .collect()
         })
         .collect();
+    // the whole body at the seeding: level 0 over the surface's box (lattice frame)
+    let corners = s.points.iter().map(|p| mat_vec(&rot_t, *p));
+    let (lo, hi) = corners.fold(
+        ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+        |(lo, hi), c| {
+            (
+                [0, 1, 2].map(|k| lo[k].min(c[k])),
+                [0, 1, 2].map(|k| hi[k].max(c[k])),
+            )
+        },
+    );
+    boxes[0] = vec![(lo, hi)];
     let longest = s
         .facets
         .iter()
@@ -203,10 +212,6 @@ pub fn interior_points(s: &Surface, field: SizeField) -> Vec<[f64; 3]> {
         &boxes,
         |p| {
             let h = field.at(p);
-            if h >= big && levels > 0 {
-                // the bulk is TetGen's (volume bound)
-                return None;
-            }
             if query.near(p, SKIN_DEPTH * h) || guard.encroaches(p) || !query.inside(p) {
                 return None;
             }
