@@ -457,21 +457,14 @@ fn surface_estimate(s: &crate::mesh::import::SurfaceSpec) -> Option<ShapeEstimat
         + SURFACE_LAYER_PER_TRIANGLE * triangles)
         .max(SURFACE_ELEMENTS_PER_FACET * g.facets as f64)
         .ceil();
-    // refine zones: the sphere's patch integrals on the equal-volume sphere (the zones'
-    // lattice is the sphere mesher's); measured within 6 % on jobs/validation/hertz_ellipsoid
-    let mut min_size = h.min(g.min_edge);
-    for z in &s.refine {
-        let (de, dt, _) = patch_excess(
-            z.seeding,
-            z.radius,
-            z.growth,
-            h,
-            g.descriptors.equivalent_radius,
-        );
-        elements += (PATCH_ELEMENT_FACTOR * de).max(0.0).ceil();
-        triangles += dt.max(0.0).ceil();
-        min_size = min_size.min(z.seeding);
-    }
+    let min_size = s
+        .refine
+        .iter()
+        .map(|z| z.seeding)
+        .fold(h.min(g.min_edge), f64::min);
+    let (de, dt) = zone_excess(s, g);
+    elements += de;
+    triangles += dt;
     if !(elements < 9e18 && triangles < 9e18) {
         return None;
     }
@@ -490,6 +483,28 @@ fn surface_estimate(s: &crate::mesh::import::SurfaceSpec) -> Option<ShapeEstimat
     })
 }
 
+/// Elements and surface triangles the `refine` zones add: the sphere's patch integrals on
+/// the equal-volume sphere (the zones' lattice is the sphere mesher's; measured within 6 %
+/// on jobs/validation/hertz_ellipsoid), rounded up per zone.
+fn zone_excess(
+    s: &crate::mesh::import::SurfaceSpec,
+    g: &crate::mesh::import::SurfaceGeometry,
+) -> (f64, f64) {
+    s.refine.iter().fold((0.0, 0.0), |(e, t), z| {
+        let (de, dt, _) = patch_excess(
+            z.seeding,
+            z.radius,
+            z.growth,
+            s.seeding,
+            g.descriptors.equivalent_radius,
+        );
+        (
+            e + (PATCH_ELEMENT_FACTOR * de).max(0.0).ceil(),
+            t + dt.max(0.0).ceil(),
+        )
+    })
+}
+
 /// A remeshed surface (the default): its facets are the size field's (computed at load,
 /// zones and curvature included), its interior the sphere mesher's lattice — V/V(h)
 /// elements (measured 0.94–1.04 on virtual sand grains at seeding r_eq/5 and r_eq/10,
@@ -503,20 +518,11 @@ fn remeshed_estimate(
     smallest: f64,
 ) -> Option<ShapeEstimate> {
     let h = s.seeding;
-    let mut elements = g.descriptors.volume / regular_tet_volume(h);
-    let mut expected = g.descriptors.area / (0.25 * 3f64.sqrt() * h * h);
-    for z in &s.refine {
-        let (de, dt, _) = patch_excess(
-            z.seeding,
-            z.radius,
-            z.growth,
-            h,
-            g.descriptors.equivalent_radius,
-        );
-        elements += (PATCH_ELEMENT_FACTOR * de).max(0.0);
-        expected += dt.max(0.0);
-    }
-    elements += SURFACE_LAYER_PER_TRIANGLE * (facets - expected).max(0.0);
+    let (de, dt) = zone_excess(s, g);
+    let expected = g.descriptors.area / (0.25 * 3f64.sqrt() * h * h) + dt;
+    let elements = g.descriptors.volume / regular_tet_volume(h)
+        + de
+        + SURFACE_LAYER_PER_TRIANGLE * (facets - expected).max(0.0);
     let triangles = facets.ceil();
     if !(elements < 9e18 && triangles < 9e18) {
         return None;

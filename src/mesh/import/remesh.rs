@@ -233,19 +233,7 @@ fn make_acute(s: &mut Surface, pinned: &[bool], reference: &Reference) -> bool {
             let target = add(sub(p(c), scale(away, 1.0)), scale(away, height / la));
             let target = reference.project(target).0;
             let v = c as usize;
-            let acceptable = around[v].iter().all(|&g| {
-                let t = s.facets[g as usize];
-                let at = |x: u32| if x == c { target } else { p(x) };
-                let o = t.map(p);
-                let q = t.map(at);
-                let n_old = cross(sub(o[1], o[0]), sub(o[2], o[0]));
-                let n_new = cross(sub(q[1], q[0]), sub(q[2], q[0]));
-                let q_new = quality(q[0], q[1], q[2]);
-                dot(n_old, n_new) >= MIN_TURN_COSINE * norm(n_old) * norm(n_new)
-                    && norm(n_new) > 0.0
-                    && (q_new >= MIN_QUALITY || q_new >= quality(o[0], o[1], o[2]))
-            });
-            if acceptable {
+            if move_keeps_facets(s, &around[v], v, target) {
                 s.points[v] = target;
                 moved_any = true;
             }
@@ -535,28 +523,33 @@ fn relax_tangentially(s: &mut Surface, pinned: &[bool], reference: &Reference) {
         let n = scale(n, 1.0 / ln);
         let d = sub(mean, p);
         let moved = reference.project(add(p, sub(d, scale(n, dot(n, d))))).0;
-        let acceptable = around[v].iter().all(|&f| {
-            let t = s.facets[f as usize];
-            let at = |w: u32| {
-                if w as usize == v {
-                    moved
-                } else {
-                    s.points[w as usize]
-                }
-            };
-            let o = t.map(|w| s.points[w as usize]);
-            let q = t.map(at);
-            let n_old = cross(sub(o[1], o[0]), sub(o[2], o[0]));
-            let n_new = cross(sub(q[1], q[0]), sub(q[2], q[0]));
-            let q_new = quality(q[0], q[1], q[2]);
-            dot(n_old, n_new) >= MIN_TURN_COSINE * norm(n_old) * norm(n_new)
-                && norm(n_new) > 0.0
-                && (q_new >= MIN_QUALITY || q_new >= quality(o[0], o[1], o[2]))
-        });
-        if acceptable {
+        if move_keeps_facets(s, &around[v], v, moved) {
             s.points[v] = moved;
         }
     }
+}
+
+/// Whether moving vertex `v` to `target` leaves each facet `around` it unfolded (turned
+/// by less than 60°), not degenerate, and not worse than the quality bound unless it
+/// already was.
+fn move_keeps_facets(s: &Surface, around: &[u32], v: usize, target: [f64; 3]) -> bool {
+    around.iter().all(|&f| {
+        let t = s.facets[f as usize];
+        let o = t.map(|w| s.points[w as usize]);
+        let q = t.map(|w| {
+            if w as usize == v {
+                target
+            } else {
+                s.points[w as usize]
+            }
+        });
+        let n_old = cross(sub(o[1], o[0]), sub(o[2], o[0]));
+        let n_new = cross(sub(q[1], q[0]), sub(q[2], q[0]));
+        let q_new = quality(q[0], q[1], q[2]);
+        dot(n_old, n_new) >= MIN_TURN_COSINE * norm(n_old) * norm(n_new)
+            && norm(n_new) > 0.0
+            && (q_new >= MIN_QUALITY || q_new >= quality(o[0], o[1], o[2]))
+    })
 }
 
 /// A bounding-volume tree of a surface's facets for closest-point queries.
