@@ -552,3 +552,49 @@ fn corotational_law_is_objective_in_the_solver() {
         "von Mises after 90°: {vm} Pa"
     );
 }
+
+/// A stage's `gravity` replaces `simulation.gravity` while the stage runs: a free sphere
+/// gains exactly g₁·t₁ in the first stage, nothing in a weightless second one, and the
+/// ledger books the work of the gravity that acted.
+#[test]
+fn stage_gravity_acts_only_during_its_stage_and_the_ledger_balances() {
+    let (g1, t1, t2) = (-200.0, 2.0e-5, 1.0e-5);
+    let stages = format!(
+        "[[stages]]\nname = \"heavy\"\ngravity = [0.0, 0.0, {g1:?}]\nuntil = {{ max_time = {t1:e} }}\n\n\
+         [[stages]]\nname = \"weightless\"\ngravity = [0.0, 0.0, 0.0]\nuntil = {{ max_time = {t2:e} }}\n"
+    );
+    let text = sphere_scene("", &stages, 5.5e-4).replace(
+        "duration = 1.0",
+        "duration = 1.0\ngravity = [0.0, 0.0, -9.81]",
+    );
+    let mut solver = solver_from(&text);
+    let dt = solver.model.dt;
+    let mean_vz = |s: &Solver| {
+        let (mut p, mut m) = (0.0, 0.0);
+        for (v, mass) in s.state.v.iter().zip(&s.model.physical_mass) {
+            p += mass * v[2];
+            m += mass;
+        }
+        p / m
+    };
+    let mut heavy_steps = 0u64;
+    while solver.state.time < t1 + t2 - 0.5 * dt {
+        let in_heavy = solver.state.stages.index == 0;
+        solver.step().unwrap();
+        heavy_steps += u64::from(in_heavy);
+    }
+    let expected = g1 * heavy_steps as f64 * dt;
+    let got = mean_vz(&solver);
+    assert!(
+        (got / expected - 1.0).abs() < 1e-9,
+        "v_z {got:e} vs g₁·t₁ = {expected:e} ({heavy_steps} heavy steps)"
+    );
+    assert!((heavy_steps as f64 * dt - t1).abs() <= 2.0 * dt);
+    let e = &solver.state.energy;
+    let drift = (e.total() - e.initial_total.unwrap_or(0.0)).abs();
+    assert!(
+        drift < 1e-9 * e.kinetic,
+        "ledger drift {drift:e} vs KE {:e}",
+        e.kinetic
+    );
+}

@@ -38,8 +38,8 @@ pub struct Until {
     pub stress_held: Option<(f64, f64)>,
     pub axial_strain: Option<f64>,
     pub failure: Option<FailureRule>,
-    /// (wall index, normal force in N).
-    pub wall_force: Option<(usize, f64)>,
+    /// (wall index, normal force in N, hold time in s).
+    pub wall_force: Option<(usize, f64, f64)>,
 }
 
 /// When a stage counts the specimen as failed (`crate::scene::stages::FailureSpec`).
@@ -70,6 +70,8 @@ pub struct Stage {
     pub strains: bool,
     /// Mass-proportional damping during the stage (1/s), replacing `simulation.damping`.
     pub damping: Option<f64>,
+    /// Gravity during the stage (m/s²), replacing `simulation.gravity`.
+    pub gravity: Option<[f64; 3]>,
 }
 
 /// A closed box of walls: one opposite pair per axis.
@@ -176,6 +178,9 @@ pub struct StageProgress {
     pub distance_at_start: [f64; 3],
     /// Since when every servo wall is within tolerance.
     pub held_since: Option<f64>,
+    /// Since when the `wall_force` wall carries its force.
+    #[serde(default)]
+    pub force_since: Option<f64>,
     pub peak: Option<RatioPoint>,
     pub failure: Option<RatioPoint>,
     /// Last point where the ratio rose by [`PLATEAU_RISE`] over the previous such point.
@@ -244,6 +249,7 @@ impl StagePlan {
                     .collect(),
                 strains: false,
                 damping: None,
+                gravity: None,
                 until: Until {
                     max_time: f64::INFINITY,
                     stress_held: None,
@@ -404,9 +410,14 @@ impl StagePlan {
                 p.held_since = None;
             }
         }
-        if let Some((w, force)) = until.wall_force {
+        if let Some((w, force, hold)) = until.wall_force {
             if p.wall_forces.get(w).is_some_and(|&f| f >= force) {
-                end = Some(StageEnd::WallForce);
+                let since = *p.force_since.get_or_insert(t_next);
+                if t_next - since >= hold {
+                    end = Some(StageEnd::WallForce);
+                }
+            } else {
+                p.force_since = None;
             }
         }
         if let Some((strain, ratio)) = axial {
@@ -462,6 +473,7 @@ impl StagePlan {
                 p.distance_at_start = m.distance;
             }
             p.held_since = None;
+            p.force_since = None;
             p.peak = None;
             p.failure = None;
             p.rising = None;
@@ -544,6 +556,7 @@ fn build_stage(
     Stage {
         name: st.name.clone(),
         damping: st.damping,
+        gravity: st.gravity,
         strains: modes
             .iter()
             .any(|m| matches!(m, WallMode::Velocity(v) if *v != 0.0)),
@@ -562,7 +575,7 @@ fn build_stage(
             }),
             wall_force: u.wall_force.as_ref().and_then(|wf| {
                 let w = scene.walls.iter().position(|w| w.name == wf.wall)?;
-                Some((w, wf.force))
+                Some((w, wf.force, wf.hold))
             }),
         },
     }
@@ -740,6 +753,44 @@ until = { max_time = 1.0e-4 }
         assert!(
             bad.to_string().contains("stages[0].until.wall_force.wall"),
             "{bad}"
+        );
+    }
+
+    #[test]
+    fn a_wall_force_with_hold_ignores_a_spike_and_ends_once_the_force_stays() {
+        let scene = cell_scene(
+            r#"
+[[stages]]
+name = "approach"
+walls = { top = { velocity = 0.5 } }
+until = { wall_force = { wall = "top", force = 0.2, hold = 5.0e-5 }, max_time = 1.0 }
+
+[[stages]]
+name = "hold"
+until = { max_time = 1.0e-4 }
+"#,
+        );
+        let plan = StagePlan::build(&scene).expect("staged");
+        let top = scene.walls.iter().position(|w| w.name == "top").unwrap();
+        let dt = 1e-7;
+        // an impact: 1 N for 100 steps (10 µs < hold) at step 1000; then 1 N from step 5000
+        let p = drive(&plan, dt, 20_000, |n, _| {
+            let mut f = vec![0.0; 6];
+            f[top] = if (1000..1100).contains(&n) || n >= 5000 {
+                1.0
+            } else {
+                0.0
+            };
+            f
+        });
+        let r = &p.done[0];
+        assert_eq!(r.reason, StageEnd::WallForce);
+        let held_from = 5000.0 * dt + plan.filter_time;
+        assert!(
+            r.end >= 5000.0 * dt + 5.0e-5
+                && r.end < held_from + 5.0e-5 + 5.0 * plan.filter_time + 10.0 * dt,
+            "{}",
+            r.end
         );
     }
 

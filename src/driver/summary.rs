@@ -287,8 +287,15 @@ fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wal
                     }
                 })
                 .collect();
+            let mut body = String::new();
+            if let Some(d) = st.damping {
+                body += &format!("; damping {d:.3e} 1/s");
+            }
+            if let Some(g) = st.gravity {
+                body += &format!("; gravity [{:.4e}, {:.4e}, {:.4e}] m/s²", g[0], g[1], g[2]);
+            }
             println!(
-                "stage {} '{}': {}; ends at {}",
+                "stage {} '{}': {}{body}; ends at {}",
                 i + 1,
                 st.name,
                 modes.join(", "),

@@ -38,6 +38,11 @@ pub struct StageSpec {
     /// shearing (it drags the moving grains and biases the failure).
     #[serde(default)]
     pub damping: Option<f64>,
+    /// Gravity during the stage (m/s²), in place of `simulation.gravity`: e.g. a
+    /// deposit under a few tens of g, so loose grains settle in a fraction of the time
+    /// 1 g takes, before the loading stages run under 1 g.
+    #[serde(default)]
+    pub gravity: Option<[f64; 3]>,
 }
 
 /// How a wall moves during a stage (along its normal; positive = towards the grains).
@@ -97,6 +102,10 @@ pub struct WallForceSpec {
     pub wall: String,
     /// Normal force (N), > 0, compressive (the wall pushing on the grains).
     pub force: f64,
+    /// Time the force must stay at or above `force` (s), default 0: an impact's spike
+    /// does not end the stage, a wall that keeps pushing does.
+    #[serde(default)]
+    pub hold: f64,
 }
 
 /// See [`UntilSpec::stress_held`].
@@ -204,6 +213,9 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
         }
         let u = &st.until;
         c.positive(&f("until.max_time"), u.max_time)?;
+        if let Some(g) = &st.gravity {
+            c.vec3(&f("gravity"), g)?;
+        }
         if let Some(d) = st.damping {
             c.non_negative(&f("damping"), d)?;
         }
@@ -243,6 +255,7 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
         }
         if let Some(wf) = &u.wall_force {
             c.positive(&f("until.wall_force.force"), wf.force)?;
+            c.non_negative(&f("until.wall_force.hold"), wf.hold)?;
             if !scene.walls.iter().any(|w| w.name == wf.wall) {
                 return Err(c.err(
                     f("until.wall_force.wall"),

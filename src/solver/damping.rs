@@ -108,6 +108,18 @@ pub(super) fn damping_in_force(
         .unwrap_or(model.damping)
 }
 
+/// Gravity of the current stage, else `simulation.gravity` (m/s²).
+pub(super) fn gravity_in_force(
+    model: &Model,
+    stages: &crate::boundary::stages::StageProgress,
+) -> [f64; 3] {
+    model
+        .stages
+        .as_ref()
+        .and_then(|plan| plan.current(stages).gravity)
+        .unwrap_or(model.gravity)
+}
+
 /// Damping force on node n: −α m v − α_def m (v − v_rigid(x)) (N).
 #[inline(always)]
 pub(super) fn damping_force(
@@ -132,16 +144,17 @@ pub(super) fn damping_force(
 /// f ← f_int + m_phys g − α m v_{n−½}; v_{n+½} ← v_{n−½} + Δt f/m for every node (driven
 /// components are overwritten by the motions afterwards). Gravity acts on the physical
 /// mass only: mass added by scaling is numerical and must not weigh anything.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn apply_body_and_damping_forces(
     model: &Model,
     alpha: f64,
+    g: [f64; 3],
     state: &State,
     rigid: &mut [RigidVelocity],
     force: &mut [[f64; 3]],
     v_next: &mut [[f64; 3]],
     dt: f64,
 ) {
-    let g = model.gravity;
     if model.deformation_damping > 0.0 {
         compute_grain_rigid_velocities(model, state, rigid);
     }

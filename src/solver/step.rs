@@ -8,7 +8,7 @@
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
 
 use super::damping::{
-    apply_body_and_damping_forces, damping_force, damping_in_force, RigidVelocity,
+    apply_body_and_damping_forces, damping_force, damping_in_force, gravity_in_force, RigidVelocity,
 };
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::motions::drive_prescribed_motions;
@@ -200,6 +200,8 @@ impl Solver {
         let timers = &mut self.timers;
         // one damping for the whole step: its force and its work use the same α
         let alpha = damping_in_force(model, &state.stages);
+        // and one gravity: the stage's, for the force and for its work
+        let gravity = gravity_in_force(model, &state.stages);
 
         // Internal forces first: they need only owned data, so they overlap the halo
         // exchange begun at the end of the previous step.
@@ -259,6 +261,7 @@ impl Solver {
             apply_body_and_damping_forces(
                 model,
                 alpha,
+                gravity,
                 state,
                 &mut scratch.grain_rigid,
                 &mut scratch.force,
@@ -322,7 +325,7 @@ impl Solver {
         });
 
         let partials = timers.time(Stage::Integrate, || {
-            integrate_and_sum(model, alpha, state, scratch, dt)
+            integrate_and_sum(model, alpha, gravity, state, scratch, dt)
         });
         timers.time(Stage::Halo, || hooks.ghosts_out(&state.x, &state.v))?;
         if let Some(node) = partials.bad_node {
@@ -425,11 +428,11 @@ impl Solver {
 fn integrate_and_sum(
     model: &Model,
     alpha: f64,
+    g: [f64; 3],
     state: &mut State,
     scratch: &mut Scratch,
     dt: f64,
 ) -> NodePartials {
-    let g = model.gravity;
     let rigid = &scratch.grain_rigid;
     let owned = model.owned_nodes;
     state.x[..owned]
