@@ -55,6 +55,19 @@ pub fn det3(m: &[f64; 9]) -> f64 {
         + m[2] * (m[3] * m[7] - m[4] * m[6])
 }
 
+/// Two unit vectors spanning the plane normal to the unit vector n (a right-handed
+/// triad with n).
+pub fn tangent_basis(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+    let helper = if n[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let u = cross(n, helper);
+    let u = scale(u, 1.0 / norm(u));
+    (u, cross(n, u))
+}
+
 /// Distance from `p` to the triangle abc.
 pub fn point_triangle_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
     let w = closest_on_triangle(p, a, b, c);

@@ -709,28 +709,35 @@ until = { axial_strain = 0.01, max_time = 1.0 }
         assert!((r.end - 1.0e-3).abs() <= 2.0 * dt, "ended at {}", r.end);
     }
 
+    /// A first stage moving the top wall until `wall_force` (the TOML value), then a short
+    /// hold; `wall` carries 1 N at the steps where `loaded(step)`, every other wall none.
+    /// Returns the plan and the progress after 20 000 steps of 0.1 µs.
+    fn wall_force_run(
+        wall_force: &str,
+        wall: &str,
+        loaded: impl Fn(usize) -> bool,
+    ) -> (StagePlan, StageProgress) {
+        let scene = cell_scene(&format!(
+            "[[stages]]\nname = \"pack\"\nwalls = {{ top = {{ velocity = 0.5 }} }}\n\
+             until = {{ wall_force = {wall_force}, max_time = 1.0 }}\n\n\
+             [[stages]]\nname = \"hold\"\nuntil = {{ max_time = 1.0e-4 }}\n"
+        ));
+        let plan = StagePlan::build(&scene).expect("staged");
+        let w = scene.walls.iter().position(|x| x.name == wall).unwrap();
+        let p = drive(&plan, 1e-7, 20_000, |n, _| {
+            let mut f = vec![0.0; 6];
+            f[w] = if loaded(n) { 1.0 } else { 0.0 };
+            f
+        });
+        (plan, p)
+    }
+
     #[test]
     fn a_wall_force_ends_the_stage_once_the_filtered_force_reaches_it() {
-        let scene = cell_scene(
-            r#"
-[[stages]]
-name = "pack"
-walls = { top = { velocity = 0.5 } }
-until = { wall_force = { wall = "bottom", force = 0.2 }, max_time = 1.0 }
-
-[[stages]]
-name = "hold"
-until = { max_time = 1.0e-4 }
-"#,
-        );
-        let plan = StagePlan::build(&scene).expect("staged");
-        let bottom = scene.walls.iter().position(|w| w.name == "bottom").unwrap();
         let dt = 1e-7;
         // the bottom wall is loaded from step 1000 on, with 1 N
-        let p = drive(&plan, dt, 20_000, |n, _| {
-            let mut f = vec![0.0; 6];
-            f[bottom] = if n >= 1000 { 1.0 } else { 0.0 };
-            f
+        let (plan, p) = wall_force_run(r#"{ wall = "bottom", force = 0.2 }"#, "bottom", |n| {
+            n >= 1000
         });
         let r = &p.done[0];
         assert_eq!(r.reason, StageEnd::WallForce);
@@ -758,31 +765,13 @@ until = { max_time = 1.0e-4 }
 
     #[test]
     fn a_wall_force_with_hold_ignores_a_spike_and_ends_once_the_force_stays() {
-        let scene = cell_scene(
-            r#"
-[[stages]]
-name = "approach"
-walls = { top = { velocity = 0.5 } }
-until = { wall_force = { wall = "top", force = 0.2, hold = 5.0e-5 }, max_time = 1.0 }
-
-[[stages]]
-name = "hold"
-until = { max_time = 1.0e-4 }
-"#,
-        );
-        let plan = StagePlan::build(&scene).expect("staged");
-        let top = scene.walls.iter().position(|w| w.name == "top").unwrap();
         let dt = 1e-7;
         // an impact: 1 N for 100 steps (10 µs < hold) at step 1000; then 1 N from step 5000
-        let p = drive(&plan, dt, 20_000, |n, _| {
-            let mut f = vec![0.0; 6];
-            f[top] = if (1000..1100).contains(&n) || n >= 5000 {
-                1.0
-            } else {
-                0.0
-            };
-            f
-        });
+        let (plan, p) = wall_force_run(
+            r#"{ wall = "top", force = 0.2, hold = 5.0e-5 }"#,
+            "top",
+            |n| (1000..1100).contains(&n) || n >= 5000,
+        );
         let r = &p.done[0];
         assert_eq!(r.reason, StageEnd::WallForce);
         let held_from = 5000.0 * dt + plan.filter_time;

@@ -49,12 +49,7 @@ pub fn collapse_short_edges(
     let mut facets = facets.to_vec();
     let mut facet_alive = vec![true; facets.len()];
     let mut vertex_alive = vec![true; points.len()];
-    let mut around: Vec<Vec<u32>> = vec![Vec::new(); points.len()];
-    for (f, tri) in facets.iter().enumerate() {
-        for &v in tri {
-            around[v as usize].push(f as u32);
-        }
-    }
+    let mut around = facets_around(points.len(), &facets);
     let length = |p: &[[f64; 3]], a: u32, b: u32| norm(sub(p[a as usize], p[b as usize]));
     let key = |l: f64| l.to_bits(); // lengths ≥ 0: bit order is numeric order
     let mut heap = BinaryHeap::new();
@@ -173,8 +168,19 @@ pub fn collapse_short_edges(
     super::compact_cells(&points, alive)
 }
 
+/// The facets around each of `vertices` vertices.
+pub fn facets_around(vertices: usize, facets: &[[u32; 3]]) -> Vec<Vec<u32>> {
+    let mut around: Vec<Vec<u32>> = vec![Vec::new(); vertices];
+    for (f, tri) in facets.iter().enumerate() {
+        for &v in tri {
+            around[v as usize].push(f as u32);
+        }
+    }
+    around
+}
+
 /// Vertices joined to `v` by an edge of the facets `around` it.
-fn ring(facets: &[[u32; 3]], around: &[u32], v: u32, out: &mut Vec<u32>) {
+pub fn ring(facets: &[[u32; 3]], around: &[u32], v: u32, out: &mut Vec<u32>) {
     out.clear();
     for &f in around {
         for &w in &facets[f as usize] {

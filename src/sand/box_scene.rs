@@ -77,7 +77,10 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
     let per_row = (n as f64).cbrt().ceil() as usize;
     let mut extent = [0.0_f64; 3];
     let mut rotations = Vec::with_capacity(n);
-    let mut heights = Vec::with_capacity(n); // (below, above) the centroid, turned
+    let gap = GAP * p.size;
+    // columns: each grain a gap above the one below it (or the floor)
+    let mut column_top = vec![0.0_f64; per_row * per_row];
+    let mut heights_z = Vec::with_capacity(n);
     for i in 0..n {
         let (s, _) = write_grain_stl(dir, p, i)?;
         let w = orientation(p.seed, i);
@@ -89,20 +92,13 @@ pub fn write_sand_box(dir: &Path, p: &SandParams) -> std::io::Result<PathBuf> {
             extent[k] = extent[k].max(2.0 * (-lo[k]).max(hi[k]));
         }
         rotations.push(w);
-        heights.push((-lo[2], hi[2]));
-    }
-    let gap = GAP * p.size;
-    let cell = extent.map(|e| e + gap);
-    let layers = n.div_ceil(per_row * per_row);
-    // columns: each grain a gap above the one below it (or the floor)
-    let mut column_top = vec![0.0_f64; per_row * per_row];
-    let mut heights_z = Vec::with_capacity(n);
-    for (i, &(below, above)) in heights.iter().enumerate() {
         let top = &mut column_top[i % (per_row * per_row)];
-        let z = *top + gap + below;
-        *top = z + above;
+        let z = *top + gap - lo[2];
+        *top = z + hi[2];
         heights_z.push(z);
     }
+    let cell = extent.map(|e| e + gap);
+    let layers = n.div_ceil(per_row * per_row);
     let span = [
         per_row as f64 * cell[0],
         per_row as f64 * cell[1],

@@ -127,13 +127,13 @@ fn degeneracy(s: &Surface, f: &[u32; 3]) -> Option<String> {
 }
 
 /// An undirected edge and the facets using it: (facet, runs from the lower to the higher id).
-struct EdgeGroup {
-    vertices: (u32, u32),
-    uses: Vec<(usize, bool)>,
+pub(crate) struct EdgeGroup {
+    pub vertices: (u32, u32),
+    pub uses: Vec<(usize, bool)>,
 }
 
 /// Every undirected edge with its facets, by sorting the 3n directed edges (no hashing).
-fn edge_groups(s: &Surface) -> Vec<EdgeGroup> {
+pub(crate) fn edge_groups(s: &Surface) -> Vec<EdgeGroup> {
     let mut all: Vec<(u64, usize, bool)> = Vec::with_capacity(3 * s.facets.len());
     for (fi, f) in s.facets.iter().enumerate() {
         for k in 0..3 {

@@ -1,12 +1,13 @@
 //! Grains of any shape from surface files (STL, OBJ, Gmsh MSH 4.1): read, scale to metres,
-//! check (and optionally repair), centre, subdivide to the seeding and fill with tets by
+//! check (and optionally repair), centre, remesh to the seeding and fill with tets by
 //! TetGen; or, for an MSH volume mesh, use its tets as they are. See docs/SHAPES.md.
 //!
 //! Pipeline of [`mesh_surface`]: [`prepare`] (read → units × scale → repair → checks →
-//! origin) → on-disk cache lookup (`cache`) → [`refine::subdivide`] to edges ≤ seeding →
-//! TetGen with a global maximum volume (a regular tet of edge = seeding) and the sphere
-//! mesher's radius–edge bound → rotation. Defects are input errors naming the surface file
-//! and the first bad facet.
+//! origin) → on-disk cache lookup (`cache`) → [`remesh`] onto the file's surface to the
+//! size field (or, with `remesh = false`, `refine::subdivide_to` edges ≤ the size) → BCC
+//! interior points ([`zones::interior_points`]) → TetGen with the sphere mesher's
+//! radius–edge bound and no volume bound → interior smoothing → rotation. Defects are
+//! input errors naming the surface file and the first bad facet.
 
 pub mod cache;
 pub mod checks;
@@ -528,7 +529,7 @@ pub fn run_mesh_worker() -> Result<(), String> {
 
 /// Remeshes the surface to the size field (`seeding`, finer in the zones and where curved;
 /// or, with `remesh = false`, subdivides it to edges ≤ the size) and fills it with tets,
-/// seeding the interior near the zones ([`zones::interior_points`]).
+/// seeding the interior with the lattice of [`zones::interior_points`].
 fn fill(s: &Surface, spec: &SurfaceSpec) -> Result<TetMesh, MeshError> {
     let seeding = spec.seeding;
     let field = zones::SizeField {

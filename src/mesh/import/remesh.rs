@@ -24,8 +24,10 @@ use serde::{Deserialize, Serialize};
 
 use super::zones::SizeField;
 use super::Surface;
-use crate::math::{add, closest_on_triangle, cross, dot, norm, scale, sub};
-use crate::mesh::collapse::{collapse_short_edges, quality, CollapseRules, MIN_QUALITY};
+use crate::math::{add, closest_on_triangle, cross, dot, norm, scale, sub, tangent_basis};
+use crate::mesh::collapse::{
+    collapse_short_edges, facets_around, quality, ring, CollapseRules, MIN_QUALITY,
+};
 
 /// Facets meeting at a larger angle (between their normals) make a sharp feature.
 pub const FEATURE_ANGLE_DEG: f64 = 60.0;
@@ -61,47 +63,45 @@ fn default_growth() -> f64 {
 pub struct Reference<'a> {
     s: &'a Surface,
     tree: TriangleTree,
-    /// Edge length asked for at each input vertex by curvature (∞ without sizing).
-    vertex_size: Vec<f64>,
+    /// With curvature sizing: the edge length it asks for at each input vertex.
+    vertex_size: Option<Vec<f64>>,
     field: SizeField<'a>,
 }
 
 impl<'a> Reference<'a> {
     pub fn new(s: &'a Surface, field: SizeField<'a>, curvature: Option<&CurvatureSizing>) -> Self {
-        let vertex_size = match curvature {
-            Some(c) => curvature_sizes(s, c),
-            None => vec![f64::INFINITY; s.points.len()],
-        };
         Reference {
             s,
             tree: TriangleTree::new(s),
-            vertex_size,
+            vertex_size: curvature.map(|c| curvature_sizes(s, c)),
             field,
         }
     }
 
-    /// The closest point of the input surface and the curvature size there.
-    fn project(&self, x: [f64; 3]) -> ([f64; 3], f64) {
-        let (t, w) = self.tree.closest(self.s, x);
-        let f = self.s.facets[t];
-        let p = f.map(|v| self.s.points[v as usize]);
-        let q = [0, 1, 2].map(|k| w[0] * p[0][k] + w[1] * p[1][k] + w[2] * p[2][k]);
-        let h = f.map(|v| self.vertex_size[v as usize]);
-        let size = if h.iter().all(|h| h.is_finite()) {
-            w[0] * h[0] + w[1] * h[1] + w[2] * h[2]
-        } else {
-            f64::INFINITY
-        };
-        (q, size)
+    /// The closest point of the input surface: its facet and barycentric coordinates.
+    fn closest(&self, x: [f64; 3]) -> (usize, [f64; 3]) {
+        self.tree.closest(self.s, x)
     }
 
-    /// Edge length wanted at x (a point on or near the surface).
+    /// The closest point of the input surface.
+    fn project(&self, x: [f64; 3]) -> [f64; 3] {
+        let (t, w) = self.closest(x);
+        let p = self.s.facets[t].map(|v| self.s.points[v as usize]);
+        [0, 1, 2].map(|k| w[0] * p[0][k] + w[1] * p[1][k] + w[2] * p[2][k])
+    }
+
+    /// Edge length wanted at x (a point on or near the surface): the zones' field, and
+    /// curvature sizing interpolated at the closest input point.
     pub fn size(&self, x: [f64; 3]) -> f64 {
         let zones = self.field.at(x);
-        if self.vertex_size.first().is_some_and(|h| h.is_finite()) {
-            zones.min(self.project(x).1)
-        } else {
-            zones
+        match &self.vertex_size {
+            None => zones,
+            Some(h) => {
+                let (t, w) = self.closest(x);
+                let f = self.s.facets[t];
+                let curved = (0..3).map(|k| w[k] * h[f[k] as usize]).sum::<f64>();
+                zones.min(curved)
+            }
         }
     }
 
@@ -113,7 +113,11 @@ impl<'a> Reference<'a> {
             .iter()
             .map(|z| z.seeding)
             .fold(self.field.seeding, f64::min);
-        self.vertex_size.iter().copied().fold(zones, f64::min)
+        self.vertex_size
+            .iter()
+            .flatten()
+            .copied()
+            .fold(zones, f64::min)
     }
 
     /// Facets the remeshed surface will have (∫ dA / (√3/4 h²) over the input), to refuse
@@ -151,7 +155,7 @@ pub fn remesh(input: &Surface, reference: &Reference) -> Surface {
                 features.insert((a.min(m), a.max(m)));
                 features.insert((b.min(m), b.max(m)));
             } else {
-                s.points[m as usize] = reference.project(s.points[m as usize]).0;
+                s.points[m as usize] = reference.project(s.points[m as usize]);
             }
         }
         // 2. collapse
@@ -201,12 +205,7 @@ const MAX_ANGLE_DEG: f64 = 85.0;
 /// was not already) is not made. Returns whether any vertex moved.
 fn make_acute(s: &mut Surface, pinned: &[bool], reference: &Reference) -> bool {
     let cos_max = MAX_ANGLE_DEG.to_radians().cos();
-    let mut around: Vec<Vec<u32>> = vec![Vec::new(); s.points.len()];
-    for (i, f) in s.facets.iter().enumerate() {
-        for &v in f {
-            around[v as usize].push(i as u32);
-        }
-    }
+    let around = facets_around(s.points.len(), &s.facets);
     let mut moved_any = false;
     for i in 0..s.facets.len() {
         let f = s.facets[i];
@@ -220,18 +219,19 @@ fn make_acute(s: &mut Surface, pinned: &[bool], reference: &Reference) -> bool {
             if dot(u, w) >= cos_max * norm(u) * norm(w) {
                 continue;
             }
-            // C sees AB at 80° from the distance ½|AB|/tan 40° beyond AB's midpoint
-            let mid = scale(add(p(a), p(b)), 0.5);
+            // C moves along the normal to AB through its foot on AB, to ½|AB|/tan 40° from
+            // it: the height at which the midpoint's perpendicular sees AB at 80°
             let ab = sub(p(b), p(a));
-            let away = sub(p(c), mid);
-            let away = sub(away, scale(ab, dot(away, ab) / dot(ab, ab)));
+            let to_c = sub(p(c), scale(add(p(a), p(b)), 0.5));
+            let away = sub(to_c, scale(ab, dot(to_c, ab) / dot(ab, ab)));
+            let foot = sub(p(c), away);
             let la = norm(away);
             if la == 0.0 {
                 continue;
             }
             let height = 0.5 * norm(ab) / 40f64.to_radians().tan();
-            let target = add(sub(p(c), scale(away, 1.0)), scale(away, height / la));
-            let target = reference.project(target).0;
+            let target = add(foot, scale(away, height / la));
+            let target = reference.project(target);
             let v = c as usize;
             if move_keeps_facets(s, &around[v], v, target) {
                 s.points[v] = target;
@@ -246,40 +246,19 @@ fn make_acute(s: &mut Surface, pinned: &[bool], reference: &Reference) -> bool {
 fn sharp_features(s: &Surface) -> (Vec<bool>, HashSet<(u32, u32)>) {
     let cos = FEATURE_ANGLE_DEG.to_radians().cos();
     let normals: Vec<[f64; 3]> = s.facets.iter().map(|f| unit_normal(s, *f)).collect();
-    let mut first: HashMap<(u32, u32), usize> = HashMap::new();
     let mut pinned = vec![false; s.points.len()];
     let mut features = HashSet::new();
-    for (i, f) in s.facets.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            let key = (a.min(b), a.max(b));
-            match first.remove(&key) {
-                None => {
-                    first.insert(key, i);
-                }
-                Some(j) => {
-                    if dot(normals[i], normals[j]) < cos {
-                        features.insert(key);
-                        pinned[a as usize] = true;
-                        pinned[b as usize] = true;
-                    }
-                }
+    for g in super::checks::edge_groups(s) {
+        if let [(i, _), (j, _)] = g.uses[..] {
+            if dot(normals[i], normals[j]) < cos {
+                let (a, b) = g.vertices;
+                features.insert((a, b));
+                pinned[a as usize] = true;
+                pinned[b as usize] = true;
             }
         }
     }
     (pinned, features)
-}
-
-/// Two unit vectors spanning the plane normal to the unit vector n.
-fn tangent_basis(n: [f64; 3]) -> ([f64; 3], [f64; 3]) {
-    let helper = if n[0].abs() < 0.9 {
-        [1.0, 0.0, 0.0]
-    } else {
-        [0.0, 1.0, 0.0]
-    };
-    let u = cross(n, helper);
-    let u = scale(u, 1.0 / norm(u));
-    (u, cross(n, u))
 }
 
 fn unit_normal(s: &Surface, f: [u32; 3]) -> [f64; 3] {
@@ -490,30 +469,19 @@ fn flip_toward_valence_six(s: &mut Surface, pinned: &[bool], features: &HashSet<
 /// bound (when it was not already) is not made.
 fn relax_tangentially(s: &mut Surface, pinned: &[bool], reference: &Reference) {
     let normals = s.vertex_normals();
-    let mut around: Vec<Vec<u32>> = vec![Vec::new(); s.points.len()];
-    for (i, f) in s.facets.iter().enumerate() {
-        for &v in f {
-            around[v as usize].push(i as u32);
-        }
-    }
-    let mut ring = Vec::new();
+    let around = facets_around(s.points.len(), &s.facets);
+    let mut neighbours = Vec::new();
     for v in 0..s.points.len() {
         if pinned[v] || around[v].is_empty() {
             continue;
         }
-        ring.clear();
-        for &f in &around[v] {
-            for &w in &s.facets[f as usize] {
-                if w as usize != v && !ring.contains(&w) {
-                    ring.push(w);
-                }
-            }
-        }
+        ring(&s.facets, &around[v], v as u32, &mut neighbours);
         let p = s.points[v];
         let mean = scale(
-            ring.iter()
+            neighbours
+                .iter()
                 .fold([0.0; 3], |acc, &w| add(acc, s.points[w as usize])),
-            1.0 / ring.len() as f64,
+            1.0 / neighbours.len() as f64,
         );
         let n = normals[v];
         let ln = norm(n);
@@ -522,7 +490,7 @@ fn relax_tangentially(s: &mut Surface, pinned: &[bool], reference: &Reference) {
         }
         let n = scale(n, 1.0 / ln);
         let d = sub(mean, p);
-        let moved = reference.project(add(p, sub(d, scale(n, dot(n, d))))).0;
+        let moved = reference.project(add(p, sub(d, scale(n, dot(n, d)))));
         if move_keeps_facets(s, &around[v], v, moved) {
             s.points[v] = moved;
         }

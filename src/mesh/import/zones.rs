@@ -2,11 +2,12 @@
 //! a surface shape): fine facets *and* fine elements below them.
 //!
 //! The size field is h(x) = min(seeding, minᵢ(sᵢ + gᵢ·max(0, |x − pᵢ| − rᵢ))), as for the
-//! sphere's patches but with 3-D distances. The surface is subdivided to it (midpoints on
-//! the facets: refining a coarse file adds no curvature, so a curved contact needs a file
-//! that is already fine there), and the interior within reach of each point is seeded with
-//! the sphere mesher's nested BCC lattices ([`super::super::lattice`]), kept a skin depth
-//! below the surface and out of the surface's diametral balls. Without the interior
+//! sphere's patches but with 3-D distances. The surface is remeshed to it (on the file's
+//! facets: refining a coarse file adds no curvature, so a curved contact needs a file that
+//! is already fine there), and the interior is seeded with the sphere mesher's nested BCC
+//! lattices ([`super::super::lattice`]) — at the seeding over the whole body, finer within
+//! reach of each point — kept a skin depth below the surface and out of the surface's
+//! diametral balls. Without the interior
 //! points TetGen grades from the fine facets as fast as its radius–edge bound allows:
 //! elements as large as their depth below the surface, which made a 10–20 µm Hertz contact
 //! ~30 % too stiff (`mufe validate hertz_ellipsoid`, docs/BENCHMARKS.md).
@@ -158,8 +159,9 @@ impl<'a> SurfaceQuery<'a> {
     }
 }
 
-/// Interior points that make the tets follow the size field near the zones (`s` the
-/// surface as it will be meshed, the same frame as the zones).
+/// Interior points that make the tets follow the size field: the seeding's lattice over
+/// the whole body, finer levels near the zones (`s` the surface as it will be meshed, the
+/// same frame as the zones).
 pub fn interior_points(s: &Surface, field: SizeField) -> Vec<[f64; 3]> {
     let big = field.seeding;
     let finest = field.zones.iter().map(|z| z.seeding).fold(big, f64::min);

@@ -603,14 +603,7 @@ impl Refiner {
                 let fan = self.fan(v, vt[v as usize]);
                 let x0 = self.pts[v as usize];
                 let nrm = scale(x0, 1.0 / norm(x0));
-                let a = if nrm[0].abs() < 0.9 {
-                    [1.0, 0.0, 0.0]
-                } else {
-                    [0.0, 1.0, 0.0]
-                };
-                let u = cross(nrm, a);
-                let u = scale(u, 1.0 / norm(u));
-                let w = cross(nrm, u);
+                let (u, w) = crate::math::tangent_basis(nrm);
                 let mean_edge = fan
                     .iter()
                     .map(|&t| {

@@ -25,6 +25,12 @@ fn edges(s: &Surface) -> Vec<([f64; 3], f64)> {
     out
 }
 
+/// Mean length of the edges whose midpoint `pick` selects.
+fn mean_edge(s: &Surface, pick: impl Fn([f64; 3]) -> bool) -> f64 {
+    let l: Vec<f64> = edges(s).iter().filter(|e| pick(e.0)).map(|e| e.1).collect();
+    l.iter().sum::<f64>() / l.len() as f64
+}
+
 fn distance_to(s: &Surface, x: [f64; 3]) -> f64 {
     s.facets
         .iter()
@@ -66,10 +72,9 @@ fn a_fine_sphere_coarsens_onto_itself_at_the_seeding() {
     let reference = Reference::new(&fine, field, None);
     let out = remesh(&fine, &reference);
     check(&out).unwrap();
-    let lengths: Vec<f64> = edges(&out).iter().map(|e| e.1).collect();
-    let mean = lengths.iter().sum::<f64>() / lengths.len() as f64;
+    let mean = mean_edge(&out, |_| true);
     assert!((0.8 * h..1.15 * h).contains(&mean), "mean edge {mean}");
-    let worst = lengths.iter().fold(0.0f64, |m, &l| m.max(l));
+    let worst = edges(&out).iter().fold(0.0f64, |m, e| m.max(e.1));
     assert!(worst < 1.6 * h, "longest edge {worst}");
     for p in out.points.iter().step_by(7) {
         assert!(distance_to(&fine, *p) < 1e-9);
@@ -126,8 +131,7 @@ fn a_cube_keeps_its_corners_edges_and_volume() {
         let inside = p.iter().all(|&c| (-1e-12..=1.0 + 1e-12).contains(&c));
         assert!(on_face && inside, "{p:?} is off the cube");
     }
-    let lengths: Vec<f64> = edges(&out).iter().map(|e| e.1).collect();
-    let mean = lengths.iter().sum::<f64>() / lengths.len() as f64;
+    let mean = mean_edge(&out, |_| true);
     assert!((0.75 * h..1.2 * h).contains(&mean), "mean edge {mean}");
 }
 
@@ -149,17 +153,9 @@ fn curvature_sizing_refines_the_tips_of_a_spheroid_by_their_radius() {
     let reference = Reference::new(&s, field, Some(&curvature));
     let out = remesh(&s, &reference);
     check(&out).unwrap();
-    let mean_where = |pick: &dyn Fn([f64; 3]) -> bool| {
-        let l: Vec<f64> = edges(&out)
-            .iter()
-            .filter(|e| pick(e.0))
-            .map(|e| e.1)
-            .collect();
-        l.iter().sum::<f64>() / l.len() as f64
-    };
     assert!(largest_angle(&out) < 90.0, "{}°", largest_angle(&out));
-    let tip = mean_where(&|x| x[2].abs() > 2.97);
-    let equator = mean_where(&|x| x[2].abs() < 0.15);
+    let tip = mean_edge(&out, |x| x[2].abs() > 2.97);
+    let equator = mean_edge(&out, |x| x[2].abs() < 0.15);
     let (want_tip, want_equator) = (2.0 * mr / 3.0, 2.0 * mr);
     assert!(
         (tip / want_tip - 1.0).abs() < 0.3,
