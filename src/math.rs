@@ -2,6 +2,8 @@
 //! elements, contact, prescribed motions). Vectors are `[f64; 3]`; 3×3 matrices are
 //! `[f64; 9]` in row-major order, so `m[3 * i + j]` is row i, column j.
 
+use crate::lanes::Lanes;
+
 #[inline]
 pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -38,8 +40,8 @@ pub fn norm(a: [f64; 3]) -> f64 {
 
 /// Row-major 3×3 product a·b.
 #[inline(always)]
-pub fn mat_mul(a: &[f64; 9], b: &[f64; 9]) -> [f64; 9] {
-    let mut c = [0.0; 9];
+pub fn mat_mul<T: Lanes>(a: &[T; 9], b: &[T; 9]) -> [T; 9] {
+    let mut c = [T::splat(0.0); 9];
     for i in 0..3 {
         for j in 0..3 {
             c[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
@@ -50,7 +52,7 @@ pub fn mat_mul(a: &[f64; 9], b: &[f64; 9]) -> [f64; 9] {
 
 /// Determinant of a row-major 3×3 matrix.
 #[inline(always)]
-pub fn det3(m: &[f64; 9]) -> f64 {
+pub fn det3<T: Lanes>(m: &[T; 9]) -> T {
     m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6])
         + m[2] * (m[3] * m[7] - m[4] * m[6])
 }

@@ -126,7 +126,7 @@ fn child_write_results() {
     assert_eq!(size, 2);
     let path = PathBuf::from(std::env::var(OUT_ENV).expect("output path"));
     // Provenance differs per rank (hostname, clock); the writer must store rank 0's.
-    let mut provenance = Provenance::collect(&domain, 1);
+    let mut provenance = Provenance::collect(&domain, 1, "portable");
     provenance.hostname = format!("host-of-rank-{rank}");
     let mut w = ResultsWriter::create(&domain, &path, SCENE, &provenance).unwrap();
 

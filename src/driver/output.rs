@@ -80,6 +80,13 @@ impl<'a, 'd> Output<'a, 'd> {
             Some(c) if c.resume && results.is_file() => {
                 let s = &solver.state;
                 let mut r = ResultsWriter::resume(domain, &results, &columns, s.step, s.time)?;
+                let kernel = solver.scratch.elements.path.name();
+                match r.writer.provenance_text("kernel") {
+                    Some(k) if k != kernel && domain.is_root() && !opts.quiet => println!(
+                        "note: this restart runs the {kernel} element kernel, the run began on {k} (the two give bitwise identical forces)"
+                    ),
+                    _ => {}
+                }
                 r.writer.note_provenance("restart", &c.note)?;
                 Some(r)
             }
@@ -88,7 +95,8 @@ impl<'a, 'd> Output<'a, 'd> {
         let (writer, kept_rows, kept_frames) = match resumed {
             Some(r) => (r.writer, r.rows, r.frames),
             None => {
-                let provenance = Provenance::collect(domain, opts.threads);
+                let kernel = solver.scratch.elements.path.name();
+                let provenance = Provenance::collect(domain, opts.threads, kernel);
                 let mut writer =
                     ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
                 write_mesh(

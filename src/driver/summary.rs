@@ -170,7 +170,7 @@ fn print_summary(
 pub fn estimate_memory_bytes(m: &Model) -> usize {
     let ne = m.num_elements();
     let nn = m.num_nodes();
-    let per_element = 16 /* tets */ + 80 /* reference */ + 2 /* law */ + 96 /* corner forces */ + 16 /* incidence */;
+    let per_element = 16 /* tets */ + 80 /* reference */ + 2 /* law */;
     let per_node = 24 * 5 /* x0, x, v, v_next, force */ + 16 /* masses */ + 1 + 4;
     let plastic = if m.plastic_slot.is_empty() {
         0

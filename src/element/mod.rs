@@ -6,7 +6,8 @@
 //! that could drift. Dm⁻¹ and the reference volume are the only per-element data the force
 //! kernel needs (80 bytes), plus the plastic state of elements of plastic materials.
 
-use crate::material::{MaterialLaw, PlasticPoint};
+use crate::lanes::Lanes;
+use crate::material::{HyperelasticLaw, MaterialLaw, PlasticPoint};
 use crate::math::det3;
 
 /// Reference data of one tetrahedron needed by the force kernel.
@@ -50,8 +51,8 @@ impl TetReference {
 
 /// Edge matrix [x1−x0, x2−x0, x3−x0] as columns, row-major.
 #[inline(always)]
-pub fn edge_matrix(x: &[[f64; 3]; 4]) -> [f64; 9] {
-    let mut m = [0.0; 9];
+pub fn edge_matrix<T: Lanes>(x: &[[T; 3]; 4]) -> [T; 9] {
+    let mut m = [T::splat(0.0); 9];
     for c in 0..3 {
         for r in 0..3 {
             m[3 * r + c] = x[c + 1][r] - x[0][r];
@@ -111,11 +112,76 @@ pub fn tet_forces(
 ) -> ElementForces {
     let f = deformation_gradient(x, &reference.dm_inv);
     let response = material.respond(&f, point);
-    let p = response.first_piola;
-    let d = &reference.dm_inv;
-    let v = reference.volume;
-    // H = −V0 · P · Dm⁻ᵀ ; H[i][j] = −V0 Σ_k P[i][k] Dm⁻¹[j][k]
-    let mut nodal = [[0.0; 3]; 4];
+    ElementForces {
+        nodal: nodal_forces(&response.first_piola, &reference.dm_inv, reference.volume),
+        strain_energy: reference.volume * response.stored_energy,
+        plastic_work: reference.volume * response.dissipation,
+        jacobian: det3(&f),
+        point: response.point,
+    }
+}
+
+/// [`tet_forces`] of an elastic law, compiled for that law: (nodal forces (N), strain
+/// energy V0·W (J), det F).
+#[inline(always)]
+pub fn tet_forces_elastic<L: HyperelasticLaw>(
+    x: &[[f64; 3]; 4],
+    reference: &TetReference,
+    law: &L,
+) -> ([[f64; 3]; 4], f64, f64) {
+    let f = deformation_gradient(x, &reference.dm_inv);
+    let (p, w) = law.first_piola_and_energy(&f);
+    (
+        nodal_forces(&p, &reference.dm_inv, reference.volume),
+        reference.volume * w,
+        det3(&f),
+    )
+}
+
+/// Nodal forces, energies and det F of the four elements `tets` (node ids into the
+/// positions `x`) of an elastic law, one per lane of `T` ([`tet_forces_elastic`] in each
+/// lane, bitwise equal to it). Lanes are filled straight from `x` and `references`: no
+/// per-element copy in between, which the vector loads would stall on.
+#[inline(always)]
+pub fn tet_forces_elastic_x4<L: HyperelasticLaw, T: Lanes>(
+    x: &[[f64; 3]],
+    tets: &[[u32; 4]; 4],
+    references: &[TetReference; 4],
+    law: &L,
+) -> ([[[f64; 3]; 4]; 4], [f64; 4], [f64; 4]) {
+    let corner = |a: usize, i: usize| {
+        T::from_array([
+            x[tets[0][a] as usize][i],
+            x[tets[1][a] as usize][i],
+            x[tets[2][a] as usize][i],
+            x[tets[3][a] as usize][i],
+        ])
+    };
+    let xl: [[T; 3]; 4] = std::array::from_fn(|a| std::array::from_fn(|i| corner(a, i)));
+    let d: [T; 9] = std::array::from_fn(|k| {
+        T::from_array([
+            references[0].dm_inv[k],
+            references[1].dm_inv[k],
+            references[2].dm_inv[k],
+            references[3].dm_inv[k],
+        ])
+    });
+    let v = T::from_array(references.map(|r| r.volume));
+    let f = crate::math::mat_mul(&edge_matrix(&xl), &d);
+    let (p, w) = law.first_piola_and_energy_lanes(&f);
+    let nodal = nodal_forces(&p, &d, v).map(|fa| fa.map(T::to_array));
+    (
+        std::array::from_fn(|l| nodal.map(|fa| fa.map(|c| c[l]))),
+        (v * w).to_array(),
+        det3(&f).to_array(),
+    )
+}
+
+/// f_{1,2,3} = columns of H = −V0 P Dm⁻ᵀ, f_0 = −(f_1 + f_2 + f_3) (N).
+#[inline(always)]
+fn nodal_forces<T: Lanes>(p: &[T; 9], d: &[T; 9], v: T) -> [[T; 3]; 4] {
+    // H[i][j] = −V0 Σ_k P[i][k] Dm⁻¹[j][k]
+    let mut nodal = [[T::splat(0.0); 3]; 4];
     for j in 0..3 {
         for i in 0..3 {
             nodal[j + 1][i] = -v
@@ -125,13 +191,7 @@ pub fn tet_forces(
     for i in 0..3 {
         nodal[0][i] = -(nodal[1][i] + nodal[2][i] + nodal[3][i]);
     }
-    ElementForces {
-        nodal,
-        strain_energy: v * response.stored_energy,
-        plastic_work: v * response.dissipation,
-        jacobian: det3(&f),
-        point: response.point,
-    }
+    nodal
 }
 
 /// Largest eigenvalue of the small-strain element stiffness K_e = V0 Bᵀ D B (N/m).

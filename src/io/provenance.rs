@@ -1,5 +1,5 @@
 //! Who produced a results file: version, ranks, threads, start time (UTC, ISO-8601), the
-//! shell-quoted command line and the host, stored as attributes of `/provenance`.
+//! shell-quoted command line, the host and the element kernel, stored as attributes of `/provenance`.
 
 use crate::domain::Domain;
 use serde::{Deserialize, Serialize};
@@ -20,11 +20,14 @@ pub struct Provenance {
     pub command_line: String,
     /// Host of rank 0.
     pub hostname: String,
+    /// The compiled element loop the run uses (`portable` or `avx2`; they give bitwise
+    /// identical forces).
+    pub kernel: String,
 }
 
 impl Provenance {
     /// Provenance of this run, now. Local (not collective); the writer stores rank 0's.
-    pub fn collect(domain: &Domain, threads: usize) -> Self {
+    pub fn collect(domain: &Domain, threads: usize, kernel: &str) -> Self {
         Provenance {
             version: env!("CARGO_PKG_VERSION").to_string(),
             ranks: domain.size(),
@@ -32,6 +35,7 @@ impl Provenance {
             start_time: iso8601_utc(SystemTime::now()),
             command_line: command_line(),
             hostname: domain.processor_name(),
+            kernel: kernel.to_string(),
         }
     }
 }

@@ -2,7 +2,62 @@
 //! hyperelastic (P = ∂W/∂F) and objective for rotations of any size.
 
 use super::ElasticParameters;
+use crate::lanes::Lanes;
 use crate::math::{det3, mat_mul};
+
+/// An elastic law without state, P = ∂W/∂F: what the force kernel is compiled for once per
+/// law (no per-element dispatch).
+pub trait HyperelasticLaw: Copy + Send + Sync {
+    /// Whether [`Self::first_piola_and_energy_lanes`] computes all lanes in one pass (the
+    /// kernel then evaluates four elements at a time).
+    const VECTORISES: bool;
+
+    /// P (row-major 3×3, Pa) and W (J/m³) for a deformation gradient F (row-major 3×3).
+    fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64);
+
+    /// The same for one element per lane, each lane bitwise equal to
+    /// [`Self::first_piola_and_energy`]. The default evaluates the lanes one by one.
+    #[inline(always)]
+    fn first_piola_and_energy_lanes<T: Lanes>(&self, f: &[T; 9]) -> ([T; 9], T) {
+        let f = f.map(T::to_array);
+        let mut p = [[0.0; 4]; 9];
+        let mut w = [0.0; 4];
+        for l in 0..4 {
+            let (pl, wl) = self.first_piola_and_energy(&f.map(|v| v[l]));
+            for (out, v) in p.iter_mut().zip(pl) {
+                out[l] = v;
+            }
+            w[l] = wl;
+        }
+        (p.map(T::from_array), T::from_array(w))
+    }
+}
+
+macro_rules! hyperelastic_law_over_lanes {
+    ($($law:ty),*) => {$(
+        impl HyperelasticLaw for $law {
+            const VECTORISES: bool = true;
+            #[inline(always)]
+            fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
+                <$law>::first_piola_and_energy_lanes(self, f)
+            }
+            #[inline(always)]
+            fn first_piola_and_energy_lanes<T: Lanes>(&self, f: &[T; 9]) -> ([T; 9], T) {
+                <$law>::first_piola_and_energy_lanes(self, f)
+            }
+        }
+    )*};
+}
+hyperelastic_law_over_lanes!(StVenantKirchhoff, SecondOrderBiot);
+
+impl HyperelasticLaw for CorotationalLinear {
+    // a Newton iteration per element: lanes would diverge, so it stays scalar
+    const VECTORISES: bool = false;
+    #[inline(always)]
+    fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
+        CorotationalLinear::first_piola_and_energy(self, f)
+    }
+}
 
 /// St Venant–Kirchhoff hyperelasticity, the large-rotation form of linear isotropic
 /// elasticity used for every elastic grain:
@@ -31,31 +86,39 @@ impl StVenantKirchhoff {
     /// density W (J/m³) for a deformation gradient F (row-major 3×3).
     #[inline(always)]
     pub fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
+        self.first_piola_and_energy_lanes(f)
+    }
+
+    /// [`Self::first_piola_and_energy`] over lanes (one element per lane).
+    #[inline(always)]
+    pub fn first_piola_and_energy_lanes<T: Lanes>(&self, f: &[T; 9]) -> ([T; 9], T) {
         let e = green_lagrange_strain(f);
         let s = self.second_piola(&e);
         let tr = e[0] + e[4] + e[8];
-        let ee = e.iter().map(|v| v * v).sum::<f64>();
-        let w = 0.5 * self.lambda * tr * tr + self.mu * ee;
+        let mut ee = e[0] * e[0];
+        for v in &e[1..] {
+            ee = ee + *v * *v;
+        }
+        let w = T::splat(0.5 * self.lambda) * tr * tr + T::splat(self.mu) * ee;
         (mat_mul(f, &s), w)
     }
 
     /// S = λ tr(E) I + 2μ E (Pa).
     #[inline(always)]
-    pub fn second_piola(&self, e: &[f64; 9]) -> [f64; 9] {
+    pub fn second_piola<T: Lanes>(&self, e: &[T; 9]) -> [T; 9] {
         let tr = e[0] + e[4] + e[8];
-        let mut s = [0.0; 9];
-        for (si, ei) in s.iter_mut().zip(e) {
-            *si = 2.0 * self.mu * ei;
-        }
-        s[0] += self.lambda * tr;
-        s[4] += self.lambda * tr;
-        s[8] += self.lambda * tr;
+        let two_mu = T::splat(2.0 * self.mu);
+        let lambda_tr = T::splat(self.lambda) * tr;
+        let mut s = e.map(|ei| two_mu * ei);
+        s[0] = s[0] + lambda_tr;
+        s[4] = s[4] + lambda_tr;
+        s[8] = s[8] + lambda_tr;
         s
     }
 }
 
 /// A symmetric 3×3 tensor stored as (xx, yy, zz, yz, xz, xy).
-pub type Sym = [f64; 6];
+pub type Sym<T = f64> = [T; 6];
 
 /// The default elastic law: linear isotropic elasticity in the Biot strain, with the stretch
 /// taken to second order in the Green–Lagrange strain E = ½(FᵀF − I):
@@ -88,6 +151,12 @@ impl SecondOrderBiot {
     /// P (row-major, Pa) and W (J/m³) for a deformation gradient F.
     #[inline(always)]
     pub fn first_piola_and_energy(&self, f: &[f64; 9]) -> ([f64; 9], f64) {
+        self.first_piola_and_energy_lanes(f)
+    }
+
+    /// [`Self::first_piola_and_energy`] over lanes (one element per lane).
+    #[inline(always)]
+    pub fn first_piola_and_energy_lanes<T: Lanes>(&self, f: &[T; 9]) -> ([T; 9], T) {
         let e = green_lagrange_sym(f);
         let eps = biot_strain_from_green(&e);
         let (t, w) = hooke(self.lambda, self.mu, &eps);
@@ -97,54 +166,48 @@ impl SecondOrderBiot {
 
 /// Green–Lagrange strain E = ½(FᵀF − I) of a row-major F, as [`Sym`].
 #[inline(always)]
-pub fn green_lagrange_sym(f: &[f64; 9]) -> Sym {
+pub fn green_lagrange_sym<T: Lanes>(f: &[T; 9]) -> Sym<T> {
     let c = |i: usize, j: usize| f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j];
+    let (half, one) = (T::splat(0.5), T::splat(1.0));
     [
-        0.5 * (c(0, 0) - 1.0),
-        0.5 * (c(1, 1) - 1.0),
-        0.5 * (c(2, 2) - 1.0),
-        0.5 * c(1, 2),
-        0.5 * c(0, 2),
-        0.5 * c(0, 1),
+        half * (c(0, 0) - one),
+        half * (c(1, 1) - one),
+        half * (c(2, 2) - one),
+        half * c(1, 2),
+        half * c(0, 2),
+        half * c(0, 1),
     ]
 }
 
 /// ε̃ = E − ½E², the Biot strain U − I to second order in E.
 #[inline(always)]
-pub fn biot_strain_from_green(e: &Sym) -> Sym {
+pub fn biot_strain_from_green<T: Lanes>(e: &Sym<T>) -> Sym<T> {
     let e2 = sym_product_sum(e, e);
     // sym_product_sum gives AB + BA = 2E² here
-    let mut eps = [0.0; 6];
-    for k in 0..6 {
-        eps[k] = e[k] - 0.25 * e2[k];
-    }
-    eps
+    std::array::from_fn(|k| e[k] - T::splat(0.25) * e2[k])
 }
 
 /// Isotropic Hooke law T = λ tr(ε) I + 2μ ε and its energy density ½λ(tr ε)² + μ ε:ε.
 #[inline(always)]
-pub fn hooke(lambda: f64, mu: f64, eps: &Sym) -> (Sym, f64) {
+pub fn hooke<T: Lanes>(lambda: f64, mu: f64, eps: &Sym<T>) -> (Sym<T>, T) {
     let tr = eps[0] + eps[1] + eps[2];
-    let mut t = [0.0; 6];
-    for k in 0..6 {
-        t[k] = 2.0 * mu * eps[k];
-    }
+    let two_mu = T::splat(2.0 * mu);
+    let lambda_tr = T::splat(lambda) * tr;
+    let mut t = eps.map(|v| two_mu * v);
     for v in t.iter_mut().take(3) {
-        *v += lambda * tr;
+        *v = *v + lambda_tr;
     }
-    (t, 0.5 * lambda * tr * tr + mu * sym_contract(eps, eps))
+    let w = T::splat(0.5 * lambda) * tr * tr + T::splat(mu) * sym_contract(eps, eps);
+    (t, w)
 }
 
 /// P = F·S with S = T̃ − ½(E T̃ + T̃ E): the first Piola–Kirchhoff stress of a stress T̃
 /// work-conjugate to ε̃ = E − ½E² (dε̃ = dE − ½(E dE + dE E)).
 #[inline(always)]
-pub fn first_piola_from_biot_stress(f: &[f64; 9], e: &Sym, t: &Sym) -> [f64; 9] {
+pub fn first_piola_from_biot_stress<T: Lanes>(f: &[T; 9], e: &Sym<T>, t: &Sym<T>) -> [T; 9] {
     let et = sym_product_sum(e, t);
-    let mut s = [0.0; 6];
-    for k in 0..6 {
-        s[k] = t[k] - 0.5 * et[k];
-    }
-    let mut p = [0.0; 9];
+    let s: Sym<T> = std::array::from_fn(|k| t[k] - T::splat(0.5) * et[k]);
+    let mut p = [T::splat(0.0); 9];
     for i in 0..3 {
         let (a, b, c) = (f[3 * i], f[3 * i + 1], f[3 * i + 2]);
         p[3 * i] = a * s[0] + b * s[5] + c * s[4];
@@ -156,13 +219,14 @@ pub fn first_piola_from_biot_stress(f: &[f64; 9], e: &Sym, t: &Sym) -> [f64; 9] 
 
 /// AB + BA of two symmetric tensors (symmetric).
 #[inline(always)]
-pub fn sym_product_sum(a: &Sym, b: &Sym) -> Sym {
+pub fn sym_product_sum<T: Lanes>(a: &Sym<T>, b: &Sym<T>) -> Sym<T> {
     let [a00, a11, a22, a12, a02, a01] = *a;
     let [b00, b11, b22, b12, b02, b01] = *b;
+    let two = T::splat(2.0);
     [
-        2.0 * (a00 * b00 + a01 * b01 + a02 * b02),
-        2.0 * (a01 * b01 + a11 * b11 + a12 * b12),
-        2.0 * (a02 * b02 + a12 * b12 + a22 * b22),
+        two * (a00 * b00 + a01 * b01 + a02 * b02),
+        two * (a01 * b01 + a11 * b11 + a12 * b12),
+        two * (a02 * b02 + a12 * b12 + a22 * b22),
         a01 * b02 + a11 * b12 + a12 * b22 + b01 * a02 + b11 * a12 + b12 * a22,
         a00 * b02 + a01 * b12 + a02 * b22 + b00 * a02 + b01 * a12 + b02 * a22,
         a00 * b01 + a01 * b11 + a02 * b12 + b00 * a01 + b01 * a11 + b02 * a12,
@@ -171,8 +235,11 @@ pub fn sym_product_sum(a: &Sym, b: &Sym) -> Sym {
 
 /// A:B of two symmetric tensors.
 #[inline(always)]
-pub fn sym_contract(a: &Sym, b: &Sym) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + 2.0 * (a[3] * b[3] + a[4] * b[4] + a[5] * b[5])
+pub fn sym_contract<T: Lanes>(a: &Sym<T>, b: &Sym<T>) -> T {
+    a[0] * b[0]
+        + a[1] * b[1]
+        + a[2] * b[2]
+        + T::splat(2.0) * (a[3] * b[3] + a[4] * b[4] + a[5] * b[5])
 }
 
 /// Corotational linear elasticity in Biot form: F = R·U (polar decomposition),
@@ -275,12 +342,12 @@ pub fn polar_rotation(f: &[f64; 9]) -> [f64; 9] {
 
 /// Green–Lagrange strain E = ½(FᵀF − I), row-major.
 #[inline(always)]
-pub fn green_lagrange_strain(f: &[f64; 9]) -> [f64; 9] {
-    let mut e = [0.0; 9];
+pub fn green_lagrange_strain<T: Lanes>(f: &[T; 9]) -> [T; 9] {
+    let mut e = [T::splat(0.0); 9];
     for i in 0..3 {
         for j in i..3 {
             let c = f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j];
-            let v = 0.5 * (c - if i == j { 1.0 } else { 0.0 });
+            let v = T::splat(0.5) * (c - T::splat(if i == j { 1.0 } else { 0.0 }));
             e[3 * i + j] = v;
             e[3 * j + i] = v;
         }

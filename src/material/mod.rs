@@ -6,7 +6,8 @@ pub mod elastic;
 pub mod j2;
 
 pub use elastic::{
-    green_lagrange_strain, polar_rotation, CorotationalLinear, SecondOrderBiot, StVenantKirchhoff,
+    green_lagrange_strain, polar_rotation, CorotationalLinear, HyperelasticLaw, SecondOrderBiot,
+    StVenantKirchhoff,
 };
 pub use j2::{PlasticPoint, J2};
 

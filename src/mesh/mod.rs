@@ -27,6 +27,7 @@ pub mod ellipsoid;
 pub mod import;
 pub mod joint;
 mod lattice;
+pub mod locality;
 mod quality;
 pub mod smooth;
 mod sphere;

@@ -1,11 +1,11 @@
 //! Mesh-to-model assembly: meshes every grain shape (identical shapes once), places the
 //! grains in the scene, and lays them out as one rank's [`Model`]: owned grains first,
-//! ghosts after, with physical lumped masses, node incidence, the contact layout and the
+//! ghosts after, with physical lumped masses, the contact layout and the
 //! prescribed motions. The time step and mass scaling are the solver's
 //! (`crate::solver::stable_step`); the initial-overlap check is contact's.
 
 use super::contact_layout::ContactModel;
-use super::{GrainBlock, Model, NodeIncidence};
+use super::{GrainBlock, Model};
 use crate::boundary::{PrescribedMotion, Translation};
 use crate::element::TetReference;
 use crate::error::InputError;
@@ -15,13 +15,15 @@ use crate::scene::{LoadedScene, NodeSelector, ShapeSpec};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-/// Meshes one grain shape in its own frame. Identical shapes are meshed once.
+/// Meshes one grain shape in its own frame, in the element and node order the force
+/// kernel reads fastest (`mesh::locality`). Identical shapes are meshed once.
 pub fn mesh_shape(shape: &ShapeSpec) -> Result<TetMesh, mesh::MeshError> {
-    match shape {
-        ShapeSpec::Sphere(s) => mesh::mesh_sphere(s),
-        ShapeSpec::Block(b) => Ok(mesh::block::mesh_block(b.size, b.divisions)),
-        ShapeSpec::Surface(s) => mesh::import::mesh_surface(s),
-    }
+    let mesh = match shape {
+        ShapeSpec::Sphere(s) => mesh::mesh_sphere(s)?,
+        ShapeSpec::Block(b) => mesh::block::mesh_block(b.size, b.divisions),
+        ShapeSpec::Surface(s) => mesh::import::mesh_surface(s)?,
+    };
+    Ok(mesh::locality::order_for_locality(mesh))
 }
 
 /// Meshes the scene's distinct surface shapes that are not in the disk cache in worker
@@ -216,26 +218,14 @@ pub fn build_model_with_ghosts(
             physical_mass[node as usize] += m_phys;
         }
     }
-    // node → element incidence (CSR)
-    let mut counts = vec![0u32; n + 1];
+    // a node no element uses would have neither mass nor stiffness
+    let mut used = vec![false; n];
     for t in &tets {
         for &node in t {
-            counts[node as usize + 1] += 1;
+            used[node as usize] = true;
         }
     }
-    for i in 0..n {
-        counts[i + 1] += counts[i];
-    }
-    let mut fill = counts.clone();
-    let mut entries = vec![0u32; 4 * tets.len()];
-    for (e, t) in tets.iter().enumerate() {
-        for (corner, &node) in t.iter().enumerate() {
-            let slot = &mut fill[node as usize];
-            entries[*slot as usize] = (4 * e + corner) as u32;
-            *slot += 1;
-        }
-    }
-    if let Some(orphan) = (0..n).find(|&i| counts[i] == counts[i + 1]) {
+    if let Some(orphan) = used.iter().position(|u| !u) {
         let gi = grains.partition_point(|g: &GrainBlock| g.nodes.end <= orphan);
         return Err(InputError::new(
             file,
@@ -357,10 +347,6 @@ pub fn build_model_with_ghosts(
             plastic_slot,
             mass: physical_mass.clone(),
             physical_mass,
-            incidence: NodeIncidence {
-                offsets: counts,
-                entries,
-            },
             driven,
             dt: 0.0,
             dt_stable: 0.0,

@@ -1,8 +1,8 @@
 //! The static model layer: how the grains of a scene are laid out on one rank.
 //!
 //! [`Model`] holds the mesh of every grain this rank owns or mirrors, placed in the scene
-//! and flattened into structure-of-arrays (owned grains first, ghosts after), with node
-//! incidence, lumped masses, prescribed-node masks and the static contact layout
+//! and flattened into structure-of-arrays (owned grains first, ghosts after), with
+//! lumped masses, prescribed-node masks and the static contact layout
 //! ([`contact_layout`]). It is built once ([`assemble`]) and read by contact, solver,
 //! domain, io and the driver; it depends on none of them (only on scene, mesh, material,
 //! element and boundary below it). What changes during a run lives in
@@ -44,16 +44,6 @@ pub struct GrainBlock {
     pub quality: mesh::QualityReport,
 }
 
-/// Compressed node → (element, local corner) incidence, for race-free deterministic
-/// gathering of element forces.
-#[derive(Debug, Clone, Default)]
-pub struct NodeIncidence {
-    /// `offsets[n]..offsets[n+1]` indexes `entries` for node n.
-    pub offsets: Vec<u32>,
-    /// `4·element + corner`.
-    pub entries: Vec<u32>,
-}
-
 /// The model as laid out on this rank.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -74,7 +64,6 @@ pub struct Model {
     pub mass: Vec<f64>,
     /// Physical lumped mass before scaling (kg).
     pub physical_mass: Vec<f64>,
-    pub incidence: NodeIncidence,
     /// Bitmask of prescribed translation components per node (bit i = axis i).
     pub driven: Vec<u8>,
     /// Time step used (s). This and the four fields below are set by

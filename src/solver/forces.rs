@@ -1,17 +1,22 @@
-//! Internal forces: rayon over fixed-size element chunks into a per-element force buffer,
-//! then a per-node gather in a fixed order through the node→element incidence. Neither
-//! step depends on the number of threads, so 1 and N threads give bitwise identical
-//! forces and energies (no atomics, no reduction whose order follows scheduling).
+//! Internal forces: one pass over the elements that computes each element's forces and
+//! adds them straight into the node force array. Chunks of elements that share no node
+//! run in parallel, colour after colour ([`ElementSchedule`]), so every node receives its
+//! forces in a fixed order and 1 and N threads give bitwise identical forces and energies
+//! (no atomics, no reduction whose order follows scheduling). Each chunk is evaluated by a
+//! loop compiled for its grain's law, so the hot loop has no per-element dispatch.
 
-use crate::element::{deformation_gradient, tet_forces, ElementForces};
-use crate::material::{PlasticPoint, Response};
+use super::element_schedule::{ElementChunk, ElementSchedule};
+use crate::element::{deformation_gradient, tet_forces, tet_forces_elastic, tet_forces_elastic_x4};
+#[cfg(target_arch = "x86_64")]
+use crate::lanes::F64x4;
+use crate::lanes::Lanes;
+use crate::material::{
+    CorotationalLinear, ElasticLawKind, HyperelasticLaw, MaterialLaw, PlasticPoint, Response,
+    SecondOrderBiot, StVenantKirchhoff,
+};
 use crate::model::{Model, NONE};
 use rayon::prelude::*;
-use std::ops::Range;
 
-/// Elements per parallel work item. Fixed (not derived from the thread count) so that
-/// the partial sums — and hence every reduced quantity — are reproducible.
-pub const ELEMENT_CHUNK: usize = 2048;
 /// Nodes per parallel work item in node passes.
 pub const NODE_CHUNK: usize = 4096;
 
@@ -20,15 +25,47 @@ pub const NODE_CHUNK: usize = 4096;
 /// integration is exploding.
 pub const MAX_PLASTIC_INCREMENT: f64 = 0.05;
 
-/// Per-element scratch (not state): forces of each element's four corners.
+/// The compiled element loop a run uses. Both give bitwise identical forces (lane-wise
+/// IEEE arithmetic in the same order); AVX2 does four lanes per instruction.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum KernelPath {
+    #[default]
+    Portable,
+    Avx2,
+}
+
+impl KernelPath {
+    /// AVX2 where the CPU has it, unless `MUFE_KERNEL=portable` asks for the portable loop
+    /// (to compare the two on one machine).
+    pub fn detect() -> Self {
+        if std::env::var("MUFE_KERNEL").is_ok_and(|v| v == "portable") {
+            return Self::Portable;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Self::Avx2;
+        }
+        Self::Portable
+    }
+
+    /// The name recorded in the results' provenance.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Portable => "portable",
+            Self::Avx2 => "avx2",
+        }
+    }
+}
+
+/// Scratch of the force pass (not state): the chunk schedule and per-chunk results.
 #[derive(Debug, Default)]
 pub struct ElementScratch {
-    pub corner_forces: Vec<[[f64; 3]; 4]>,
-    /// Per-chunk partial results (strain energy, plastic work, worst element).
+    pub schedule: ElementSchedule,
+    /// Which compiled element loop runs.
+    pub path: KernelPath,
+    /// Per-chunk partial results (strain energy, plastic work, first failure), in
+    /// schedule order.
     pub chunk_results: Vec<ChunkResult>,
-    /// First plastic slot of each element chunk (and the total at the end), so that
-    /// chunks take disjoint parts of `State::plastic`.
-    pub chunk_plastic_start: Vec<usize>,
 }
 
 /// An element that failed: inverted, non-finite, or an exploding plastic increment.
@@ -79,29 +116,18 @@ pub struct InternalForceSummary {
 
 impl ElementScratch {
     pub fn new(model: &Model) -> Self {
-        let chunks = model.owned_elements.div_ceil(ELEMENT_CHUNK);
-        let mut chunk_plastic_start = Vec::with_capacity(chunks + 1);
-        let mut slots = 0;
-        for e in 0..model.owned_elements {
-            if e % ELEMENT_CHUNK == 0 {
-                chunk_plastic_start.push(slots);
-            }
-            if model.plastic_slot.get(e).is_some_and(|&s| s != NONE) {
-                slots += 1;
-            }
-        }
-        chunk_plastic_start.push(slots);
+        let schedule = ElementSchedule::new(model);
         Self {
-            corner_forces: vec![[[0.0; 3]; 4]; model.owned_elements],
-            chunk_results: vec![ChunkResult::default(); chunks],
-            chunk_plastic_start,
+            chunk_results: vec![ChunkResult::default(); schedule.chunks.len()],
+            schedule,
+            path: KernelPath::detect(),
         }
     }
 }
 
 /// Computes element forces at positions `x`, commits the plastic state of plastic
 /// elements, and writes the assembled internal force of every node into `force`
-/// (overwriting it).
+/// (overwriting it; ghost nodes get zero).
 pub fn compute_internal_forces_into(
     model: &Model,
     x: &[[f64; 3]],
@@ -109,53 +135,35 @@ pub fn compute_internal_forces_into(
     scratch: &mut ElementScratch,
     force: &mut [[f64; 3]],
 ) -> InternalForceSummary {
-    let chunks = scratch.chunk_results.len();
-    if chunks > 0 {
-        evaluate_chunks(
-            model,
-            x,
-            0..chunks,
-            ChunkSlices {
-                corners: &mut scratch.corner_forces,
-                results: &mut scratch.chunk_results,
-                plastic,
-                plastic_base: 0,
-            },
-            &scratch.chunk_plastic_start,
-        );
-    }
-
-    let corner_forces = &scratch.corner_forces;
-    let inc = &model.incidence;
-    // ghost nodes (after the owned ones) carry no element forces here
-    let (owned, ghosts) = force.split_at_mut(model.owned_nodes);
-    ghosts.fill([0.0; 3]);
-    owned
+    force
         .par_chunks_mut(NODE_CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            let base = chunk * NODE_CHUNK;
-            for (k, f) in out.iter_mut().enumerate() {
-                let n = base + k;
-                let mut acc = [0.0; 3];
-                for &entry in &inc.entries[inc.offsets[n] as usize..inc.offsets[n + 1] as usize] {
-                    let c = &corner_forces[(entry >> 2) as usize][(entry & 3) as usize];
-                    acc[0] += c[0];
-                    acc[1] += c[1];
-                    acc[2] += c[2];
-                }
-                *f = acc;
-            }
-        });
+        .for_each(|part| part.fill([0.0; 3]));
+    let out = Disjoint::new(force);
+    let states = Disjoint::new(plastic);
+    let schedule = &scratch.schedule;
+    let path = scratch.path;
+    for colour in &schedule.colours {
+        schedule.chunks[colour.clone()]
+            .par_iter()
+            .zip(scratch.chunk_results[colour.clone()].par_iter_mut())
+            .for_each(|(chunk, result)| {
+                // SAFETY: chunks of one colour share no node and own disjoint element
+                // (hence plastic slot) ranges (`ElementSchedule`), and colours run one
+                // after another, so no two threads touch the same entry.
+                *result = unsafe { evaluate_chunk(path, model, x, chunk, &out, &states) };
+            });
+    }
 
     let mut strain_energy = 0.0;
     let mut plastic_work = 0.0;
-    let mut bad_element = None;
+    let mut bad_element: Option<BadElement> = None;
     for r in &scratch.chunk_results {
         strain_energy += r.strain_energy;
         plastic_work += r.plastic_work;
-        if bad_element.is_none() {
-            bad_element = r.bad_element;
+        if let Some(b) = r.bad_element {
+            if bad_element.is_none_or(|first| b.element < first.element) {
+                bad_element = Some(b);
+            }
         }
     }
     InternalForceSummary {
@@ -163,6 +171,27 @@ pub fn compute_internal_forces_into(
         plastic_work,
         bad_element,
     }
+}
+
+/// Bytes one force pass moves per owned element, from the layout it reads and writes:
+/// the connectivity (16 B) and reference data (80 B) of each element; for each node, its
+/// position read (24 B), its force zeroed (24 B) and then read and written by its
+/// elements (48 B), at the mesh's nodes per element; for plastic elements the state read
+/// (56 B) and, when the plastic branch is taken (`plastic_written`), written back (56 B;
+/// an elastic step leaves it untouched). Each node's data is counted once per pass: the
+/// Morton order keeps a node's elements close enough for the caches to catch the rest.
+/// This is the denominator of the bandwidth ceiling in `benches/kernel_roofline.rs`.
+pub fn bytes_moved_per_element(model: &Model, plastic_written: bool) -> f64 {
+    let elements = model.owned_elements.max(1) as f64;
+    let per_element = (std::mem::size_of::<[u32; 4]>()
+        + std::mem::size_of::<crate::element::TetReference>()) as f64;
+    let per_node = (3 + 3 + 6) as f64 * 8.0;
+    let plastic_elements = model.plastic_slot.iter().filter(|&&s| s != NONE).count() as f64;
+    let state = std::mem::size_of::<PlasticPoint>() as f64;
+    let per_plastic = if plastic_written { 2.0 * state } else { state };
+    per_element
+        + per_node * model.owned_nodes as f64 / elements
+        + per_plastic * plastic_elements / elements
 }
 
 /// Deformation gradient and stress response of element `e` at positions `x` from the
@@ -183,105 +212,222 @@ pub fn element_response(
     (f, model.laws[model.tet_law[e] as usize].respond(&f, point))
 }
 
-/// The disjoint parts of the element arrays a run of chunks works on.
-struct ChunkSlices<'a> {
-    corners: &'a mut [[[f64; 3]; 4]],
-    results: &'a mut [ChunkResult],
-    plastic: &'a mut [PlasticPoint],
-    /// Slot of `plastic[0]`.
-    plastic_base: usize,
+/// A slice that parallel tasks write through at indices they own exclusively.
+struct Disjoint<T> {
+    ptr: *mut T,
+    len: usize,
 }
 
-/// Evaluates a run of element chunks, halving it with `rayon::join` down to single chunks.
-/// Every chunk owns its own slices (corner forces, result, plastic states), so the work
-/// is race-free without locks, and its result does not depend on the schedule.
-fn evaluate_chunks(
+// SAFETY: only handed to tasks that write disjoint indices (see `compute_internal_forces_into`).
+unsafe impl<T: Send> Sync for Disjoint<T> {}
+
+impl<T> Disjoint<T> {
+    fn new(slice: &mut [T]) -> Self {
+        Self {
+            ptr: slice.as_mut_ptr(),
+            len: slice.len(),
+        }
+    }
+
+    /// # Safety
+    /// No other task may access entry `i` while the returned reference lives.
+    #[inline(always)]
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn get(&self, i: usize) -> &mut T {
+        debug_assert!(i < self.len);
+        &mut *self.ptr.add(i)
+    }
+}
+
+/// One chunk: its elements' forces added into `force`, plastic states committed, energies
+/// and the first failure returned.
+///
+/// # Safety
+/// No other task may touch the chunk's nodes or plastic slots meanwhile.
+unsafe fn evaluate_chunk(
+    path: KernelPath,
     model: &Model,
     x: &[[f64; 3]],
-    chunks: Range<usize>,
-    part: ChunkSlices<'_>,
-    chunk_plastic_start: &[usize],
-) {
-    if chunks.len() == 1 {
-        evaluate_chunk(model, x, chunks.start, part);
-        return;
+    chunk: &ElementChunk,
+    force: &Disjoint<[f64; 3]>,
+    plastic: &Disjoint<PlasticPoint>,
+) -> ChunkResult {
+    let law = &model.laws[chunk.law as usize];
+    let (lambda, mu) = (law.lambda, law.mu);
+    match (law.plastic, chunk.plastic_start, law.kind) {
+        (Some(_), Some(first_slot), _) => {
+            evaluate_plastic_chunk(model, x, chunk, law, first_slot, force, plastic)
+        }
+        (_, _, ElasticLawKind::Biot) => {
+            let law = SecondOrderBiot { lambda, mu };
+            evaluate_elastic_chunk_on(path, model, x, chunk, &law, force)
+        }
+        (_, _, ElasticLawKind::StVenantKirchhoff) => {
+            let law = StVenantKirchhoff { lambda, mu };
+            evaluate_elastic_chunk_on(path, model, x, chunk, &law, force)
+        }
+        (_, _, ElasticLawKind::Corotational) => {
+            let law = CorotationalLinear { lambda, mu };
+            evaluate_elastic_chunk_on(path, model, x, chunk, &law, force)
+        }
     }
-    let mid = chunks.start + chunks.len() / 2;
-    let (corners_lo, corners_hi) = part
-        .corners
-        .split_at_mut((mid - chunks.start) * ELEMENT_CHUNK);
-    let (results_lo, results_hi) = part.results.split_at_mut(mid - chunks.start);
-    let split = chunk_plastic_start[mid];
-    let (plastic_lo, plastic_hi) = part.plastic.split_at_mut(split - part.plastic_base);
-    rayon::join(
-        || {
-            let lo = ChunkSlices {
-                corners: corners_lo,
-                results: results_lo,
-                plastic: plastic_lo,
-                plastic_base: part.plastic_base,
-            };
-            evaluate_chunks(model, x, chunks.start..mid, lo, chunk_plastic_start)
-        },
-        || {
-            let hi = ChunkSlices {
-                corners: corners_hi,
-                results: results_hi,
-                plastic: plastic_hi,
-                plastic_base: split,
-            };
-            evaluate_chunks(model, x, mid..chunks.end, hi, chunk_plastic_start)
-        },
-    );
 }
 
-/// One chunk of elements: forces into its corner slots, energies and the first failure
-/// into its result, plastic states committed.
-fn evaluate_chunk(model: &Model, x: &[[f64; 3]], chunk: usize, part: ChunkSlices<'_>) {
-    let base = chunk * ELEMENT_CHUNK;
+#[inline(always)]
+fn element_positions(x: &[[f64; 3]], t: &[u32; 4]) -> [[f64; 3]; 4] {
+    [
+        x[t[0] as usize],
+        x[t[1] as usize],
+        x[t[2] as usize],
+        x[t[3] as usize],
+    ]
+}
+
+/// # Safety
+/// As [`evaluate_chunk`].
+#[inline(always)]
+unsafe fn add_nodal_forces(force: &Disjoint<[f64; 3]>, t: &[u32; 4], nodal: &[[f64; 3]; 4]) {
+    for (n, f) in t.iter().zip(nodal) {
+        let out = force.get(*n as usize);
+        out[0] += f[0];
+        out[1] += f[1];
+        out[2] += f[2];
+    }
+}
+
+/// The element loop of an elastic law. With lanes `T` wider than one (and a law that
+/// vectorises) four elements per pass ([`tet_forces_elastic_x4`]), the last few one by
+/// one. Forces are added element by element in element order, so the result is bitwise
+/// that of the one-element loop.
+///
+/// # Safety
+/// As [`evaluate_chunk`]; with `T` = [`F64x4`] the CPU must support AVX2.
+#[inline(always)]
+unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
+    model: &Model,
+    x: &[[f64; 3]],
+    chunk: &ElementChunk,
+    law: &L,
+    force: &Disjoint<[f64; 3]>,
+) -> ChunkResult {
     let mut result = ChunkResult::default();
-    for (k, corner) in part.corners.iter_mut().enumerate() {
-        let e = base + k;
+    let range = chunk.elements.clone();
+    let tets = &model.tets[range.clone()];
+    let references = &model.tet_reference[range.clone()];
+    let mut record = |k: usize, t: &[u32; 4], nodal: &[[f64; 3]; 4], energy: f64, jacobian: f64| {
+        add_nodal_forces(force, t, nodal);
+        if !(jacobian > 0.0 && energy.is_finite()) && result.bad_element.is_none() {
+            result.bad_element = Some(BadElement {
+                element: range.start + k,
+                jacobian,
+                plastic_increment: 0.0,
+            });
+        }
+        result.strain_energy += energy;
+    };
+    let quads = if L::VECTORISES && T::WIDTH == 4 {
+        tets.len() / 4
+    } else {
+        0
+    };
+    for q in 0..quads {
+        let first = 4 * q;
+        let (Some(t), Some(r)) = (
+            tets[first..].first_chunk::<4>(),
+            references[first..].first_chunk::<4>(),
+        ) else {
+            break;
+        };
+        let (nodal, energy, jacobian) = tet_forces_elastic_x4::<L, T>(x, t, r, law);
+        for l in 0..4 {
+            record(first + l, &t[l], &nodal[l], energy[l], jacobian[l]);
+        }
+    }
+    for k in 4 * quads..tets.len() {
+        let (nodal, energy, jacobian) =
+            tet_forces_elastic(&element_positions(x, &tets[k]), &references[k], law);
+        record(k, &tets[k], &nodal, energy, jacobian);
+    }
+    result
+}
+
+/// [`evaluate_elastic_chunk`] compiled for AVX2, four elements per instruction.
+///
+/// # Safety
+/// As [`evaluate_chunk`], and the CPU must support AVX2 ([`KernelPath::detect`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn evaluate_elastic_chunk_avx2<L: HyperelasticLaw>(
+    model: &Model,
+    x: &[[f64; 3]],
+    chunk: &ElementChunk,
+    law: &L,
+    force: &Disjoint<[f64; 3]>,
+) -> ChunkResult {
+    evaluate_elastic_chunk::<L, F64x4>(model, x, chunk, law, force)
+}
+
+/// # Safety
+/// As [`evaluate_chunk`].
+unsafe fn evaluate_elastic_chunk_on<L: HyperelasticLaw>(
+    path: KernelPath,
+    model: &Model,
+    x: &[[f64; 3]],
+    chunk: &ElementChunk,
+    law: &L,
+    force: &Disjoint<[f64; 3]>,
+) -> ChunkResult {
+    match path {
+        #[cfg(target_arch = "x86_64")]
+        KernelPath::Avx2 => evaluate_elastic_chunk_avx2(model, x, chunk, law, force),
+        _ => evaluate_elastic_chunk::<L, f64>(model, x, chunk, law, force),
+    }
+}
+
+/// # Safety
+/// As [`evaluate_chunk`].
+unsafe fn evaluate_plastic_chunk(
+    model: &Model,
+    x: &[[f64; 3]],
+    chunk: &ElementChunk,
+    law: &MaterialLaw,
+    first_slot: usize,
+    force: &Disjoint<[f64; 3]>,
+    plastic: &Disjoint<PlasticPoint>,
+) -> ChunkResult {
+    let mut result = ChunkResult::default();
+    for (k, e) in chunk.elements.clone().enumerate() {
         let t = &model.tets[e];
-        let xe = [
-            x[t[0] as usize],
-            x[t[1] as usize],
-            x[t[2] as usize],
-            x[t[3] as usize],
-        ];
-        let law = &model.laws[model.tet_law[e] as usize];
-        let slot = model
-            .plastic_slot
-            .get(e)
-            .filter(|&&s| s != NONE)
-            .map(|&s| s as usize - part.plastic_base);
-        let point = slot.map(|s| &part.plastic[s]);
-        let ElementForces {
-            nodal,
-            strain_energy,
-            plastic_work,
-            jacobian,
-            point: new_point,
-        } = tet_forces(&xe, &model.tet_reference[e], law, point);
+        let point = plastic.get(first_slot + k);
+        let forces = tet_forces(
+            &element_positions(x, t),
+            &model.tet_reference[e],
+            law,
+            Some(point),
+        );
+        add_nodal_forces(force, t, &forces.nodal);
         let mut plastic_increment = 0.0;
-        if let (Some(s), Some(p)) = (slot, new_point) {
-            plastic_increment = p.equivalent - part.plastic[s].equivalent;
-            part.plastic[s] = p;
+        if let Some(p) = forces.point {
+            plastic_increment = p.equivalent - point.equivalent;
+            // an elastic step returns the state unchanged: not writing it back saves the
+            // memory traffic of a dirty cache line
+            if p != *point {
+                *point = p;
+            }
         }
         if result.bad_element.is_none()
-            && !(jacobian > 0.0
-                && strain_energy.is_finite()
+            && !(forces.jacobian > 0.0
+                && forces.strain_energy.is_finite()
                 && plastic_increment <= MAX_PLASTIC_INCREMENT)
         {
             result.bad_element = Some(BadElement {
                 element: e,
-                jacobian,
+                jacobian: forces.jacobian,
                 plastic_increment,
             });
         }
-        result.strain_energy += strain_energy;
-        result.plastic_work += plastic_work;
-        *corner = nodal;
+        result.strain_energy += forces.strain_energy;
+        result.plastic_work += forces.plastic_work;
     }
-    part.results[0] = result;
+    result
 }

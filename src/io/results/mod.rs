@@ -5,7 +5,7 @@
 //! ```text
 //! /scene                          fixed-length UTF-8 string: the scene text as run
 //! /provenance                     group; attributes version, ranks, threads, start_time,
-//!                                 command_line, hostname
+//!                                 command_line, hostname, kernel
 //! /history/<name>                 1-D f64 over output times, chunked and extended at each
 //!                                 flush; attributes units, description, abaqus (if any)
 //! /mesh/nodes                     (N, 3) f64, m
@@ -270,6 +270,7 @@ impl<'d> ResultsWriter<'d> {
             put_str_attr(&group, "start_time", &provenance.start_time)?;
             put_str_attr(&group, "command_line", &provenance.command_line)?;
             put_str_attr(&group, "hostname", &provenance.hostname)?;
+            put_str_attr(&group, "kernel", &provenance.kernel)?;
             Ok(())
         };
         write().map_err(|e| format!("/provenance: {e}"))

@@ -146,6 +146,13 @@ impl<'d> ResultsWriter<'d> {
 }
 
 impl ResultsWriter<'_> {
+    /// A text attribute of `/provenance` (`None` if the file has none: older files).
+    pub fn provenance_text(&self, name: &str) -> Option<String> {
+        let value = self.file.group("provenance").ok()?.attr(name).ok()?;
+        let text = value.read_scalar::<hdf5::types::VarLenUnicode>().ok()?;
+        Some(text.as_str().to_string())
+    }
+
     /// Records a restart or branch in `/provenance` as attribute `KIND_N` (N counting the
     /// file's earlier ones of that kind), rank 0's `note` on all ranks. All ranks must
     /// call.

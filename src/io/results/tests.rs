@@ -26,6 +26,7 @@ fn provenance() -> Provenance {
         start_time: "2024-01-02T03:04:05Z".into(),
         command_line: "mufe run 'a b.toml'".into(),
         hostname: "node1".into(),
+        kernel: "avx2".into(),
     }
 }
 
@@ -128,6 +129,7 @@ fn single_rank_file_reads_back() {
     assert_eq!(str_attr(&prov, "version"), "9.9.9");
     assert_eq!(str_attr(&prov, "command_line"), "mufe run 'a b.toml'");
     assert_eq!(str_attr(&prov, "hostname"), "node1");
+    assert_eq!(str_attr(&prov, "kernel"), "avx2");
     assert_eq!(str_attr(&prov, "start_time"), "2024-01-02T03:04:05Z");
     assert_eq!(prov.attr("ranks").unwrap().read_scalar::<u64>().unwrap(), 1);
     assert_eq!(
@@ -320,7 +322,7 @@ fn directory_path_is_a_clear_error() {
 #[test]
 fn collect_fills_provenance() {
     with_test_domain(|d| {
-        let p = Provenance::collect(d, 3);
+        let p = Provenance::collect(d, 3, "portable");
         assert_eq!(p.version, env!("CARGO_PKG_VERSION"));
         assert_eq!((p.ranks, p.threads), (1, 3));
         assert!(

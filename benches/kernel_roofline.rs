@@ -1,0 +1,185 @@
+//! The internal-force kernel against the machine: tet updates per second of every law
+//! beside a STREAM-triad bandwidth measured in the same run, the bytes each law moves per
+//! element, the bandwidth ceiling (triad bytes/s ÷ bytes per element), the compute ceiling
+//! (the same kernel on one thread on a mesh that fits in L2, times the threads) and, when
+//! given, the ratio to the reference kernel `tetbench`.
+//!
+//! How to run:  scripts/bench_vs_reference TETBENCH_DIR   (builds and runs tetbench too)
+//!         or:  cargo bench --bench kernel_roofline -- [--tetbench UPDATES_PER_S] [--threads N]
+//!
+//! Model: one glass sphere R = 1.1 mm at seeding 70 µm (≈ 1.5·10⁵ tets, the mesh of
+//! `benches/internal_force.rs`), built the way `mufe run` builds it; one call of
+//! `compute_internal_forces_into` per timing, at a rotated (0.3 rad) and stretched (10⁻³)
+//! configuration, alternating sign so the plastic law reverses its flow on every call.
+//! Best of several rounds, like tetbench. Results: docs/BENCHMARKS.md.
+
+use mufe::scene::parse_scene;
+use mufe::solver::build_solver;
+use mufe::solver::forces::{bytes_moved_per_element, compute_internal_forces_into, ElementScratch};
+use rayon::prelude::*;
+use std::time::Instant;
+
+const RADIUS: f64 = 1.1e-3;
+/// Seeding of the bandwidth-bound mesh (≥ 10⁵ tets, far beyond the caches).
+const SEEDING: f64 = 7.0e-5;
+/// Seeding of the in-cache mesh (a few thousand tets, < 1 MiB of model data).
+const SEEDING_IN_CACHE: f64 = 2.6e-4;
+
+/// (name, extra material lines).
+const LAWS: [(&str, &str); 5] = [
+    ("biot (default)", ""),
+    ("st_venant_kirchhoff", "law = \"st_venant_kirchhoff\""),
+    ("corotational", "law = \"corotational\""),
+    (
+        "j2, elastic branch",
+        "yield_stress = 1e10\nhardening_modulus = 1e9",
+    ),
+    (
+        "j2, plastic branch",
+        "yield_stress = 1e7\nhardening_modulus = 1e9",
+    ),
+];
+
+fn scene_text(law_lines: &str, seeding: f64) -> String {
+    format!(
+        r#"
+[simulation]
+duration = 1e-6
+
+[materials.glass]
+youngs_modulus = 63e9
+poisson_ratio = 0.22
+density = 2500.0
+{law_lines}
+
+[[grains]]
+name = "sphere"
+material = "glass"
+shape = {{ sphere = {{ radius = {RADIUS:e}, seeding = {seeding:e} }} }}
+"#
+    )
+}
+
+/// x = Q (I + ε) X: rotation 0.3 rad about z after a stretch ±10⁻³ along x.
+fn deformed(x0: &[[f64; 3]], sign: f64) -> Vec<[f64; 3]> {
+    let (s, c) = 0.3f64.sin_cos();
+    x0.iter()
+        .map(|p| {
+            let y = [p[0] * (1.0 + sign * 1e-3), p[1] * (1.0 - sign * 3e-4), p[2]];
+            [c * y[0] - s * y[1], s * y[0] + c * y[1], y[2]]
+        })
+        .collect()
+}
+
+/// Tet updates per second of one law on one mesh, best of `rounds`.
+fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize, String) {
+    let loaded = parse_scene("kernel_roofline.rs", &scene_text(law_lines, seeding), &[])
+        .expect("benchmark scene");
+    let solver = build_solver(&loaded).expect("benchmark model");
+    let model = &solver.model;
+    let ne = model.num_elements();
+    let configurations = [deformed(&model.x0, 1.0), deformed(&model.x0, -1.0)];
+    let mut scratch = ElementScratch::new(model);
+    let mut plastic = solver.state.plastic.clone();
+    let mut force = vec![[0.0; 3]; model.num_nodes()];
+    // enough calls per round for ~0.2 s
+    let calls = (30_000_000 / ne).clamp(4, 20_000);
+    let mut best = f64::INFINITY;
+    let mut plastic_branch = 0.0;
+    for _ in 0..rounds {
+        let t0 = Instant::now();
+        for k in 0..calls {
+            let s = compute_internal_forces_into(
+                model,
+                &configurations[k % 2],
+                &mut plastic,
+                &mut scratch,
+                &mut force,
+            );
+            assert!(s.bad_element.is_none());
+            plastic_branch = s.plastic_work;
+        }
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    let bytes = bytes_moved_per_element(model, plastic_branch > 0.0);
+    (
+        (ne * calls) as f64 / best,
+        bytes,
+        ne,
+        scratch.path.name().to_string(),
+    )
+}
+
+/// STREAM triad a = b + s·c over arrays far beyond the caches: bytes/s counted as
+/// STREAM does (24 B per index, no write-allocate), best of 5.
+fn triad_bytes_per_s() -> f64 {
+    const N: usize = 1 << 25; // 256 MiB per array
+    const PART: usize = 1 << 16;
+    let b = vec![1.0f64; N];
+    let c = vec![2.0f64; N];
+    let mut a = vec![0.0f64; N];
+    let mut best = f64::INFINITY;
+    for round in 0..6 {
+        let s = 3.0 + round as f64;
+        let t0 = Instant::now();
+        a.par_chunks_mut(PART)
+            .zip(b.par_chunks(PART).zip(c.par_chunks(PART)))
+            .for_each(|(a, (b, c))| {
+                for i in 0..a.len() {
+                    a[i] = b[i] + s * c[i];
+                }
+            });
+        let t = t0.elapsed().as_secs_f64();
+        if round > 0 {
+            best = best.min(t);
+        }
+    }
+    assert!(a[N / 2] == 1.0 + 8.0 * 2.0);
+    (24 * N) as f64 / best
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let value_of = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1))
+            .map(|v| v.parse::<f64>().expect("a number after the flag"))
+    };
+    let tetbench = value_of("--tetbench");
+    let threads = value_of("--threads").map_or(2, |t| t as usize);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("rayon pool");
+    let single = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("rayon pool");
+    pool.install(|| {
+        let triad = triad_bytes_per_s();
+        println!(
+            "kernel_roofline: {threads} threads; STREAM triad {:.1} GB/s",
+            triad / 1e9
+        );
+        if let Some(t) = tetbench {
+            println!("kernel_roofline: tetbench grid 30, {threads} threads: {t:.3e} tet updates/s");
+        }
+        println!(
+            "| law | tets | updates/s | bytes/element | bandwidth ceiling | of it | compute ceiling | of it | vs tetbench | path |"
+        );
+        println!("|---|---|---|---|---|---|---|---|---|---|");
+        for (name, lines) in LAWS {
+            let (rate, bytes, ne, path) = kernel_rate(lines, SEEDING, 5);
+            let (in_cache, _, _, _) = single.install(|| kernel_rate(lines, SEEDING_IN_CACHE, 5));
+            let compute = in_cache * threads as f64;
+            let ceiling = triad / bytes;
+            let vs = tetbench.map_or("–".to_string(), |t| format!("{:.2}×", rate / t));
+            println!(
+                "| {name} | {ne} | {rate:.3e} | {bytes:.0} | {ceiling:.3e} | {:.0} % | {compute:.3e} | {:.0} % | {vs} | {path} |",
+                100.0 * rate / ceiling,
+                100.0 * rate / compute,
+            );
+        }
+    });
+}

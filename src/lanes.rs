@@ -1,0 +1,134 @@
+//! f64 arithmetic on one element or on four elements at once.
+//!
+//! The element laws are written once, generic over [`Lanes`]: with `f64` they evaluate one
+//! element, with [`F64x4`] four elements side by side in one AVX register per quantity,
+//! each lane holding one element's value. The lane operations are plain IEEE arithmetic
+//! (no fused multiply–add, no reassociation), so every lane computes bit for bit what the
+//! `f64` code computes for that element: the vector kernel changes the speed, never the
+//! result.
+
+use std::ops::{Add, Mul, Neg, Sub};
+
+/// A value per lane: `f64` (one lane) or [`F64x4`] (four).
+pub trait Lanes:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self>
+{
+    /// Number of lanes (1 or 4).
+    const WIDTH: usize;
+    /// The same constant in every lane.
+    fn splat(v: f64) -> Self;
+    /// Lanes from the first of four values (one lane: the first).
+    fn from_array(v: [f64; 4]) -> Self;
+    /// The lanes as four values (one lane: the rest zero).
+    fn to_array(self) -> [f64; 4];
+}
+
+impl Lanes for f64 {
+    const WIDTH: usize = 1;
+    #[inline(always)]
+    fn splat(v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn from_array(v: [f64; 4]) -> Self {
+        v[0]
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f64; 4] {
+        [self, 0.0, 0.0, 0.0]
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub use avx::F64x4;
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use super::Lanes;
+    use std::arch::x86_64::*;
+    use std::ops::{Add, Mul, Neg, Sub};
+
+    /// Four f64 lanes in one AVX register.
+    ///
+    /// Every operation executes an AVX instruction: use this type only in code that runs
+    /// after the CPU has been found to support AVX2 (`solver::forces::KernelPath`), and
+    /// compiled with that feature enabled, so that the operations inline to single
+    /// instructions.
+    #[derive(Clone, Copy, Debug)]
+    #[repr(transparent)]
+    pub struct F64x4(__m256d);
+
+    impl Lanes for F64x4 {
+        const WIDTH: usize = 4;
+        #[inline(always)]
+        fn splat(v: f64) -> Self {
+            // SAFETY: see the type's documentation (AVX is present where this runs)
+            Self(unsafe { _mm256_set1_pd(v) })
+        }
+        #[inline(always)]
+        fn from_array(v: [f64; 4]) -> Self {
+            // from registers, not through memory: a wide load of values just stored one
+            // by one stalls on store forwarding
+            // SAFETY: as `splat`
+            Self(unsafe { _mm256_set_pd(v[3], v[2], v[1], v[0]) })
+        }
+        #[inline(always)]
+        fn to_array(self) -> [f64; 4] {
+            let mut v = [0.0; 4];
+            // SAFETY: as `splat`; the store writes exactly the four values of `v`
+            unsafe { _mm256_storeu_pd(v.as_mut_ptr(), self.0) };
+            v
+        }
+    }
+
+    macro_rules! lane_wise {
+        ($trait:ident, $method:ident, $intrinsic:ident) => {
+            impl $trait for F64x4 {
+                type Output = Self;
+                #[inline(always)]
+                fn $method(self, o: Self) -> Self {
+                    // SAFETY: see the type's documentation
+                    Self(unsafe { $intrinsic(self.0, o.0) })
+                }
+            }
+        };
+    }
+    lane_wise!(Add, add, _mm256_add_pd);
+    lane_wise!(Sub, sub, _mm256_sub_pd);
+    lane_wise!(Mul, mul, _mm256_mul_pd);
+
+    impl Neg for F64x4 {
+        type Output = Self;
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // flipping the sign bit is exactly IEEE negation, as for f64
+            // SAFETY: see the type's documentation
+            Self(unsafe { _mm256_xor_pd(self.0, _mm256_set1_pd(-0.0)) })
+        }
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lanes_compute_what_scalars_compute() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            panic!("this test needs an AVX2 CPU: the kernel's fast path could not be checked");
+        }
+        let x = [1.0, -2.5, 3.0e-7, 1.0 / 3.0];
+        let y = [0.1, 7.0, -1.0e9, 2.0 / 3.0];
+        let (a, b) = (F64x4::from_array(x), F64x4::from_array(y));
+        let r = ((a * b + a - b) * -a).to_array();
+        for l in 0..4 {
+            let (x, y) = (x[l], y[l]);
+            assert_eq!(r[l].to_bits(), ((x * y + x - y) * -x).to_bits());
+        }
+        assert_eq!(F64x4::splat(2.0).to_array(), [2.0; 4]);
+        assert_eq!(
+            (-F64x4::splat(0.0)).to_array()[0].to_bits(),
+            (-0.0f64).to_bits()
+        );
+    }
+}
