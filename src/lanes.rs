@@ -7,11 +7,16 @@
 //! `f64` code computes for that element: the vector kernel changes the speed, never the
 //! result.
 
-use std::ops::{Add, Mul, Neg, Sub};
+use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// A value per lane: `f64` (one lane) or [`F64x4`] (four).
 pub trait Lanes:
-    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self>
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
 {
     /// Number of lanes (1 or 4).
     const WIDTH: usize;
@@ -21,6 +26,10 @@ pub trait Lanes:
     fn from_array(v: [f64; 4]) -> Self;
     /// The lanes as four values (one lane: the rest zero).
     fn to_array(self) -> [f64; 4];
+    /// Correctly rounded square root, per lane.
+    fn sqrt(self) -> Self;
+    /// Per lane: `then` where `self > 0`, else `otherwise` (NaN is not > 0).
+    fn where_positive(self, then: Self, otherwise: Self) -> Self;
 }
 
 impl Lanes for f64 {
@@ -37,6 +46,30 @@ impl Lanes for f64 {
     fn to_array(self) -> [f64; 4] {
         [self, 0.0, 0.0, 0.0]
     }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn where_positive(self, then: Self, otherwise: Self) -> Self {
+        if self > 0.0 {
+            then
+        } else {
+            otherwise
+        }
+    }
+}
+
+/// `[f(0), f(1), …]`, like `std::array::from_fn` but always inlined: the vector kernel
+/// is compiled for AVX2 only where every step of it inlines into the AVX2 function, and
+/// `from_fn` and `map` may be left as calls (each lane operation then becomes a call).
+#[inline(always)]
+pub fn build<T: Copy, const N: usize>(zero: T, mut f: impl FnMut(usize) -> T) -> [T; N] {
+    let mut out = [zero; N];
+    for (k, v) in out.iter_mut().enumerate() {
+        *v = f(k);
+    }
+    out
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -46,7 +79,7 @@ pub use avx::F64x4;
 mod avx {
     use super::Lanes;
     use std::arch::x86_64::*;
-    use std::ops::{Add, Mul, Neg, Sub};
+    use std::ops::{Add, Div, Mul, Neg, Sub};
 
     /// Four f64 lanes in one AVX register.
     ///
@@ -79,6 +112,19 @@ mod avx {
             unsafe { _mm256_storeu_pd(v.as_mut_ptr(), self.0) };
             v
         }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            // SAFETY: see the type's documentation
+            Self(unsafe { _mm256_sqrt_pd(self.0) })
+        }
+        #[inline(always)]
+        fn where_positive(self, then: Self, otherwise: Self) -> Self {
+            // SAFETY: see the type's documentation
+            unsafe {
+                let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, _mm256_setzero_pd());
+                Self(_mm256_blendv_pd(otherwise.0, then.0, positive))
+            }
+        }
     }
 
     macro_rules! lane_wise {
@@ -96,6 +142,7 @@ mod avx {
     lane_wise!(Add, add, _mm256_add_pd);
     lane_wise!(Sub, sub, _mm256_sub_pd);
     lane_wise!(Mul, mul, _mm256_mul_pd);
+    lane_wise!(Div, div, _mm256_div_pd);
 
     impl Neg for F64x4 {
         type Output = Self;
@@ -120,11 +167,15 @@ mod tests {
         let x = [1.0, -2.5, 3.0e-7, 1.0 / 3.0];
         let y = [0.1, 7.0, -1.0e9, 2.0 / 3.0];
         let (a, b) = (F64x4::from_array(x), F64x4::from_array(y));
-        let r = ((a * b + a - b) * -a).to_array();
+        let r = ((a * b + a - b) * -a / b).sqrt().to_array();
+        let chosen = (a - b).where_positive(a, b).to_array();
         for l in 0..4 {
             let (x, y) = (x[l], y[l]);
-            assert_eq!(r[l].to_bits(), ((x * y + x - y) * -x).to_bits());
+            assert_eq!(r[l].to_bits(), ((x * y + x - y) * -x / y).sqrt().to_bits());
+            assert_eq!(chosen[l], (x - y).where_positive(x, y));
         }
+        let nan = F64x4::splat(f64::NAN).where_positive(a, b).to_array();
+        assert_eq!(nan, y, "NaN is not positive");
         assert_eq!(F64x4::splat(2.0).to_array(), [2.0; 4]);
         assert_eq!(
             (-F64x4::splat(0.0)).to_array()[0].to_bits(),

@@ -6,8 +6,11 @@
 //! that could drift. Dm⁻¹ and the reference volume are the only per-element data the force
 //! kernel needs (80 bytes), plus the plastic state of elements of plastic materials.
 
-use crate::lanes::Lanes;
-use crate::material::{HyperelasticLaw, MaterialLaw, PlasticPoint};
+use crate::lanes::{build, Lanes};
+use crate::material::elastic::{
+    biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym,
+};
+use crate::material::{HyperelasticLaw, MaterialLaw, PlasticPoint, J2};
 use crate::math::det3;
 
 /// Reference data of one tetrahedron needed by the force kernel.
@@ -140,8 +143,7 @@ pub fn tet_forces_elastic<L: HyperelasticLaw>(
 
 /// Nodal forces, energies and det F of the four elements `tets` (node ids into the
 /// positions `x`) of an elastic law, one per lane of `T` ([`tet_forces_elastic`] in each
-/// lane, bitwise equal to it). Lanes are filled straight from `x` and `references`: no
-/// per-element copy in between, which the vector loads would stall on.
+/// lane, bitwise equal to it).
 #[inline(always)]
 pub fn tet_forces_elastic_x4<L: HyperelasticLaw, T: Lanes>(
     x: &[[f64; 3]],
@@ -149,32 +151,118 @@ pub fn tet_forces_elastic_x4<L: HyperelasticLaw, T: Lanes>(
     references: &[TetReference; 4],
     law: &L,
 ) -> ([[[f64; 3]; 4]; 4], [f64; 4], [f64; 4]) {
-    let corner = |a: usize, i: usize| {
+    let (f, d, v) = deformation_lanes::<T>(x, tets, references);
+    let (p, w) = law.first_piola_and_energy_lanes(&f);
+    let nodal = lanes_of_nodal_forces(&nodal_forces(&p, &d, v));
+    (nodal, (v * w).to_array(), det3(&f).to_array())
+}
+
+/// [`tet_forces`] of four elements of a J2 material, one per lane of `T`, from their
+/// committed plastic states `old` (bitwise equal to [`tet_forces`] in each lane).
+/// Returns the nodal forces, V0·ψ, V0·plastic work, det F and the states after the step.
+#[inline(always)]
+pub fn tet_forces_plastic_x4<T: Lanes>(
+    x: &[[f64; 3]],
+    tets: &[[u32; 4]; 4],
+    references: &[TetReference; 4],
+    j2: &J2,
+    old: [&PlasticPoint; 4],
+) -> PlasticForcesX4 {
+    let (f, d, v) = deformation_lanes::<T>(x, tets, references);
+    let e = green_lagrange_sym(&f);
+    let eps = biot_strain_from_green(&e);
+    let old_strain: [T; 6] = build(T::splat(0.0), |k| {
         T::from_array([
-            x[tets[0][a] as usize][i],
-            x[tets[1][a] as usize][i],
-            x[tets[2][a] as usize][i],
-            x[tets[3][a] as usize][i],
+            old[0].strain[k],
+            old[1].strain[k],
+            old[2].strain[k],
+            old[3].strain[k],
         ])
-    };
-    let xl: [[T; 3]; 4] = std::array::from_fn(|a| std::array::from_fn(|i| corner(a, i)));
-    let d: [T; 9] = std::array::from_fn(|k| {
-        T::from_array([
+    });
+    let old_equivalent = T::from_array([
+        old[0].equivalent,
+        old[1].equivalent,
+        old[2].equivalent,
+        old[3].equivalent,
+    ]);
+    let r = j2.return_map_lanes(&eps, &old_strain, old_equivalent);
+    let p = first_piola_from_biot_stress(&f, &e, &r.stress);
+    let nodal = lanes_of_nodal_forces(&nodal_forces(&p, &d, v));
+    let strain: [[f64; 4]; 6] = build([0.0; 4], |k| r.strain[k].to_array());
+    let equivalent = r.equivalent.to_array();
+    PlasticForcesX4 {
+        nodal,
+        strain_energy: (v * r.stored_energy).to_array(),
+        plastic_work: (v * r.dissipation).to_array(),
+        jacobian: det3(&f).to_array(),
+        points: build(PlasticPoint::default(), |l| PlasticPoint {
+            strain: build(0.0, |k| strain[k][l]),
+            equivalent: equivalent[l],
+        }),
+    }
+}
+
+/// What [`tet_forces_plastic_x4`] gives for its four elements.
+#[derive(Debug, Clone, Copy)]
+pub struct PlasticForcesX4 {
+    pub nodal: [[[f64; 3]; 4]; 4],
+    pub strain_energy: [f64; 4],
+    pub plastic_work: [f64; 4],
+    pub jacobian: [f64; 4],
+    pub points: [PlasticPoint; 4],
+}
+
+/// F = Ds·Dm⁻¹, Dm⁻¹ and V0 of four elements, one per lane, filled straight from `x` and
+/// `references`: no per-element copy in between, which the vector loads would stall on.
+#[inline(always)]
+fn deformation_lanes<T: Lanes>(
+    x: &[[f64; 3]],
+    tets: &[[u32; 4]; 4],
+    references: &[TetReference; 4],
+) -> ([T; 9], [T; 9], T) {
+    // plain loops, no closures: every step must inline into the AVX2 caller
+    let mut xl = [[T::splat(0.0); 3]; 4];
+    for a in 0..4 {
+        for i in 0..3 {
+            xl[a][i] = T::from_array([
+                x[tets[0][a] as usize][i],
+                x[tets[1][a] as usize][i],
+                x[tets[2][a] as usize][i],
+                x[tets[3][a] as usize][i],
+            ]);
+        }
+    }
+    let mut d = [T::splat(0.0); 9];
+    for k in 0..9 {
+        d[k] = T::from_array([
             references[0].dm_inv[k],
             references[1].dm_inv[k],
             references[2].dm_inv[k],
             references[3].dm_inv[k],
-        ])
-    });
-    let v = T::from_array(references.map(|r| r.volume));
-    let f = crate::math::mat_mul(&edge_matrix(&xl), &d);
-    let (p, w) = law.first_piola_and_energy_lanes(&f);
-    let nodal = nodal_forces(&p, &d, v).map(|fa| fa.map(T::to_array));
-    (
-        std::array::from_fn(|l| nodal.map(|fa| fa.map(|c| c[l]))),
-        (v * w).to_array(),
-        det3(&f).to_array(),
-    )
+        ]);
+    }
+    let v = T::from_array([
+        references[0].volume,
+        references[1].volume,
+        references[2].volume,
+        references[3].volume,
+    ]);
+    (crate::math::mat_mul(&edge_matrix(&xl), &d), d, v)
+}
+
+/// Nodal forces of four lanes as one `[[f64; 3]; 4]` per element.
+#[inline(always)]
+fn lanes_of_nodal_forces<T: Lanes>(nodal: &[[T; 3]; 4]) -> [[[f64; 3]; 4]; 4] {
+    let mut out = [[[0.0; 3]; 4]; 4];
+    for a in 0..4 {
+        for i in 0..3 {
+            let c = nodal[a][i].to_array();
+            for l in 0..4 {
+                out[l][a][i] = c[l];
+            }
+        }
+    }
+    out
 }
 
 /// f_{1,2,3} = columns of H = −V0 P Dm⁻ᵀ, f_0 = −(f_1 + f_2 + f_3) (N).

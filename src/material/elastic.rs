@@ -2,7 +2,7 @@
 //! hyperelastic (P = ∂W/∂F) and objective for rotations of any size.
 
 use super::ElasticParameters;
-use crate::lanes::Lanes;
+use crate::lanes::{build, Lanes};
 use crate::math::{det3, mat_mul};
 
 /// An elastic law without state, P = ∂W/∂F: what the force kernel is compiled for once per
@@ -109,7 +109,7 @@ impl StVenantKirchhoff {
         let tr = e[0] + e[4] + e[8];
         let two_mu = T::splat(2.0 * self.mu);
         let lambda_tr = T::splat(self.lambda) * tr;
-        let mut s = e.map(|ei| two_mu * ei);
+        let mut s = build(T::splat(0.0), |k| two_mu * e[k]);
         s[0] = s[0] + lambda_tr;
         s[4] = s[4] + lambda_tr;
         s[8] = s[8] + lambda_tr;
@@ -184,7 +184,7 @@ pub fn green_lagrange_sym<T: Lanes>(f: &[T; 9]) -> Sym<T> {
 pub fn biot_strain_from_green<T: Lanes>(e: &Sym<T>) -> Sym<T> {
     let e2 = sym_product_sum(e, e);
     // sym_product_sum gives AB + BA = 2E² here
-    std::array::from_fn(|k| e[k] - T::splat(0.25) * e2[k])
+    build(T::splat(0.0), |k| e[k] - T::splat(0.25) * e2[k])
 }
 
 /// Isotropic Hooke law T = λ tr(ε) I + 2μ ε and its energy density ½λ(tr ε)² + μ ε:ε.
@@ -193,7 +193,7 @@ pub fn hooke<T: Lanes>(lambda: f64, mu: f64, eps: &Sym<T>) -> (Sym<T>, T) {
     let tr = eps[0] + eps[1] + eps[2];
     let two_mu = T::splat(2.0 * mu);
     let lambda_tr = T::splat(lambda) * tr;
-    let mut t = eps.map(|v| two_mu * v);
+    let mut t = build(T::splat(0.0), |k| two_mu * eps[k]);
     for v in t.iter_mut().take(3) {
         *v = *v + lambda_tr;
     }
@@ -206,7 +206,7 @@ pub fn hooke<T: Lanes>(lambda: f64, mu: f64, eps: &Sym<T>) -> (Sym<T>, T) {
 #[inline(always)]
 pub fn first_piola_from_biot_stress<T: Lanes>(f: &[T; 9], e: &Sym<T>, t: &Sym<T>) -> [T; 9] {
     let et = sym_product_sum(e, t);
-    let s: Sym<T> = std::array::from_fn(|k| t[k] - T::splat(0.5) * et[k]);
+    let s: Sym<T> = build(T::splat(0.0), |k| t[k] - T::splat(0.5) * et[k]);
     let mut p = [T::splat(0.0); 9];
     for i in 0..3 {
         let (a, b, c) = (f[3 * i], f[3 * i + 1], f[3 * i + 2]);

@@ -19,6 +19,7 @@
 //! (as in the reference solver it includes the part locked in by hardening).
 
 use super::elastic::{hooke, Sym};
+use crate::lanes::{build, Lanes};
 use serde::{Deserialize, Serialize};
 
 /// Plastic state of one element (the only per-element material state in mufe).
@@ -67,12 +68,32 @@ impl J2 {
     /// call it with the committed state and get what the step computed.
     #[inline(always)]
     pub fn return_map(&self, eps: &Sym, old: &PlasticPoint) -> Return {
-        let mut elastic = [0.0; 6];
-        for k in 0..6 {
-            elastic[k] = eps[k] - old.strain[k];
+        let r = self.return_map_lanes(eps, &old.strain, old.equivalent);
+        Return {
+            stress: r.stress,
+            stored_energy: r.stored_energy,
+            dissipation: r.dissipation,
+            point: PlasticPoint {
+                strain: r.strain,
+                equivalent: r.equivalent,
+            },
         }
+    }
+
+    /// [`Self::return_map`] for one element per lane (state split into εᵖ and α), each
+    /// lane bitwise equal to it. Both branches are computed and the plastic one kept where
+    /// the trial stress exceeds the flow stress, so the elastic lanes return the trial
+    /// values and the old state exactly.
+    #[inline(always)]
+    pub fn return_map_lanes<T: Lanes>(
+        &self,
+        eps: &Sym<T>,
+        old_strain: &Sym<T>,
+        old_equivalent: T,
+    ) -> ReturnLanes<T> {
+        let elastic: Sym<T> = build(T::splat(0.0), |k| eps[k] - old_strain[k]);
         let (trial, trial_energy) = hooke(self.lambda, self.mu, &elastic);
-        let mean = (trial[0] + trial[1] + trial[2]) / 3.0;
+        let mean = (trial[0] + trial[1] + trial[2]) / T::splat(3.0);
         let dev = [
             trial[0] - mean,
             trial[1] - mean,
@@ -84,40 +105,49 @@ impl J2 {
         let ss = dev[0] * dev[0]
             + dev[1] * dev[1]
             + dev[2] * dev[2]
-            + 2.0 * (dev[3] * dev[3] + dev[4] * dev[4] + dev[5] * dev[5]);
-        let q = (1.5 * ss).sqrt();
-        let excess = q - self.flow_stress(old.equivalent);
-        if excess <= 0.0 || q == 0.0 {
-            return Return {
-                stress: trial,
-                stored_energy: trial_energy,
-                dissipation: 0.0,
-                point: *old,
-            };
-        }
-        let d_alpha = excess / (3.0 * self.mu + self.hardening_modulus);
-        let flow = 1.5 * d_alpha / q;
-        let shrink = 1.0 - 3.0 * self.mu * d_alpha / q;
-        let mut point = *old;
-        let mut stress = [0.0; 6];
+            + T::splat(2.0) * (dev[3] * dev[3] + dev[4] * dev[4] + dev[5] * dev[5]);
+        let q = (T::splat(1.5) * ss).sqrt();
+        let flow_stress =
+            |alpha: T| T::splat(self.yield_stress) + T::splat(self.hardening_modulus) * alpha;
+        let excess = q - flow_stress(old_equivalent);
+        // the plastic branch (its values are discarded where `excess` ≤ 0)
+        let d_alpha = excess / T::splat(3.0 * self.mu + self.hardening_modulus);
+        let flow = T::splat(1.5) * d_alpha / q;
+        let shrink = T::splat(1.0) - T::splat(3.0 * self.mu) * d_alpha / q;
+        let mut strain = *old_strain;
+        let mut returned_elastic = elastic;
+        let mut stress: Sym<T> = [T::splat(0.0); 6];
         for k in 0..6 {
-            point.strain[k] += flow * dev[k];
-            elastic[k] -= flow * dev[k];
+            strain[k] = strain[k] + flow * dev[k];
+            returned_elastic[k] = returned_elastic[k] - flow * dev[k];
             stress[k] = shrink * dev[k];
         }
         for v in stress.iter_mut().take(3) {
-            *v += mean;
+            *v = *v + mean;
         }
-        point.equivalent += d_alpha;
+        let equivalent = old_equivalent + d_alpha;
         // ψ of the returned elastic strain: the volumetric part is unchanged
-        let (_, stored_energy) = hooke(self.lambda, self.mu, &elastic);
-        Return {
-            stress,
-            stored_energy,
-            dissipation: self.flow_stress(point.equivalent) * d_alpha,
-            point,
+        let (_, stored_energy) = hooke(self.lambda, self.mu, &returned_elastic);
+        let dissipation = flow_stress(equivalent) * d_alpha;
+        let pick = |plastic: T, elastic: T| excess.where_positive(plastic, elastic);
+        ReturnLanes {
+            stress: build(T::splat(0.0), |k| pick(stress[k], trial[k])),
+            stored_energy: pick(stored_energy, trial_energy),
+            dissipation: pick(dissipation, T::splat(0.0)),
+            strain: build(T::splat(0.0), |k| pick(strain[k], old_strain[k])),
+            equivalent: pick(equivalent, old_equivalent),
         }
     }
+}
+
+/// [`Return`] of one element per lane, the state split into εᵖ and α.
+#[derive(Debug, Clone, Copy)]
+pub struct ReturnLanes<T> {
+    pub stress: Sym<T>,
+    pub stored_energy: T,
+    pub dissipation: T,
+    pub strain: Sym<T>,
+    pub equivalent: T,
 }
 
 #[cfg(test)]

@@ -6,7 +6,10 @@
 //! loop compiled for its grain's law, so the hot loop has no per-element dispatch.
 
 use super::element_schedule::{ElementChunk, ElementSchedule};
-use crate::element::{deformation_gradient, tet_forces, tet_forces_elastic, tet_forces_elastic_x4};
+use crate::element::{
+    deformation_gradient, tet_forces, tet_forces_elastic, tet_forces_elastic_x4,
+    tet_forces_plastic_x4, ElementForces,
+};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::F64x4;
 use crate::lanes::Lanes;
@@ -255,9 +258,13 @@ unsafe fn evaluate_chunk(
     let law = &model.laws[chunk.law as usize];
     let (lambda, mu) = (law.lambda, law.mu);
     match (law.plastic, chunk.plastic_start, law.kind) {
-        (Some(_), Some(first_slot), _) => {
-            evaluate_plastic_chunk(model, x, chunk, law, first_slot, force, plastic)
-        }
+        (Some(_), Some(first_slot), _) => match path {
+            #[cfg(target_arch = "x86_64")]
+            KernelPath::Avx2 => {
+                evaluate_plastic_chunk_avx2(model, x, chunk, law, first_slot, force, plastic)
+            }
+            _ => evaluate_plastic_chunk::<f64>(model, x, chunk, law, first_slot, force, plastic),
+        },
         (_, _, ElasticLawKind::Biot) => {
             let law = SecondOrderBiot { lambda, mu };
             evaluate_elastic_chunk_on(path, model, x, chunk, &law, force)
@@ -384,9 +391,14 @@ unsafe fn evaluate_elastic_chunk_on<L: HyperelasticLaw>(
     }
 }
 
+/// The element loop of a J2 material: four elements per pass with lanes `T` wider than
+/// one ([`tet_forces_plastic_x4`]), the rest one by one; each lane bitwise equal to the
+/// one-element loop. A state is written back only where the step changed it.
+///
 /// # Safety
-/// As [`evaluate_chunk`].
-unsafe fn evaluate_plastic_chunk(
+/// As [`evaluate_chunk`]; with `T` = [`F64x4`] the CPU must support AVX2.
+#[inline(always)]
+unsafe fn evaluate_plastic_chunk<T: Lanes>(
     model: &Model,
     x: &[[f64; 3]],
     chunk: &ElementChunk,
@@ -396,16 +408,13 @@ unsafe fn evaluate_plastic_chunk(
     plastic: &Disjoint<PlasticPoint>,
 ) -> ChunkResult {
     let mut result = ChunkResult::default();
-    for (k, e) in chunk.elements.clone().enumerate() {
-        let t = &model.tets[e];
-        let point = plastic.get(first_slot + k);
-        let forces = tet_forces(
-            &element_positions(x, t),
-            &model.tet_reference[e],
-            law,
-            Some(point),
-        );
+    let range = chunk.elements.clone();
+    let tets = &model.tets[range.clone()];
+    let references = &model.tet_reference[range.clone()];
+    let mut record = |k: usize, forces: ElementForces| {
+        let t = &tets[k];
         add_nodal_forces(force, t, &forces.nodal);
+        let point = plastic.get(first_slot + k);
         let mut plastic_increment = 0.0;
         if let Some(p) = forces.point {
             plastic_increment = p.equivalent - point.equivalent;
@@ -421,13 +430,71 @@ unsafe fn evaluate_plastic_chunk(
                 && plastic_increment <= MAX_PLASTIC_INCREMENT)
         {
             result.bad_element = Some(BadElement {
-                element: e,
+                element: range.start + k,
                 jacobian: forces.jacobian,
                 plastic_increment,
             });
         }
         result.strain_energy += forces.strain_energy;
         result.plastic_work += forces.plastic_work;
+    };
+    let quads = match law.plastic {
+        Some(_) if T::WIDTH == 4 => tets.len() / 4,
+        _ => 0,
+    };
+    if let Some(j2) = &law.plastic {
+        for q in 0..quads {
+            let first = 4 * q;
+            let (Some(t), Some(r)) = (
+                tets[first..].first_chunk::<4>(),
+                references[first..].first_chunk::<4>(),
+            ) else {
+                break;
+            };
+            let at = |l: usize| &*plastic.get(first_slot + first + l);
+            let old = [at(0), at(1), at(2), at(3)];
+            let out = tet_forces_plastic_x4::<T>(x, t, r, j2, old);
+            for l in 0..4 {
+                record(
+                    first + l,
+                    ElementForces {
+                        nodal: out.nodal[l],
+                        strain_energy: out.strain_energy[l],
+                        plastic_work: out.plastic_work[l],
+                        jacobian: out.jacobian[l],
+                        point: Some(out.points[l]),
+                    },
+                );
+            }
+        }
+    }
+    for k in 4 * quads..tets.len() {
+        let point = *plastic.get(first_slot + k);
+        let forces = tet_forces(
+            &element_positions(x, &tets[k]),
+            &references[k],
+            law,
+            Some(&point),
+        );
+        record(k, forces);
     }
     result
+}
+
+/// [`evaluate_plastic_chunk`] compiled for AVX2, four elements per instruction.
+///
+/// # Safety
+/// As [`evaluate_chunk`], and the CPU must support AVX2 ([`KernelPath::detect`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn evaluate_plastic_chunk_avx2(
+    model: &Model,
+    x: &[[f64; 3]],
+    chunk: &ElementChunk,
+    law: &MaterialLaw,
+    first_slot: usize,
+    force: &Disjoint<[f64; 3]>,
+    plastic: &Disjoint<PlasticPoint>,
+) -> ChunkResult {
+    evaluate_plastic_chunk::<F64x4>(model, x, chunk, law, first_slot, force, plastic)
 }
