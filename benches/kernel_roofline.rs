@@ -10,8 +10,10 @@
 //! Model: one glass sphere R = 1.1 mm at seeding 70 µm (≈ 1.5·10⁵ tets, the mesh of
 //! `benches/internal_force.rs`), built the way `mufe run` builds it; one call of
 //! `compute_internal_forces_into` per timing, at a rotated (0.3 rad) and stretched (10⁻³)
-//! configuration, alternating sign so the plastic law reverses its flow on every call.
+//! configuration (`common::deformed`), alternating sign so the plastic law reverses its flow on every call.
 //! Best of several rounds, like tetbench. Results: docs/BENCHMARKS.md.
+
+mod common;
 
 use mufe::scene::parse_scene;
 use mufe::solver::build_solver;
@@ -25,60 +27,21 @@ const SEEDING: f64 = 7.0e-5;
 /// Seeding of the in-cache mesh (a few thousand tets, < 1 MiB of model data).
 const SEEDING_IN_CACHE: f64 = 2.6e-4;
 
-/// (name, extra material lines).
-const LAWS: [(&str, &str); 5] = [
-    ("biot (default)", ""),
-    ("st_venant_kirchhoff", "law = \"st_venant_kirchhoff\""),
-    ("corotational", "law = \"corotational\""),
-    (
-        "j2, elastic branch",
-        "yield_stress = 1e10\nhardening_modulus = 1e9",
-    ),
-    (
-        "j2, plastic branch",
-        "yield_stress = 1e7\nhardening_modulus = 1e9",
-    ),
-];
-
-fn scene_text(law_lines: &str, seeding: f64) -> String {
-    format!(
-        r#"
-[simulation]
-duration = 1e-6
-
-[materials.glass]
-youngs_modulus = 63e9
-poisson_ratio = 0.22
-density = 2500.0
-{law_lines}
-
-[[grains]]
-name = "sphere"
-material = "glass"
-shape = {{ sphere = {{ radius = {RADIUS:e}, seeding = {seeding:e} }} }}
-"#
-    )
-}
-
-/// x = Q (I + ε) X: rotation 0.3 rad about z after a stretch ±10⁻³ along x.
-fn deformed(x0: &[[f64; 3]], sign: f64) -> Vec<[f64; 3]> {
-    let (s, c) = 0.3f64.sin_cos();
-    x0.iter()
-        .map(|p| {
-            let y = [p[0] * (1.0 + sign * 1e-3), p[1] * (1.0 - sign * 3e-4), p[2]];
-            [c * y[0] - s * y[1], s * y[0] + c * y[1], y[2]]
-        })
-        .collect()
-}
-
 /// Tet updates per second of one law on one mesh, best of `rounds`.
 fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize, String) {
-    let loaded = parse_scene("kernel_roofline.rs", &scene_text(law_lines, seeding), &[])
-        .expect("benchmark scene");
+    let loaded = parse_scene(
+        "kernel_roofline.rs",
+        &common::sphere_scene(law_lines, RADIUS, seeding),
+        &[],
+    )
+    .expect("benchmark scene");
     let solver = build_solver(&loaded).expect("benchmark model");
     let model = &solver.model;
     let ne = model.num_elements();
-    let configurations = [deformed(&model.x0, 1.0), deformed(&model.x0, -1.0)];
+    let configurations = [
+        common::deformed(&model.x0, 1.0),
+        common::deformed(&model.x0, -1.0),
+    ];
     let mut scratch = ElementScratch::new(model);
     let mut plastic = solver.state.plastic.clone();
     let mut force = vec![[0.0; 3]; model.num_nodes()];
@@ -169,7 +132,7 @@ fn main() {
             "| law | tets | updates/s | bytes/element | bandwidth ceiling | of it | compute ceiling | of it | vs tetbench | path |"
         );
         println!("|---|---|---|---|---|---|---|---|---|---|");
-        for (name, lines) in LAWS {
+        for (name, lines) in common::LAWS {
             let (rate, bytes, ne, path) = kernel_rate(lines, SEEDING, 5);
             let (in_cache, _, _, _) = single.install(|| kernel_rate(lines, SEEDING_IN_CACHE, 5));
             let compute = in_cache * threads as f64;

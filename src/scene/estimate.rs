@@ -59,9 +59,9 @@ pub const ELEMENTS_PER_NODE: f64 = 6.0;
 /// Extra nodes per surface node (surface nodes have about half the tets of inner ones).
 pub const SURFACE_NODE_SHARE: f64 = 0.5;
 /// Measured peak memory of a run per element, per node, and fixed (bytes).
-pub const BYTES_PER_ELEMENT: u64 = 500;
+pub const BYTES_PER_ELEMENT: u64 = 250;
 pub const BYTES_PER_NODE: u64 = 200;
-pub const BASE_BYTES: u64 = 32 << 20;
+pub const BASE_BYTES: u64 = 40 << 20;
 /// Extra per element of a plastic material: its plastic state (εᵖ, α) and slot index.
 pub const PLASTIC_BYTES_PER_ELEMENT: u64 = 60;
 /// Steps above which `check`/`run` refuse the scene unless `--force` is given.

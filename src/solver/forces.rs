@@ -3,20 +3,13 @@
 //! run in parallel, colour after colour ([`ElementSchedule`]), so every node receives its
 //! forces in a fixed order and 1 and N threads give bitwise identical forces and energies
 //! (no atomics, no reduction whose order follows scheduling). Each chunk is evaluated by a
-//! loop compiled for its grain's law, so the hot loop has no per-element dispatch.
+//! loop compiled for its grain's law, so the hot loop has no per-element dispatch
+//! ([`super::element_loops`]).
 
-use super::element_schedule::{ElementChunk, ElementSchedule};
-use crate::element::{
-    deformation_gradient, tet_forces, tet_forces_elastic, tet_forces_elastic_x4,
-    tet_forces_plastic_x4, ElementForces,
-};
-#[cfg(target_arch = "x86_64")]
-use crate::lanes::F64x4;
-use crate::lanes::Lanes;
-use crate::material::{
-    CorotationalLinear, ElasticLawKind, HyperelasticLaw, MaterialLaw, PlasticPoint, Response,
-    SecondOrderBiot, StVenantKirchhoff,
-};
+use super::element_loops::{evaluate_chunk, Disjoint, Pass};
+use super::element_schedule::ElementSchedule;
+use crate::element::deformation_gradient;
+use crate::material::{PlasticPoint, Response};
 use crate::model::{Model, NONE};
 use rayon::prelude::*;
 
@@ -141,8 +134,12 @@ pub fn compute_internal_forces_into(
     force
         .par_chunks_mut(NODE_CHUNK)
         .for_each(|part| part.fill([0.0; 3]));
-    let out = Disjoint::new(force);
-    let states = Disjoint::new(plastic);
+    let pass = Pass {
+        model,
+        x,
+        force: Disjoint::new(force),
+        plastic: Disjoint::new(plastic),
+    };
     let schedule = &scratch.schedule;
     let path = scratch.path;
     for colour in &schedule.colours {
@@ -153,7 +150,7 @@ pub fn compute_internal_forces_into(
                 // SAFETY: chunks of one colour share no node and own disjoint element
                 // (hence plastic slot) ranges (`ElementSchedule`), and colours run one
                 // after another, so no two threads touch the same entry.
-                *result = unsafe { evaluate_chunk(path, model, x, chunk, &out, &states) };
+                *result = unsafe { evaluate_chunk(path, &pass, chunk) };
             });
     }
 
@@ -213,288 +210,4 @@ pub fn element_response(
         .filter(|&&s| s != NONE)
         .map(|&s| &plastic[s as usize]);
     (f, model.laws[model.tet_law[e] as usize].respond(&f, point))
-}
-
-/// A slice that parallel tasks write through at indices they own exclusively.
-struct Disjoint<T> {
-    ptr: *mut T,
-    len: usize,
-}
-
-// SAFETY: only handed to tasks that write disjoint indices (see `compute_internal_forces_into`).
-unsafe impl<T: Send> Sync for Disjoint<T> {}
-
-impl<T> Disjoint<T> {
-    fn new(slice: &mut [T]) -> Self {
-        Self {
-            ptr: slice.as_mut_ptr(),
-            len: slice.len(),
-        }
-    }
-
-    /// # Safety
-    /// No other task may access entry `i` while the returned reference lives.
-    #[inline(always)]
-    #[allow(clippy::mut_from_ref)]
-    unsafe fn get(&self, i: usize) -> &mut T {
-        debug_assert!(i < self.len);
-        &mut *self.ptr.add(i)
-    }
-}
-
-/// One chunk: its elements' forces added into `force`, plastic states committed, energies
-/// and the first failure returned.
-///
-/// # Safety
-/// No other task may touch the chunk's nodes or plastic slots meanwhile.
-unsafe fn evaluate_chunk(
-    path: KernelPath,
-    model: &Model,
-    x: &[[f64; 3]],
-    chunk: &ElementChunk,
-    force: &Disjoint<[f64; 3]>,
-    plastic: &Disjoint<PlasticPoint>,
-) -> ChunkResult {
-    let law = &model.laws[chunk.law as usize];
-    let (lambda, mu) = (law.lambda, law.mu);
-    match (law.plastic, chunk.plastic_start, law.kind) {
-        (Some(_), Some(first_slot), _) => match path {
-            #[cfg(target_arch = "x86_64")]
-            KernelPath::Avx2 => {
-                evaluate_plastic_chunk_avx2(model, x, chunk, law, first_slot, force, plastic)
-            }
-            _ => evaluate_plastic_chunk::<f64>(model, x, chunk, law, first_slot, force, plastic),
-        },
-        (_, _, ElasticLawKind::Biot) => {
-            let law = SecondOrderBiot { lambda, mu };
-            evaluate_elastic_chunk_on(path, model, x, chunk, &law, force)
-        }
-        (_, _, ElasticLawKind::StVenantKirchhoff) => {
-            let law = StVenantKirchhoff { lambda, mu };
-            evaluate_elastic_chunk_on(path, model, x, chunk, &law, force)
-        }
-        (_, _, ElasticLawKind::Corotational) => {
-            let law = CorotationalLinear { lambda, mu };
-            evaluate_elastic_chunk_on(path, model, x, chunk, &law, force)
-        }
-    }
-}
-
-#[inline(always)]
-fn element_positions(x: &[[f64; 3]], t: &[u32; 4]) -> [[f64; 3]; 4] {
-    [
-        x[t[0] as usize],
-        x[t[1] as usize],
-        x[t[2] as usize],
-        x[t[3] as usize],
-    ]
-}
-
-/// # Safety
-/// As [`evaluate_chunk`].
-#[inline(always)]
-unsafe fn add_nodal_forces(force: &Disjoint<[f64; 3]>, t: &[u32; 4], nodal: &[[f64; 3]; 4]) {
-    for (n, f) in t.iter().zip(nodal) {
-        let out = force.get(*n as usize);
-        out[0] += f[0];
-        out[1] += f[1];
-        out[2] += f[2];
-    }
-}
-
-/// The element loop of an elastic law. With lanes `T` wider than one (and a law that
-/// vectorises) four elements per pass ([`tet_forces_elastic_x4`]), the last few one by
-/// one. Forces are added element by element in element order, so the result is bitwise
-/// that of the one-element loop.
-///
-/// # Safety
-/// As [`evaluate_chunk`]; with `T` = [`F64x4`] the CPU must support AVX2.
-#[inline(always)]
-unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
-    model: &Model,
-    x: &[[f64; 3]],
-    chunk: &ElementChunk,
-    law: &L,
-    force: &Disjoint<[f64; 3]>,
-) -> ChunkResult {
-    let mut result = ChunkResult::default();
-    let range = chunk.elements.clone();
-    let tets = &model.tets[range.clone()];
-    let references = &model.tet_reference[range.clone()];
-    let mut record = |k: usize, t: &[u32; 4], nodal: &[[f64; 3]; 4], energy: f64, jacobian: f64| {
-        add_nodal_forces(force, t, nodal);
-        if !(jacobian > 0.0 && energy.is_finite()) && result.bad_element.is_none() {
-            result.bad_element = Some(BadElement {
-                element: range.start + k,
-                jacobian,
-                plastic_increment: 0.0,
-            });
-        }
-        result.strain_energy += energy;
-    };
-    let quads = if L::VECTORISES && T::WIDTH == 4 {
-        tets.len() / 4
-    } else {
-        0
-    };
-    for q in 0..quads {
-        let first = 4 * q;
-        let (Some(t), Some(r)) = (
-            tets[first..].first_chunk::<4>(),
-            references[first..].first_chunk::<4>(),
-        ) else {
-            break;
-        };
-        let (nodal, energy, jacobian) = tet_forces_elastic_x4::<L, T>(x, t, r, law);
-        for l in 0..4 {
-            record(first + l, &t[l], &nodal[l], energy[l], jacobian[l]);
-        }
-    }
-    for k in 4 * quads..tets.len() {
-        let (nodal, energy, jacobian) =
-            tet_forces_elastic(&element_positions(x, &tets[k]), &references[k], law);
-        record(k, &tets[k], &nodal, energy, jacobian);
-    }
-    result
-}
-
-/// [`evaluate_elastic_chunk`] compiled for AVX2, four elements per instruction.
-///
-/// # Safety
-/// As [`evaluate_chunk`], and the CPU must support AVX2 ([`KernelPath::detect`]).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn evaluate_elastic_chunk_avx2<L: HyperelasticLaw>(
-    model: &Model,
-    x: &[[f64; 3]],
-    chunk: &ElementChunk,
-    law: &L,
-    force: &Disjoint<[f64; 3]>,
-) -> ChunkResult {
-    evaluate_elastic_chunk::<L, F64x4>(model, x, chunk, law, force)
-}
-
-/// # Safety
-/// As [`evaluate_chunk`].
-unsafe fn evaluate_elastic_chunk_on<L: HyperelasticLaw>(
-    path: KernelPath,
-    model: &Model,
-    x: &[[f64; 3]],
-    chunk: &ElementChunk,
-    law: &L,
-    force: &Disjoint<[f64; 3]>,
-) -> ChunkResult {
-    match path {
-        #[cfg(target_arch = "x86_64")]
-        KernelPath::Avx2 => evaluate_elastic_chunk_avx2(model, x, chunk, law, force),
-        _ => evaluate_elastic_chunk::<L, f64>(model, x, chunk, law, force),
-    }
-}
-
-/// The element loop of a J2 material: four elements per pass with lanes `T` wider than
-/// one ([`tet_forces_plastic_x4`]), the rest one by one; each lane bitwise equal to the
-/// one-element loop. A state is written back only where the step changed it.
-///
-/// # Safety
-/// As [`evaluate_chunk`]; with `T` = [`F64x4`] the CPU must support AVX2.
-#[inline(always)]
-unsafe fn evaluate_plastic_chunk<T: Lanes>(
-    model: &Model,
-    x: &[[f64; 3]],
-    chunk: &ElementChunk,
-    law: &MaterialLaw,
-    first_slot: usize,
-    force: &Disjoint<[f64; 3]>,
-    plastic: &Disjoint<PlasticPoint>,
-) -> ChunkResult {
-    let mut result = ChunkResult::default();
-    let range = chunk.elements.clone();
-    let tets = &model.tets[range.clone()];
-    let references = &model.tet_reference[range.clone()];
-    let mut record = |k: usize, forces: ElementForces| {
-        let t = &tets[k];
-        add_nodal_forces(force, t, &forces.nodal);
-        let point = plastic.get(first_slot + k);
-        let mut plastic_increment = 0.0;
-        if let Some(p) = forces.point {
-            plastic_increment = p.equivalent - point.equivalent;
-            // an elastic step returns the state unchanged: not writing it back saves the
-            // memory traffic of a dirty cache line
-            if p != *point {
-                *point = p;
-            }
-        }
-        if result.bad_element.is_none()
-            && !(forces.jacobian > 0.0
-                && forces.strain_energy.is_finite()
-                && plastic_increment <= MAX_PLASTIC_INCREMENT)
-        {
-            result.bad_element = Some(BadElement {
-                element: range.start + k,
-                jacobian: forces.jacobian,
-                plastic_increment,
-            });
-        }
-        result.strain_energy += forces.strain_energy;
-        result.plastic_work += forces.plastic_work;
-    };
-    let quads = match law.plastic {
-        Some(_) if T::WIDTH == 4 => tets.len() / 4,
-        _ => 0,
-    };
-    if let Some(j2) = &law.plastic {
-        for q in 0..quads {
-            let first = 4 * q;
-            let (Some(t), Some(r)) = (
-                tets[first..].first_chunk::<4>(),
-                references[first..].first_chunk::<4>(),
-            ) else {
-                break;
-            };
-            let at = |l: usize| &*plastic.get(first_slot + first + l);
-            let old = [at(0), at(1), at(2), at(3)];
-            let out = tet_forces_plastic_x4::<T>(x, t, r, j2, old);
-            for l in 0..4 {
-                record(
-                    first + l,
-                    ElementForces {
-                        nodal: out.nodal[l],
-                        strain_energy: out.strain_energy[l],
-                        plastic_work: out.plastic_work[l],
-                        jacobian: out.jacobian[l],
-                        point: Some(out.points[l]),
-                    },
-                );
-            }
-        }
-    }
-    for k in 4 * quads..tets.len() {
-        let point = *plastic.get(first_slot + k);
-        let forces = tet_forces(
-            &element_positions(x, &tets[k]),
-            &references[k],
-            law,
-            Some(&point),
-        );
-        record(k, forces);
-    }
-    result
-}
-
-/// [`evaluate_plastic_chunk`] compiled for AVX2, four elements per instruction.
-///
-/// # Safety
-/// As [`evaluate_chunk`], and the CPU must support AVX2 ([`KernelPath::detect`]).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn evaluate_plastic_chunk_avx2(
-    model: &Model,
-    x: &[[f64; 3]],
-    chunk: &ElementChunk,
-    law: &MaterialLaw,
-    first_slot: usize,
-    force: &Disjoint<[f64; 3]>,
-    plastic: &Disjoint<PlasticPoint>,
-) -> ChunkResult {
-    evaluate_plastic_chunk::<F64x4>(model, x, chunk, law, first_slot, force, plastic)
 }

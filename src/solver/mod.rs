@@ -13,6 +13,7 @@
 
 pub mod damping;
 pub mod diagnose;
+mod element_loops;
 pub mod element_schedule;
 pub mod forces;
 pub mod motions;
