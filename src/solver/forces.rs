@@ -7,6 +7,7 @@
 //! ([`super::element_loops`]).
 
 use super::element_loops::{evaluate_chunk, Disjoint, Pass};
+pub use super::element_loops::{BadElement, ChunkResult, KernelPath, MAX_PLASTIC_INCREMENT};
 use super::element_schedule::ElementSchedule;
 use crate::element::deformation_gradient;
 use crate::material::{PlasticPoint, Response};
@@ -15,43 +16,6 @@ use rayon::prelude::*;
 
 /// Nodes per parallel work item in node passes.
 pub const NODE_CHUNK: usize = 4096;
-
-/// Largest equivalent plastic strain one element may gain in one step. Explicit steps are
-/// a fraction of a wave transit, so physical plastic flow adds far less; more means the
-/// integration is exploding.
-pub const MAX_PLASTIC_INCREMENT: f64 = 0.05;
-
-/// The compiled element loop a run uses. Both give bitwise identical forces (lane-wise
-/// IEEE arithmetic in the same order); AVX2 does four lanes per instruction.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum KernelPath {
-    #[default]
-    Portable,
-    Avx2,
-}
-
-impl KernelPath {
-    /// AVX2 where the CPU has it, unless `MUFE_KERNEL=portable` asks for the portable loop
-    /// (to compare the two on one machine).
-    pub fn detect() -> Self {
-        if std::env::var("MUFE_KERNEL").is_ok_and(|v| v == "portable") {
-            return Self::Portable;
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Self::Avx2;
-        }
-        Self::Portable
-    }
-
-    /// The name recorded in the results' provenance.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Portable => "portable",
-            Self::Avx2 => "avx2",
-        }
-    }
-}
 
 /// Scratch of the force pass (not state): the chunk schedule and per-chunk results.
 #[derive(Debug, Default)]
@@ -62,41 +26,6 @@ pub struct ElementScratch {
     /// Per-chunk partial results (strain energy, plastic work, first failure), in
     /// schedule order.
     pub chunk_results: Vec<ChunkResult>,
-}
-
-/// An element that failed: inverted, non-finite, or an exploding plastic increment.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BadElement {
-    pub element: usize,
-    /// det F (–).
-    pub jacobian: f64,
-    /// Equivalent plastic strain gained in this step (–).
-    pub plastic_increment: f64,
-}
-
-impl BadElement {
-    /// What went wrong, for the error line.
-    pub fn describe(&self) -> String {
-        if self.jacobian.is_nan() || self.jacobian <= 0.0 {
-            format!("inverted (det F = {:.3e})", self.jacobian)
-        } else if self.plastic_increment > MAX_PLASTIC_INCREMENT {
-            format!(
-                "gained {:.3e} equivalent plastic strain in one step (limit {MAX_PLASTIC_INCREMENT})",
-                self.plastic_increment
-            )
-        } else {
-            format!("has a non-finite force (det F = {:.3e})", self.jacobian)
-        }
-    }
-}
-
-/// Reduction of one element chunk.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct ChunkResult {
-    pub strain_energy: f64,
-    pub plastic_work: f64,
-    /// First failing element in the chunk, if any.
-    pub bad_element: Option<BadElement>,
 }
 
 /// Result of an internal-force evaluation.
