@@ -94,16 +94,6 @@ impl ElementSchedule {
             colours,
         }
     }
-
-    /// Largest number of chunks in one colour over the number of chunks per colour if they
-    /// were spread evenly: how well the colours fill the threads (1 = perfectly).
-    pub fn colour_imbalance(&self) -> f64 {
-        let largest = self.colours.iter().map(|c| c.len()).max().unwrap_or(0);
-        if self.colours.is_empty() {
-            return 1.0;
-        }
-        largest as f64 * self.colours.len() as f64 / self.chunks.len() as f64
-    }
 }
 
 #[cfg(test)]
