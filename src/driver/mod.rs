@@ -105,10 +105,9 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         .transpose()?;
     let continued = restart.as_ref().map(|r| output::Continued {
         note: format!(
-            "{}: {} (element kernel {})",
+            "{}: {}",
             r.describe(domain.size(), opts.branch),
-            crate::io::provenance::command_line(),
-            crate::solver::forces::KernelPath::detect().name()
+            crate::io::provenance::command_line()
         ),
         resume: !opts.branch,
     });

@@ -76,18 +76,20 @@ impl<'a, 'd> Output<'a, 'd> {
         })?;
         let results = opts.out.join(RESULTS_FILE_NAME);
         let columns = history_columns(solver);
+        let kernel = solver.scratch.elements.path.name();
+        // what a restart or branch records: the checkpoint, the command, this run's loop
+        let note_of = |c: &Continued| format!("{} (element kernel {kernel})", c.note);
         let resumed = match continued {
             Some(c) if c.resume && results.is_file() => {
                 let s = &solver.state;
                 let mut r = ResultsWriter::resume(domain, &results, &columns, s.step, s.time)?;
-                let kernel = solver.scratch.elements.path.name();
                 match r.writer.provenance_text("kernel") {
                     Some(k) if k != kernel && domain.is_root() && !opts.quiet => println!(
                         "note: this restart runs the {kernel} element kernel, the run began on {k} (the two give bitwise identical forces)"
                     ),
                     _ => {}
                 }
-                r.writer.note_provenance("restart", &c.note)?;
+                r.writer.note_provenance("restart", &note_of(c))?;
                 Some(r)
             }
             _ => None,
@@ -95,7 +97,6 @@ impl<'a, 'd> Output<'a, 'd> {
         let (writer, kept_rows, kept_frames) = match resumed {
             Some(r) => (r.writer, r.rows, r.frames),
             None => {
-                let kernel = solver.scratch.elements.path.name();
                 let provenance = Provenance::collect(domain, opts.threads, kernel);
                 let mut writer =
                     ResultsWriter::create(domain, &results, &loaded.text, &provenance)?;
@@ -108,7 +109,10 @@ impl<'a, 'd> Output<'a, 'd> {
                 )?;
                 writer.define_history(&columns)?;
                 if let Some(c) = continued {
-                    writer.note_provenance(if c.resume { "restart" } else { "branch" }, &c.note)?;
+                    writer.note_provenance(
+                        if c.resume { "restart" } else { "branch" },
+                        &note_of(c),
+                    )?;
                 }
                 (writer, Vec::new(), Vec::new())
             }

@@ -19,7 +19,7 @@ use crate::lanes::F64x4;
 use crate::lanes::Lanes;
 use crate::material::{
     CorotationalLinear, ElasticLawKind, HyperelasticLaw, MaterialLaw, PlasticPoint,
-    SecondOrderBiot, StVenantKirchhoff,
+    SecondOrderBiot, StVenantKirchhoff, J2,
 };
 use crate::model::Model;
 
@@ -146,23 +146,31 @@ impl Tally {
         }
     }
 
-    /// Element `k` of the chunk: its energies, det F and plastic increment.
+    /// Element `k` of the chunk: V0·ψ and V0·plastic work (J), det F, and the equivalent
+    /// plastic strain it gained.
     #[inline(always)]
-    fn record(&mut self, k: usize, forces: &ElementForces, plastic_increment: f64) {
+    fn record(
+        &mut self,
+        k: usize,
+        strain_energy: f64,
+        plastic_work: f64,
+        jacobian: f64,
+        plastic_increment: f64,
+    ) {
         let r = &mut self.result;
         if r.bad_element.is_none()
-            && !(forces.jacobian > 0.0
-                && forces.strain_energy.is_finite()
+            && !(jacobian > 0.0
+                && strain_energy.is_finite()
                 && plastic_increment <= MAX_PLASTIC_INCREMENT)
         {
             r.bad_element = Some(BadElement {
                 element: self.first_element + k,
-                jacobian: forces.jacobian,
+                jacobian,
                 plastic_increment,
             });
         }
-        r.strain_energy += forces.strain_energy;
-        r.plastic_work += forces.plastic_work;
+        r.strain_energy += strain_energy;
+        r.plastic_work += plastic_work;
     }
 }
 
@@ -179,10 +187,10 @@ pub(super) unsafe fn evaluate_chunk(
     let law = &pass.model.laws[chunk.law as usize];
     let (lambda, mu) = (law.lambda, law.mu);
     match (law.plastic, chunk.plastic_start, law.kind) {
-        (Some(_), Some(first_slot), _) => match path {
+        (Some(j2), Some(first_slot), _) => match path {
             #[cfg(target_arch = "x86_64")]
-            KernelPath::Avx2 => evaluate_plastic_chunk_avx2(pass, chunk, law, first_slot),
-            _ => evaluate_plastic_chunk::<f64>(pass, chunk, law, first_slot),
+            KernelPath::Avx2 => evaluate_plastic_chunk_avx2(pass, chunk, law, &j2, first_slot),
+            _ => evaluate_plastic_chunk::<f64>(pass, chunk, law, &j2, first_slot),
         },
         (_, _, ElasticLawKind::Biot) => {
             evaluate_elastic_chunk_on(path, pass, chunk, &SecondOrderBiot { lambda, mu })
@@ -249,14 +257,7 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     let mut tally = Tally::new(range.start);
     let mut record = |k: usize, nodal: &[[f64; 3]; 4], strain_energy: f64, jacobian: f64| {
         add_nodal_forces(&pass.force, &tets[k], nodal);
-        let forces = ElementForces {
-            nodal: *nodal,
-            strain_energy,
-            plastic_work: 0.0,
-            jacobian,
-            point: None,
-        };
-        tally.record(k, &forces, 0.0);
+        tally.record(k, strain_energy, 0.0, jacobian, 0.0);
     };
     let quads = if L::VECTORISES && T::WIDTH == 4 {
         tets.len() / 4
@@ -291,6 +292,7 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     pass: &Pass,
     chunk: &ElementChunk,
     law: &MaterialLaw,
+    j2: &J2,
     first_slot: usize,
 ) -> ChunkResult {
     let range = chunk.elements.clone();
@@ -309,29 +311,25 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
                 *point = p;
             }
         }
-        tally.record(k, &forces, plastic_increment);
+        let (energy, work, jacobian) = (forces.strain_energy, forces.plastic_work, forces.jacobian);
+        tally.record(k, energy, work, jacobian, plastic_increment);
     };
-    let quads = match law.plastic {
-        Some(_) if T::WIDTH == 4 => tets.len() / 4,
-        _ => 0,
-    };
-    if let Some(j2) = &law.plastic {
-        for q in 0..quads {
-            let Some((t, r)) = quad(tets, references, q) else {
-                break;
+    let quads = if T::WIDTH == 4 { tets.len() / 4 } else { 0 };
+    for q in 0..quads {
+        let Some((t, r)) = quad(tets, references, q) else {
+            break;
+        };
+        let at = |l: usize| &*pass.plastic.get(first_slot + 4 * q + l);
+        let out = tet_forces_plastic_x4::<T>(pass.x, t, r, j2, [at(0), at(1), at(2), at(3)]);
+        for l in 0..4 {
+            let forces = ElementForces {
+                nodal: out.nodal[l],
+                strain_energy: out.strain_energy[l],
+                plastic_work: out.plastic_work[l],
+                jacobian: out.jacobian[l],
+                point: Some(out.points[l]),
             };
-            let at = |l: usize| &*pass.plastic.get(first_slot + 4 * q + l);
-            let out = tet_forces_plastic_x4::<T>(pass.x, t, r, j2, [at(0), at(1), at(2), at(3)]);
-            for l in 0..4 {
-                let forces = ElementForces {
-                    nodal: out.nodal[l],
-                    strain_energy: out.strain_energy[l],
-                    plastic_work: out.plastic_work[l],
-                    jacobian: out.jacobian[l],
-                    point: Some(out.points[l]),
-                };
-                record(4 * q + l, forces);
-            }
+            record(4 * q + l, forces);
         }
     }
     for k in 4 * quads..tets.len() {
@@ -366,9 +364,10 @@ unsafe fn evaluate_plastic_chunk_avx2(
     pass: &Pass,
     chunk: &ElementChunk,
     law: &MaterialLaw,
+    j2: &J2,
     first_slot: usize,
 ) -> ChunkResult {
-    evaluate_plastic_chunk::<F64x4>(pass, chunk, law, first_slot)
+    evaluate_plastic_chunk::<F64x4>(pass, chunk, law, j2, first_slot)
 }
 
 /// # Safety
