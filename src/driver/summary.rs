@@ -84,18 +84,22 @@ fn print_summary(
         total_steps,
         loaded.scene.simulation.duration
     );
-    if m.scaled_elements > 0 {
+    let scaled_nodes = m.contact.stable_step.scaled_nodes;
+    if m.scaled_elements > 0 || scaled_nodes > 0 {
         // `mufe check` builds each distinct grain once: the scene's added mass is each
         // mesh's (element and contact-node scaling, read off the node masses) times its
         // copies, while the element count is the distinct meshes'.
         let (scaled, added) = match copies {
             None => (
-                format!("{} elements scaled", m.scaled_elements),
+                format!(
+                    "{} elements and {scaled_nodes} contact nodes scaled",
+                    m.scaled_elements
+                ),
                 m.added_mass,
             ),
             Some(_) => (
                 format!(
-                    "{} elements of the distinct meshes scaled",
+                    "{} elements and {scaled_nodes} contact nodes of the distinct meshes scaled",
                     m.scaled_elements
                 ),
                 m.grains

@@ -13,9 +13,10 @@
 //! 3. TetGen (private `tetgen` module) tetrahedralises the surface with the lattice points
 //!    as isolated vertices under a radius–edge bound, keeping the surface exactly as
 //!    triangulated; tets are re-oriented to positive volume;
-//! 4. [`smooth`]: the interior nodes of slivers are moved to raise the smallest element
-//!    height (the surface stays exactly as triangulated), then the mesh is checked with
-//!    [`validate`].
+//! 4. [`improve`]: the interior nodes of slivers are moved to raise the smallest element
+//!    height ([`smooth`]), interior edges and faces are flipped where that raises it
+//!    further ([`flip`]), and the nodes are moved again; the surface stays exactly as
+//!    triangulated. Then the mesh is checked with [`validate`].
 //!
 //! [`extract_surface`], [`facet_normals`] and [`surface_node_geometry`] give contact what it
 //! needs; [`quality()`] summarises element shape (the explicit time step depends on the worst
@@ -24,7 +25,9 @@
 pub mod block;
 pub mod collapse;
 pub mod ellipsoid;
+pub mod flip;
 pub mod import;
+pub mod improve;
 pub mod joint;
 mod lattice;
 pub mod locality;

@@ -453,7 +453,7 @@ pub fn mesh_sphere(spec: &SphereMeshSpec) -> Result<TetMesh, MeshError> {
         max_volume: None,
     }];
     let mut mesh = tetrahedralize(&points, &facets, &regions, RADIUS_EDGE_RATIO, None)?;
-    super::smooth::smooth_off_surface(&mut mesh);
+    super::improve::improve_off_surface(&mut mesh);
     for p in mesh.nodes.iter_mut() {
         *p = scale(*p, big_r);
     }

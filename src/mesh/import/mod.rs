@@ -32,7 +32,7 @@ use crate::error::{num, InputError};
 use crate::math::{norm, sub};
 
 /// Bumped whenever a change to this pipeline changes the meshes (invalidates the cache).
-const MESHER_VERSION: u32 = 5;
+const MESHER_VERSION: u32 = 6;
 
 /// Largest surface after subdivision (facets): ~100 M tets.
 const MAX_FACETS: usize = 4_000_000;
@@ -586,7 +586,7 @@ fn fill(s: &Surface, spec: &SurfaceSpec) -> Result<TetMesh, MeshError> {
     )?;
     // TetGen's slivers set the explicit step: move the interior nodes as the sphere
     // mesher does (the surface stays exactly as checked)
-    super::smooth::smooth_off_surface(&mut mesh);
+    super::improve::improve_off_surface(&mut mesh);
     mesh.nodes.iter_mut().for_each(|p| *p = p.map(|c| c * size));
     super::validate(&mesh)?;
     Ok(mesh)
