@@ -37,29 +37,12 @@ shape = {{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}
 /// x = Q (I + ε) X: rotation 0.3 rad about (1, 1, 1)/√3 after a stretch
 /// ε = sign·diag(1, −0.3, −0.3)·10⁻³.
 pub fn deformed(x0: &[[f64; 3]], sign: f64) -> Vec<[f64; 3]> {
-    let (s, c) = 0.3f64.sin_cos();
-    let u = [1.0 / 3f64.sqrt(); 3];
-    let mut q = [[0.0; 3]; 3];
-    for (i, row) in q.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            let delta = if i == j { 1.0 } else { 0.0 };
-            let cross = match (i, j) {
-                (0, 1) => -u[2],
-                (1, 0) => u[2],
-                (0, 2) => u[1],
-                (2, 0) => -u[1],
-                (1, 2) => -u[0],
-                (2, 1) => u[0],
-                _ => 0.0,
-            };
-            *v = c * delta + s * cross + (1.0 - c) * u[i] * u[j];
-        }
-    }
+    let q = mufe::boundary::rotation_from_vector([0.3 / 3f64.sqrt(); 3]);
     let stretch = [1.0 + sign * 1e-3, 1.0 - sign * 3e-4, 1.0 - sign * 3e-4];
     x0.iter()
         .map(|p| {
             let y = [p[0] * stretch[0], p[1] * stretch[1], p[2] * stretch[2]];
-            [0, 1, 2].map(|i| q[i][0] * y[0] + q[i][1] * y[1] + q[i][2] * y[2])
+            [0, 1, 2].map(|i| q[3 * i] * y[0] + q[3 * i + 1] * y[1] + q[3 * i + 2] * y[2])
         })
         .collect()
 }

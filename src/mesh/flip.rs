@@ -21,8 +21,8 @@
 //! worst first (ties by index): same mesh in, same mesh out.
 
 use super::smooth::{height_ratio, TARGET_RATIO};
-use super::TetMesh;
-use crate::math::{cross, dot, sub};
+use super::surface::TET_FACES;
+use super::{tet_volume, TetMesh};
 
 /// Passes of flips over the mesh (each ends when nothing improved).
 pub const PASSES: usize = 6;
@@ -59,23 +59,13 @@ pub fn improve_by_flips(mesh: &mut TetMesh) -> FlipReport {
                 continue;
             }
             let t = work.tets[e];
-            let mut done = false;
-            for (i, j) in EDGES {
-                if work.try_remove_edge(t[i], t[j]) {
-                    report.edge_removals += 1;
-                    done = true;
-                    break;
-                }
-            }
-            if done {
-                continue;
-            }
-            for skip in 0..4 {
-                let face: Vec<u32> = (0..4).filter(|&k| k != skip).map(|k| t[k]).collect();
-                if work.try_flip_face(e, [face[0], face[1], face[2]], t[skip]) {
-                    report.face_flips += 1;
-                    break;
-                }
+            if EDGES.iter().any(|&(i, j)| work.try_remove_edge(t[i], t[j])) {
+                report.edge_removals += 1;
+            } else if (0..4).any(|k| {
+                let face = TET_FACES[k].map(|i| t[i]);
+                work.try_flip_face(e, face, t[k])
+            }) {
+                report.face_flips += 1;
             }
         }
         if report == before {
@@ -87,11 +77,6 @@ pub fn improve_by_flips(mesh: &mut TetMesh) -> FlipReport {
 }
 
 const EDGES: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
-
-/// Signed volume × 6 of (p, q, r, s).
-fn orient(p: [f64; 3], q: [f64; 3], r: [f64; 3], s: [f64; 3]) -> f64 {
-    dot(sub(q, p), cross(sub(r, p), sub(s, p)))
-}
 
 /// The mesh while it is being flipped: tets with a liveness flag (removed ones are dropped
 /// at the end) and each node's incident tets.
@@ -124,6 +109,10 @@ impl<'a> FlipMesh<'a> {
 
     fn ratio(&self, t: [u32; 4]) -> f64 {
         height_ratio(&t.map(|v| self.x(v)))
+    }
+
+    fn volume(&self, t: [u32; 4]) -> f64 {
+        tet_volume(&t.map(|v| self.x(v)))
     }
 
     fn remove(&mut self, e: usize) {
@@ -188,7 +177,7 @@ impl<'a> FlipMesh<'a> {
         if !(pairs[closing].contains(&last) && pairs[closing].contains(&ring[0])) {
             return None;
         }
-        if orient(self.x(a), self.x(b), self.x(ring[0]), self.x(ring[1])) < 0.0 {
+        if self.volume([a, b, ring[0], ring[1]]) < 0.0 {
             ring.reverse();
         }
         Some((ring, tets))
@@ -280,7 +269,7 @@ impl<'a> FlipMesh<'a> {
         };
         let current = self.ratio(self.tets[e]).min(self.ratio(self.tets[other]));
         let mut new = [[a, b, d, apex], [b, c, d, apex], [c, a, d, apex]];
-        let signs = new.map(|t| orient(self.x(t[0]), self.x(t[1]), self.x(t[2]), self.x(t[3])));
+        let signs = new.map(|t| self.volume(t));
         let positive = signs.iter().all(|&s| s > 0.0);
         if !positive && !signs.iter().all(|&s| s < 0.0) {
             return false;
@@ -317,49 +306,28 @@ impl<'a> FlipMesh<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::BTreeMap;
+    use crate::mesh::extract_surface;
+    use crate::mesh::smooth::min_ratio;
 
-    /// Faces that belong to one tet only, as sorted triples.
+    /// The boundary facets as sorted triples, in order.
     fn boundary_faces(mesh: &TetMesh) -> Vec<[u32; 3]> {
-        let mut count: BTreeMap<[u32; 3], usize> = BTreeMap::new();
-        for t in &mesh.tets {
-            for skip in 0..4 {
-                let mut f = [0; 3];
-                let mut k = 0;
-                for (i, &v) in t.iter().enumerate() {
-                    if i != skip {
-                        f[k] = v;
-                        k += 1;
-                    }
-                }
-                f.sort_unstable();
-                *count.entry(f).or_default() += 1;
-            }
-        }
-        count
+        let mut faces: Vec<[u32; 3]> = extract_surface(mesh)
+            .facets
             .into_iter()
-            .filter(|&(_, c)| c == 1)
-            .map(|(f, _)| f)
-            .collect()
+            .map(|mut f| {
+                f.sort_unstable();
+                f
+            })
+            .collect();
+        faces.sort_unstable();
+        faces
     }
 
     fn volumes(mesh: &TetMesh) -> Vec<f64> {
         mesh.tets
             .iter()
-            .map(|t| orient_of(mesh, *t) / 6.0)
+            .map(|t| tet_volume(&t.map(|v| mesh.nodes[v as usize])))
             .collect()
-    }
-
-    fn orient_of(mesh: &TetMesh, t: [u32; 4]) -> f64 {
-        let x = t.map(|v| mesh.nodes[v as usize]);
-        orient(x[0], x[1], x[2], x[3])
-    }
-
-    fn min_ratio(mesh: &TetMesh) -> f64 {
-        mesh.tets
-            .iter()
-            .map(|t| height_ratio(&t.map(|v| mesh.nodes[v as usize])))
-            .fold(f64::INFINITY, f64::min)
     }
 
     /// Nodes 0–2 an equilateral triangle of circumradius 1 in z = 0, nodes 3 and 4 on its
@@ -379,8 +347,7 @@ mod tests {
     }
 
     fn positively_oriented(nodes: &[[f64; 3]], mut t: [u32; 4]) -> [u32; 4] {
-        let x = t.map(|v| nodes[v as usize]);
-        if orient(x[0], x[1], x[2], x[3]) < 0.0 {
+        if tet_volume(&t.map(|v| nodes[v as usize])) < 0.0 {
             t.swap(0, 1);
         }
         t

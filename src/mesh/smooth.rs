@@ -138,7 +138,7 @@ pub fn smooth_interior(mesh: &mut TetMesh, fixed: &[bool]) -> SmoothingReport {
 }
 
 /// Smallest shape ratio of the mesh.
-fn min_ratio(mesh: &TetMesh) -> f64 {
+pub(crate) fn min_ratio(mesh: &TetMesh) -> f64 {
     mesh.tets
         .iter()
         .map(|t| height_ratio(&t.map(|v| mesh.nodes[v as usize])))

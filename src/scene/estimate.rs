@@ -43,8 +43,9 @@ use std::f64::consts::{PI, SQRT_2};
 /// Critical-step factor of the smoothed sphere meshes without refinement patches:
 /// Δt_crit ≈ k·h/c_p for the seeding h (a regular tet gives 0.565). Since the edge removal
 /// of `mesh::improve` a lone sphere's elements step at 0.25–0.29 (`tests/mesh_stable_step.rs`)
-/// and the contact springs of touching grains at ~0.4× that, near this value: kept for
-/// both, which over-estimates the steps of single grains (the safe side).
+/// and the contact springs of touching grains at ~0.4× that; this value between the two
+/// puts the step count within 0.89–1.46× of the real one on the jobs (docs/INPUT.md),
+/// over-estimating single grains (the safe side).
 pub const SPHERE_DT_FACTOR: f64 = 0.18;
 /// The same, relative to the seeding of the finest refinement patch, whose transition to
 /// the interior lattice leaves the worst elements (measured 0.09–0.19 on the jobs; also
