@@ -9,9 +9,10 @@
 //! decisions at the same step without further communication.
 
 use super::servo::{servo_control, ServoControl, ServoState};
+use crate::model::periodic::PeriodicCell;
 use crate::scene::packing::PackingSpec;
 use crate::scene::stages::{wall_pairs, StageSpec, WallModeSpec};
-use crate::scene::{normal_axis, Scene};
+use crate::scene::{normal_axis, Scene, ServoSpec, WallSpec};
 use serde::{Deserialize, Serialize};
 
 /// How one wall moves during a stage.
@@ -74,11 +75,15 @@ pub struct Stage {
     pub gravity: Option<[f64; 3]>,
 }
 
-/// A closed box of walls: one opposite pair per axis.
+/// The specimen's box: a closed box of walls (one opposite pair per axis), or a cell
+/// periodic along every axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cell {
-    /// (lower wall, upper wall) of each axis: normals +eₖ and −eₖ.
+    /// (lower wall, upper wall) of each axis: normals +eₖ and −eₖ (walls only).
     pub pairs: [(usize, usize); 3],
+    /// Periodic cell: index of its x axis among the plan's walls (y, z follow); the box
+    /// is the cell itself and the forces are its homogenised stress × face area.
+    pub periodic_first: Option<usize>,
     /// Sphere radius R of the packing: the lattice span is wall to wall − 2R.
     pub radius: Option<f64>,
     /// Wall-to-wall distances at t = 0 (m).
@@ -212,12 +217,32 @@ impl StagePlan {
                 (w.point, w.normal.map(|c| c / l))
             })
             .collect();
+        let mut walls = walls;
+        let periodic = PeriodicCell::of_scene(scene);
+        let first_axis = walls.len();
+        if let Some(c) = &periodic {
+            // the cell's axes as walls on its upper faces, pushing along −eₖ
+            for k in 0..3 {
+                let mut normal = [0.0; 3];
+                normal[k] = -1.0;
+                let mut point = c.min;
+                point[k] += c.length0[k];
+                walls.push((point, normal));
+            }
+        }
         let pairs = wall_pairs(scene);
-        let cell = match pairs {
-            [Some(x), Some(y), Some(z)] => {
+        let cell = match (pairs, &periodic) {
+            (_, Some(c)) if c.periodic.iter().all(|&p| p) => Some(Cell {
+                pairs: [(first_axis, first_axis); 3],
+                periodic_first: Some(first_axis),
+                radius: None,
+                distance0: c.length0,
+            }),
+            ([Some(x), Some(y), Some(z)], _) => {
                 let pairs = [x, y, z];
                 Some(Cell {
                     pairs,
+                    periodic_first: None,
                     radius: cell_packing(scene).map(|p| p.sphere.radius),
                     distance0: [0, 1, 2].map(|k| walls[pairs[k].1].0[k] - walls[pairs[k].0].0[k]),
                 })
@@ -236,9 +261,7 @@ impl StagePlan {
         } else {
             vec![Stage {
                 name: "run".into(),
-                modes: scene
-                    .walls
-                    .iter()
+                modes: (scene.walls.iter())
                     .map(|w| match &w.servo {
                         Some(s) => WallMode::Servo {
                             control: servo_control(scene, w, s),
@@ -246,6 +269,7 @@ impl StagePlan {
                         },
                         None => WallMode::Prescribed,
                     })
+                    .chain((first_axis..walls.len()).map(|_| WallMode::Fixed))
                     .collect(),
                 strains: false,
                 damping: None,
@@ -314,12 +338,18 @@ impl StagePlan {
     /// Cell measurements from wall displacements `u` (m) and normal forces `f` (N).
     pub fn measure(&self, u: &[[f64; 3]], f: &[f64]) -> Option<CellMeasure> {
         let c = self.cell.as_ref()?;
-        let distance = [0, 1, 2].map(|k| {
-            let (lo, hi) = c.pairs[k];
-            (self.walls[hi].0[k] + u[hi][k]) - (self.walls[lo].0[k] + u[lo][k])
+        let distance = [0, 1, 2].map(|k| match c.periodic_first {
+            Some(first) => c.distance0[k] + u[first + k][k],
+            None => {
+                let (lo, hi) = c.pairs[k];
+                (self.walls[hi].0[k] + u[hi][k]) - (self.walls[lo].0[k] + u[lo][k])
+            }
         });
         let lattice = distance.map(|d| d - 2.0 * c.radius.unwrap_or(0.0));
-        let force = [0, 1, 2].map(|k| 0.5 * (f[c.pairs[k].0] + f[c.pairs[k].1]));
+        let force = [0, 1, 2].map(|k| match c.periodic_first {
+            Some(first) => f[first + k],
+            None => 0.5 * (f[c.pairs[k].0] + f[c.pairs[k].1]),
+        });
         let across = |l: &[f64; 3], k: usize| l[(k + 1) % 3] * l[(k + 2) % 3];
         let area = [0, 1, 2].map(|k| across(&lattice, k));
         let stress = [0, 1, 2].map(|k| force[k] / area[k]);
@@ -500,9 +530,13 @@ impl StagePlan {
     }
 }
 
-/// The packing the servo areas refer to (the first `area_of` in the scene's walls or
-/// stages), or the first packing: its spheres set the cell's lattice span.
+/// The packing the servo areas refer to (the periodic cell's packing, else the first
+/// `area_of` in the scene's walls or stages), or the first packing: its spheres set the
+/// cell's lattice span, grain size and density.
 fn cell_packing(scene: &Scene) -> Option<&PackingSpec> {
+    if let Some(name) = scene.cell.as_ref().and_then(|c| c.packing.as_ref()) {
+        return scene.packings.iter().find(|p| &p.name == name);
+    }
     let named = scene
         .walls
         .iter()
@@ -544,6 +578,7 @@ fn build_stage(
                 lattice_area: lattice_area(s),
             },
         })
+        .chain(cell_axis_modes(scene, st))
         .collect();
     let u = &st.until;
     let tau = modes
@@ -581,6 +616,49 @@ fn build_stage(
     }
 }
 
+/// Modes of the periodic cell's three axes in stage `st` (none without a cell): the
+/// displacement of an axis is its shortening, its servo holds σ_kk on the current face.
+fn cell_axis_modes(scene: &Scene, st: &StageSpec) -> Vec<WallMode> {
+    let Some(cell) = PeriodicCell::of_scene(scene) else {
+        return Vec::new();
+    };
+    (0..3)
+        .map(|k| {
+            let length = cell.length0[k];
+            match st.cell.get(crate::scene::cell::AXES[k]) {
+                None | Some(WallModeSpec::Fixed) => WallMode::Fixed,
+                Some(WallModeSpec::Velocity(v)) => WallMode::Velocity(*v),
+                Some(WallModeSpec::StrainRate(r)) => WallMode::Velocity(r * length),
+                Some(WallModeSpec::InertialNumber(i)) => {
+                    WallMode::Velocity(strain_rate_of_inertial_number(scene, st, *i) * length)
+                }
+                Some(WallModeSpec::Servo(s)) => {
+                    let mut normal = [0.0; 3];
+                    normal[k] = -1.0;
+                    let face = WallSpec {
+                        name: crate::scene::cell::AXES[k].to_string(),
+                        point: cell.min,
+                        normal,
+                        friction: 0.0,
+                        velocity: None,
+                        displacement: None,
+                        servo: None,
+                    };
+                    let area = cell.length0[(k + 1) % 3] * cell.length0[(k + 2) % 3];
+                    let spec = ServoSpec {
+                        area: Some(area),
+                        ..s.clone()
+                    };
+                    WallMode::Servo {
+                        control: servo_control(scene, &face, &spec),
+                        lattice_area: true,
+                    }
+                }
+            }
+        })
+        .collect()
+}
+
 /// ε̇ = I / (d √(ρ/p)) for the stage's inertial number I (see `WallModeSpec`).
 pub fn strain_rate_of_inertial_number(scene: &Scene, st: &StageSpec, inertial: f64) -> f64 {
     let packing = cell_packing(scene);
@@ -588,9 +666,7 @@ pub fn strain_rate_of_inertial_number(scene: &Scene, st: &StageSpec, inertial: f
     let density = packing
         .and_then(|p| scene.materials.get(&p.material))
         .map_or(f64::NAN, |m| m.density);
-    let pressure = st
-        .walls
-        .values()
+    let pressure = (st.walls.values().chain(st.cell.values()))
         .filter_map(|m| match m {
             WallModeSpec::Servo(s) => Some(s.stress),
             _ => None,

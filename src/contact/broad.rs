@@ -229,9 +229,14 @@ impl BroadPhase {
         // Global ids, not model indices: a rank holds owned grains first and ghosts after,
         // and the force accumulation order must not depend on that layout.
         lists.passes.sort_unstable_by_key(|p| {
+            let (s, m) = (
+                &cm.surfaces[p.slave as usize],
+                &cm.surfaces[p.master as usize],
+            );
             (
-                cm.surfaces[p.slave as usize].global_id,
-                cm.surfaces[p.master as usize].global_id,
+                s.global_id,
+                m.global_id,
+                crate::model::periodic::relative_image(s.image, m.image),
             )
         });
         lists.entries.clear();

@@ -122,15 +122,33 @@ pub const OVERLAP_TOLERANCE: f64 = 1e-3;
 const ENTRY_CHUNK: usize = 256;
 
 /// Global key of a grain–grain contact point: the slave node (grain id + node index within
-/// that grain) and the opposing grain. Ordered by (grain, other, node).
+/// that grain) and the opposing grain with its periodic image relative to the slave's
+/// (the same on every rank, whichever of the two it holds as an image). Ordered by
+/// (grain, other, image, node).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct ContactKey {
     /// Global id (scene index) of the slave node's grain.
     pub grain: u32,
     /// Global id of the master grain.
     pub other: u32,
+    /// Image of the master relative to the slave (all zero without a periodic cell).
+    #[serde(default)]
+    pub image: crate::model::periodic::Image,
     /// Node index within the slave grain's mesh.
     pub node: u32,
+}
+
+impl ContactKey {
+    /// The key of slave node `node` (model id) of surface `slave` against `master`.
+    #[inline]
+    pub fn of(slave: &GrainSurface, master: &GrainSurface, node: u32) -> Self {
+        Self {
+            grain: slave.global_id,
+            other: master.global_id,
+            image: crate::model::periodic::relative_image(slave.image, master.image),
+            node: node - slave.node_base,
+        }
+    }
 }
 
 /// Friction history of one contact point.
@@ -394,11 +412,7 @@ pub fn evaluate_with(
                 &cm.surfaces[pass.master as usize],
             );
             state.history.push(FrictionPoint {
-                key: ContactKey {
-                    grain: sg.global_id,
-                    other: mg.global_id,
-                    node: r.slave - sg.node_base,
-                },
+                key: ContactKey::of(sg, mg, r.slave),
                 traction: r.traction,
             });
         }
@@ -583,9 +597,12 @@ pub fn wall_totals(per_grain: &[f64], walls: usize, totals: &mut Vec<f64>) {
 /// Stage 3b: moves each state-driven wall to t_{n+1} and sets its next speed by the
 /// current stage (see [`crate::boundary::stages`]) from the wall forces `global` (N,
 /// summed over ranks, in the order of [`wall_normal_forces`]); may end the stage.
+/// The periodic cell's axes (`cell_axes`) follow the walls as the plan's last three
+/// entries: an axis moves like a wall whose displacement is its shortening, along −eₖ.
 pub fn advance_walls(
     plan: &StagePlan,
     state: &mut ContactState,
+    cell_axes: Option<&mut [Option<ServoState>; 3]>,
     progress: &mut StageProgress,
     global: &[f64],
     t_next: f64,
@@ -593,7 +610,15 @@ pub fn advance_walls(
 ) {
     progress.wall_displacements.clear();
     (progress.wall_displacements).extend(state.walls.iter().map(|w| w.displacement));
-    let kinematics = state.walls.iter_mut().map(|w| &mut w.servo);
+    if let Some(axes) = &cell_axes {
+        for (k, a) in axes.iter().enumerate() {
+            let mut u = [0.0; 3];
+            u[k] = -a.map_or(0.0, |s| s.displacement);
+            progress.wall_displacements.push(u);
+        }
+    }
+    let kinematics = (state.walls.iter_mut().map(|w| &mut w.servo))
+        .chain(cell_axes.into_iter().flat_map(|a| a.iter_mut()));
     plan.advance(progress, kinematics, global, t_next, dt);
 }
 

@@ -608,11 +608,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
     let mut traction = [0.0; 3];
     let mut sliding = false;
     if ctx.friction {
-        let key = ContactKey {
-            grain: sg.global_id,
-            other: mg.global_id,
-            node: s - sg.node_base,
-        };
+        let key = ContactKey::of(sg, mg, s);
         let t_old = match ctx.history.binary_search_by_key(&key, |p| p.key) {
             Ok(i) => rotate_onto_plane(ctx.history[i].traction, normal),
             Err(_) => [0.0; 3],

@@ -8,7 +8,8 @@
 
 use super::{Domain, Exchange, ExchangeBuffers, PendingExchange};
 use crate::error::MufeError;
-use crate::model::decomposition::Decomposition;
+use crate::model::decomposition::{Decomposition, GhostRef};
+use crate::model::periodic::{CellKinematics, Image};
 use crate::model::Model;
 
 /// Values sent per surface node: x (3) and v (3).
@@ -22,31 +23,58 @@ const FORWARD_TAG: i32 = 101;
 pub struct HaloPlan {
     /// (rank, model node ids of owned surface nodes it mirrors), ascending ranks.
     pub sends: Vec<(usize, Vec<u32>)>,
+    /// The periodic image each sent node goes to (parallel to `sends`): the sender adds
+    /// the image's offset and velocity, so receivers copy.
+    pub send_images: Vec<Vec<Image>>,
     /// (rank, model node ids of ghost surface nodes it owns), in the sender's order.
     pub receives: Vec<(usize, Vec<u32>)>,
 }
 
 impl HaloPlan {
     /// Maps a decomposition onto a model built with its owned and ghost grains. Both sides
-    /// list grains ascending by global id and each grain's surface nodes ascending, so the
+    /// list (grain, image) ascending and each grain's surface nodes ascending, so the
     /// sender's packing order is the receiver's unpacking order.
     pub fn new(model: &Model, plan: &Decomposition) -> Self {
-        let surface_of = |global: usize| -> Vec<u32> {
-            model
-                .grains
+        let owned = &model.grains[..model.owned_grains];
+        let ghosts = &model.grains[model.owned_grains..];
+        let surface_in = |grains: &[crate::model::GrainBlock], r: &GhostRef, image: bool| {
+            grains
                 .iter()
-                .find(|g| g.global_id as usize == global)
+                .find(|g| g.global_id as usize == r.grain && (!image || g.image == r.image))
                 .map(|g| g.surface.nodes.clone())
                 .unwrap_or_default()
         };
-        let pack = |list: &[(usize, Vec<usize>)]| -> Vec<(usize, Vec<u32>)> {
-            list.iter()
-                .map(|(r, grains)| (*r, grains.iter().flat_map(|&g| surface_of(g)).collect()))
-                .collect()
-        };
+        let sends: Vec<(usize, Vec<u32>)> = (plan.sends.iter())
+            .map(|(q, refs)| {
+                (
+                    *q,
+                    refs.iter()
+                        .flat_map(|r| surface_in(owned, r, false))
+                        .collect(),
+                )
+            })
+            .collect();
+        let send_images = (plan.sends.iter())
+            .map(|(_, refs)| {
+                refs.iter()
+                    .flat_map(|r| std::iter::repeat_n(r.image, surface_in(owned, r, false).len()))
+                    .collect()
+            })
+            .collect();
+        let receives = (plan.receives.iter())
+            .map(|(q, refs)| {
+                (
+                    *q,
+                    refs.iter()
+                        .flat_map(|r| surface_in(ghosts, r, true))
+                        .collect(),
+                )
+            })
+            .collect();
         Self {
-            sends: pack(&plan.sends),
-            receives: pack(&plan.receives),
+            sends,
+            send_images,
+            receives,
         }
     }
 
@@ -92,16 +120,29 @@ impl<'d> Halo<'d> {
 
     /// Posts the sends of the owned surface nodes' x and v and the receives of the ghosts'.
     /// Only neighbours take part (not collective).
-    pub fn begin(&mut self, x: &[[f64; 3]], v: &[[f64; 3]]) -> Result<(), MufeError> {
+    /// `cell`: the periodic cell's lengths and rates at the time of x and v (zero
+    /// without one), for the images sent.
+    pub fn begin(
+        &mut self,
+        x: &[[f64; 3]],
+        v: &[[f64; 3]],
+        cell: &CellKinematics,
+    ) -> Result<(), MufeError> {
         if self.plan.sends.is_empty() && self.plan.receives.is_empty() {
             return Ok(());
         }
         let mut buffers = self.buffers.take().unwrap_or_default();
         buffers.send.clear();
-        for (_, nodes) in &self.plan.sends {
-            for &n in nodes {
-                buffers.send.extend_from_slice(&x[n as usize]);
-                buffers.send.extend_from_slice(&v[n as usize]);
+        for ((_, nodes), images) in self.plan.sends.iter().zip(&self.plan.send_images) {
+            for (&n, &image) in nodes.iter().zip(images) {
+                let (dx, dv) = (cell.offset(image), cell.velocity(image));
+                let (p, u) = (x[n as usize], v[n as usize]);
+                buffers
+                    .send
+                    .extend_from_slice(&[0, 1, 2].map(|k| p[k] + dx[k]));
+                buffers
+                    .send
+                    .extend_from_slice(&[0, 1, 2].map(|k| u[k] + dv[k]));
             }
         }
         self.pending = Some(self.exchange.begin_reusing(
@@ -145,8 +186,13 @@ impl<'d> Halo<'d> {
     }
 
     /// begin + end: a blocking exchange.
-    pub fn exchange(&mut self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) -> Result<(), MufeError> {
-        self.begin(x, v)?;
+    pub fn exchange(
+        &mut self,
+        x: &mut [[f64; 3]],
+        v: &mut [[f64; 3]],
+        cell: &CellKinematics,
+    ) -> Result<(), MufeError> {
+        self.begin(x, v, cell)?;
         self.end(x, v)
     }
 }
@@ -154,6 +200,28 @@ impl<'d> Halo<'d> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::periodic::NO_IMAGE;
+
+    #[test]
+    fn an_image_arrives_shifted_by_the_cell_and_moving_with_it() {
+        crate::domain::with_test_domain(|domain| {
+            let plan = HaloPlan {
+                sends: vec![(0, vec![0])],
+                send_images: vec![vec![[1, 0, -1]]],
+                receives: vec![(0, vec![1])],
+            };
+            let mut halo = Halo::new(domain, plan);
+            let cell = CellKinematics {
+                length: [2.0, 3.0, 4.0],
+                rate: [-0.5, 0.0, 0.25],
+            };
+            let mut x = vec![[1.0, 1.0, 1.0], [0.0; 3]];
+            let mut v = vec![[0.1, 0.2, 0.3], [0.0; 3]];
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(x[1], [3.0, 1.0, -3.0]);
+            assert_eq!(v[1], [0.1 - 0.5, 0.2, 0.3 - 0.25]);
+        });
+    }
 
     #[test]
     fn a_self_halo_copies_owned_into_ghost_nodes_and_reuses_its_buffers() {
@@ -161,20 +229,23 @@ mod tests {
             // nodes 0, 1 are "owned", 2, 3 their ghost copies (rank 0 sends to itself)
             let plan = HaloPlan {
                 sends: vec![(0, vec![0, 1])],
+                send_images: vec![vec![NO_IMAGE; 2]],
                 receives: vec![(0, vec![2, 3])],
             };
             assert_eq!(plan.bytes_per_step(), 2 * VALUES_PER_NODE * 8);
             let mut halo = Halo::new(domain, plan);
             let mut x = vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [0.0; 3], [0.0; 3]];
             let mut v = vec![[-1.0, -2.0, -3.0], [-4.0, -5.0, -6.0], [0.0; 3], [0.0; 3]];
-            halo.exchange(&mut x, &mut v).unwrap();
+            halo.exchange(&mut x, &mut v, &CellKinematics::default())
+                .unwrap();
             let first = halo.send_buffer_identity().unwrap();
             assert_eq!((x[2], x[3]), (x[0], x[1]));
             assert_eq!((v[2], v[3]), (v[0], v[1]));
             for step in 0..3 {
                 x[0][0] += 1.0;
                 v[1][2] -= 1.0;
-                halo.exchange(&mut x, &mut v).unwrap();
+                halo.exchange(&mut x, &mut v, &CellKinematics::default())
+                    .unwrap();
                 assert_eq!((x[2], x[3]), (x[0], x[1]), "step {step}");
                 assert_eq!((v[2], v[3]), (v[0], v[1]), "step {step}");
                 // the same allocation every step: nothing is allocated per step

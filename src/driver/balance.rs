@@ -19,6 +19,7 @@ use crate::error::Result;
 use crate::model::decomposition::{imbalance, GrainBound, Partition};
 use crate::model::global::{ghost_margin, GlobalMesh};
 use crate::scene::LoadedScene;
+use crate::solver::periodic::cell_kinematics;
 use crate::solver::Solver;
 
 /// A new decomposition: grains changed hands or the ghosts were re-planned.
@@ -122,6 +123,12 @@ pub fn rebalance(
             shift + (now.radius - then.radius).abs()
         })
         .fold(0.0, f64::max);
+    // the images move with the cell's edges
+    let cell_now = cell_kinematics(&solver.model, &solver.state).length;
+    let cell_moved = (0..3)
+        .map(|k| (cell_now[k] - partition.planned_cell[k]).abs())
+        .sum::<f64>();
+    let moved = moved + cell_moved;
     let repartition = imbalance(&load) > loaded.scene.parallel.imbalance_threshold;
     if !repartition && moved <= 0.25 * ghost_margin(global) {
         return Ok(None);
@@ -150,6 +157,7 @@ pub fn rebalance(
     solver.state.partition = Partition {
         owner: new_owner,
         planned_bounds: bounds,
+        planned_cell: cell_now,
     };
     Ok(Some(Rebalanced {
         solver,

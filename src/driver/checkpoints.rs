@@ -231,6 +231,7 @@ impl Restart {
             return Ok(Partition {
                 owner: p.owner.clone(),
                 planned_bounds: bounds,
+                planned_cell: p.planned_cell,
             });
         }
         let infos: Vec<partition::GrainInfo> = (0..bounds.len())
@@ -250,6 +251,7 @@ impl Restart {
         Ok(Partition {
             owner,
             planned_bounds: bounds,
+            planned_cell: p.planned_cell,
         })
     }
 
@@ -274,7 +276,11 @@ impl Restart {
                 solver.state.set_rank_totals(&mine);
                 solver.state.contact.history.clear();
                 let installed = unpack_grains(solver, &grains.packages)?;
-                let held = solver.model.grains.len();
+                // images and plain copies of one grain share its package
+                let mut ids: Vec<u32> = solver.model.grains.iter().map(|g| g.global_id).collect();
+                ids.sort_unstable();
+                ids.dedup();
+                let held = ids.len();
                 if installed.len() != held {
                     return Err(MufeError::Run(format!(
                         "restart on rank {}: the checkpoint holds {} of the {held} grains this rank needs",
@@ -445,8 +451,14 @@ pub fn build_restarted_solver(
     restart: Restart,
 ) -> Result<(Solver, Decomposition, crate::domain::halo::HaloPlan)> {
     let p = restart.partition(domain, global)?;
-    let (mut solver, plan, halo) =
-        build_rank_solver(domain, loaded, global, &p.owner, &p.planned_bounds)?;
+    let (mut solver, plan, halo) = build_rank_solver(
+        domain,
+        loaded,
+        global,
+        &p.owner,
+        &p.planned_bounds,
+        p.planned_cell,
+    )?;
     let installed = restart.install(domain, &mut solver);
     let failed = domain.all_gather_u64(u64::from(installed.is_err()));
     installed?;

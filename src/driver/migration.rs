@@ -1,13 +1,18 @@
 //! Grain migration between ranks: what travels with a grain when it changes hands, and
 //! the redistribution that builds every rank's new solver around it.
 
+use super::rank::plan_ghosts;
 use crate::domain::halo::HaloPlan;
 use crate::domain::{Domain, Exchange};
 use crate::error::{MufeError, Result};
 use crate::model::decomposition::{Decomposition, GrainBound};
-use crate::model::global::{ghost_margin, GlobalMesh};
+use crate::model::global::GlobalMesh;
 use crate::scene::LoadedScene;
+use crate::solver::periodic::cell_kinematics;
 use crate::solver::{build_solver_for, Solver};
+
+/// Values per friction history point in a package: other, node, image (3), traction (3).
+const HISTORY_VALUES: usize = 8;
 
 /// Serialises what travels with a grain when it changes hands: its nodes' x and v, the
 /// friction history of its surface nodes as slaves, the state of its prescribed motions
@@ -55,6 +60,9 @@ pub fn pack_grain(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
         out.extend_from_slice(&[
             p.key.other as f64,
             p.key.node as f64,
+            f64::from(p.key.image[0]),
+            f64::from(p.key.image[1]),
+            f64::from(p.key.image[2]),
             p.traction[0],
             p.traction[1],
             p.traction[2],
@@ -98,7 +106,7 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
         i += 5;
         let Some(mg) = solver.model.grains.iter().position(|g| g.global_id == gid) else {
             // not held here: skip the package
-            i += 6 * nn + 5 * nh + nm * (1 + 9 + 12 + 2) + 7 * np;
+            i += 6 * nn + HISTORY_VALUES * nh + nm * (1 + 9 + 12 + 2) + 7 * np;
             continue;
         };
         let range = solver.model.grains[mg].nodes.clone();
@@ -118,7 +126,7 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
         }
         i += 6 * nn;
         for _ in 0..nh {
-            let p = data.get(i..i + 5).ok_or_else(bad)?;
+            let p = data.get(i..i + HISTORY_VALUES).ok_or_else(bad)?;
             solver
                 .state
                 .contact
@@ -127,11 +135,12 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
                     key: crate::contact::ContactKey {
                         grain: gid,
                         other: p[0] as u32,
+                        image: [p[2] as i8, p[3] as i8, p[4] as i8],
                         node: p[1] as u32,
                     },
-                    traction: [p[2], p[3], p[4]],
+                    traction: [p[5], p[6], p[7]],
                 });
-            i += 5;
+            i += HISTORY_VALUES;
         }
         for _ in 0..nm {
             let p = data.get(i..i + 24).ok_or_else(bad)?;
@@ -193,10 +202,11 @@ pub fn redistribute(
     new_owner: &[u32],
     bounds: &[GrainBound],
 ) -> Result<(Solver, Decomposition, HaloPlan)> {
-    let plan = Decomposition::plan(new_owner, bounds, ghost_margin(global), domain.rank());
+    let cell = cell_kinematics(&old.model, &old.state).length;
+    let plan = plan_ghosts(loaded, global, new_owner, bounds, cell, domain.rank());
     // who will hold each grain (owner + ghost holders): every rank can compute every plan
     let plans: Vec<Decomposition> = (0..domain.size())
-        .map(|r| Decomposition::plan(new_owner, bounds, ghost_margin(global), r))
+        .map(|r| plan_ghosts(loaded, global, new_owner, bounds, cell, r))
         .collect();
     let me = domain.rank();
     let mut sends: Vec<Vec<f64>> = vec![Vec::new(); domain.size()];
@@ -207,7 +217,7 @@ pub fn redistribute(
         let gid = g.global_id as usize;
         debug_assert_eq!(old.state.partition.owner[gid] as usize, me);
         for (r, p) in plans.iter().enumerate() {
-            if p.owned.binary_search(&gid).is_ok() || p.ghosts.binary_search(&gid).is_ok() {
+            if p.holds(gid) {
                 pack_grain(old, mg, &mut sends[r]);
             }
         }
@@ -241,11 +251,9 @@ pub fn redistribute(
     }
     installed.sort_unstable();
     installed.dedup();
-    let expected: Vec<u32> = plan
-        .owned
-        .iter()
-        .chain(&plan.ghosts)
-        .map(|&g| g as u32)
+    let expected: Vec<u32> = (plan.owned.iter().copied())
+        .chain(plan.ghosts.iter().map(|r| r.grain))
+        .map(|g| g as u32)
         .collect::<std::collections::BTreeSet<_>>()
         .into_iter()
         .collect();

@@ -31,6 +31,7 @@ use crate::domain::Domain;
 use crate::error::{MufeError, Result};
 use crate::model::global::GlobalMesh;
 use crate::scene::LoadedScene;
+use crate::solver::periodic::cell_kinematics;
 use crate::solver::{Solver, Stage};
 use balance::{rebalance, Rebalanced};
 use output::Output;
@@ -122,7 +123,8 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         }
         None => {
             let owner = partition_grains(domain, loaded, &global)?;
-            build_rank_solver(domain, loaded, &global, &owner, &global.bounds)?
+            let cell = rank::initial_cell_length(loaded);
+            build_rank_solver(domain, loaded, &global, &owner, &global.bounds, cell)?
         }
     };
     let restarted = continued.is_some();
@@ -162,7 +164,8 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     if restarted {
         // the ghosts' values in flight when the checkpoint was written
         let s = &run.solver.state;
-        run.hooks.halo.begin(&s.x, &s.v)?;
+        let cell = cell_kinematics(&run.solver.model, s);
+        run.hooks.halo.begin(&s.x, &s.v, &cell)?;
     }
     let mut output = Output::open(
         domain,
@@ -324,7 +327,9 @@ impl Run<'_, '_> {
                 }
                 None => progress.update(n as f64 / last_step as f64, n, self.solver.state.time),
             }
-            if self.domain.size() > 1 && n.is_multiple_of(check_interval) && n != last_step {
+            // a periodic cell re-plans its images (and wraps grains) on one rank too
+            let replans = self.domain.size() > 1 || self.solver.model.periodic.is_some();
+            if replans && n.is_multiple_of(check_interval) && n != last_step {
                 self.rebalance(n)?;
             }
         }
@@ -388,7 +393,8 @@ impl Run<'_, '_> {
         match rebalance(domain, loaded, self.global, &self.solver)? {
             None => {
                 let s = &self.solver.state;
-                self.hooks.halo.begin(&s.x, &s.v)?;
+                let cell = cell_kinematics(&self.solver.model, s);
+                self.hooks.halo.begin(&s.x, &s.v, &cell)?;
             }
             Some(Rebalanced {
                 solver,
@@ -397,6 +403,10 @@ impl Run<'_, '_> {
             }) => {
                 self.solver = solver;
                 self.hooks.halo = Halo::new(domain, halo);
+                // the new ghosts (images too: a package fills one copy) from their owners
+                let s = &self.solver.state;
+                let cell = cell_kinematics(&self.solver.model, s);
+                self.hooks.halo.begin(&s.x, &s.v, &cell)?;
                 if self.talk {
                     println!(
                         "re-partitioned at step {step}: {migrated} grains migrated (imbalance above {})",

@@ -4,8 +4,9 @@
 use crate::domain::halo::{Halo, HaloPlan};
 use crate::domain::Domain;
 use crate::error::{InputError, MufeError, Result};
-use crate::model::decomposition::{Decomposition, GrainBound, Partition};
+use crate::model::decomposition::{Decomposition, GrainBound, Partition, PlanCell};
 use crate::model::global::{ghost_margin, GlobalMesh};
+use crate::model::periodic::{CellKinematics, PeriodicCell};
 use crate::scene::LoadedScene;
 use crate::solver::{build_solver_for, Solver, StepHooks};
 
@@ -68,8 +69,9 @@ pub fn build_rank_solver(
     global: &GlobalMesh,
     owner: &[u32],
     bounds: &[GrainBound],
+    cell_length: [f64; 3],
 ) -> Result<(Solver, Decomposition, HaloPlan)> {
-    let plan = Decomposition::plan(owner, bounds, ghost_margin(global), domain.rank());
+    let plan = plan_ghosts(loaded, global, owner, bounds, cell_length, domain.rank());
     // A bad scene fails on every rank alike (same input), so returning is safe; anything
     // rank-specific would need the job aborted.
     let mut solver = build_solver_for(loaded, &plan.owned, &plan.ghosts)?;
@@ -79,9 +81,33 @@ pub fn build_rank_solver(
     solver.state.partition = Partition {
         owner: owner.to_vec(),
         planned_bounds: bounds.to_vec(),
+        planned_cell: cell_length,
     };
     let halo = HaloPlan::new(&solver.model, &plan);
     Ok((solver, plan, halo))
+}
+
+/// The ghost plan of `rank` for the grain `bounds`, with the periodic cell (if any) at
+/// edge lengths `cell_length` (m).
+pub fn plan_ghosts(
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+    owner: &[u32],
+    bounds: &[GrainBound],
+    cell_length: [f64; 3],
+    rank: usize,
+) -> Decomposition {
+    let cell = PeriodicCell::of_scene(&loaded.scene);
+    let at = cell.as_ref().map(|cell| PlanCell {
+        cell,
+        length: cell_length,
+    });
+    Decomposition::plan(owner, bounds, ghost_margin(global), rank, at)
+}
+
+/// Edge lengths of the scene's periodic cell at t = 0 (zero without one).
+pub fn initial_cell_length(loaded: &LoadedScene) -> [f64; 3] {
+    PeriodicCell::of_scene(&loaded.scene).map_or([0.0; 3], |c| c.length0)
 }
 
 /// The MPI side of a step: ghost exchange and reductions.
@@ -94,8 +120,13 @@ impl StepHooks for RankHooks<'_> {
     fn ghosts_in(&mut self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) -> Result<(), MufeError> {
         self.halo.end(x, v)
     }
-    fn ghosts_out(&mut self, x: &[[f64; 3]], v: &[[f64; 3]]) -> Result<(), MufeError> {
-        self.halo.begin(x, v)
+    fn ghosts_out(
+        &mut self,
+        x: &[[f64; 3]],
+        v: &[[f64; 3]],
+        cell: &CellKinematics,
+    ) -> Result<(), MufeError> {
+        self.halo.begin(x, v, cell)
     }
     fn any(&mut self, local: bool) -> bool {
         if self.domain.size() == 1 {

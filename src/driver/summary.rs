@@ -50,7 +50,9 @@ fn print_summary(
         "min edge m",
         if copies.is_some() { "    copies" } else { "" }
     );
-    for (gi, g) in m.grains.iter().enumerate().take(20) {
+    // periodic images are copies of owned grains: listed and counted once
+    let held = &m.grains[..m.owned_grains];
+    for (gi, g) in held.iter().enumerate().take(20) {
         let q = &g.quality;
         println!(
             "{:<12} {:>10} {:>10} {:>9} {:>9.2} {:>10.2} {:>10.3e}{}",
@@ -64,17 +66,33 @@ fn print_summary(
             copies.map_or(String::new(), |c| format!(" {:>9}", c[gi]))
         );
     }
-    if m.grains.len() > 20 {
-        println!("... {} more grains", m.grains.len() - 20);
+    if held.len() > 20 {
+        println!("... {} more grains", held.len() - 20);
     }
     let (mut grains, mut elements, mut nodes, mut phys) = (0, 0, 0, 0.0);
-    for (gi, g) in m.grains.iter().enumerate() {
+    for (gi, g) in held.iter().enumerate() {
         grains += copy(gi);
         elements += g.elements.len() * copy(gi);
         nodes += g.nodes.len() * copy(gi);
         phys += m.physical_mass[g.nodes.clone()].iter().sum::<f64>() * copy(gi) as f64;
     }
     println!("totals: {grains} grains, {elements} elements, {nodes} nodes; mass {phys:.4e} kg");
+    if let Some(c) = &m.periodic {
+        let axes: String = (0..3)
+            .filter(|&k| c.periodic[k])
+            .map(|k| crate::scene::cell::AXES[k])
+            .collect();
+        println!(
+            "periodic cell: {axes} periodic, box [{:.4e}, {:.4e}, {:.4e}] m from [{:.4e}, {:.4e}, {:.4e}] m; {} grain images mirrored on this rank",
+            c.length0[0],
+            c.length0[1],
+            c.length0[2],
+            c.min[0],
+            c.min[1],
+            c.min[2],
+            m.grains.len() - m.owned_grains
+        );
+    }
     println!(
         "time step: stable {:.4e} s (element {}, safety {}), used {:.4e} s; {} steps for {:.4e} s",
         m.dt_stable,
@@ -281,13 +299,16 @@ fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wal
                     f.drop, f.strain_margin
                 ));
             }
-            let modes: Vec<String> = (st.modes.iter().zip(walls))
-                .map(|(m, w)| match m {
-                    WallMode::Prescribed => format!("{} prescribed", w.name),
-                    WallMode::Fixed => format!("{} fixed", w.name),
-                    WallMode::Velocity(v) => format!("{} {v:.3e} m/s", w.name),
+            // the periodic cell's axes follow the walls in the plan
+            let names = (walls.iter().map(|w| w.name.clone()))
+                .chain(crate::scene::cell::AXES.map(|a| format!("cell {a}")));
+            let modes: Vec<String> = (st.modes.iter().zip(names))
+                .map(|(m, name)| match m {
+                    WallMode::Prescribed => format!("{name} prescribed"),
+                    WallMode::Fixed => format!("{name} fixed"),
+                    WallMode::Velocity(v) => format!("{name} {v:.3e} m/s"),
                     WallMode::Servo { control, .. } => {
-                        format!("{} servo {:.4e} Pa", w.name, control.target_stress)
+                        format!("{name} servo {:.4e} Pa", control.target_stress)
                     }
                 })
                 .collect();

@@ -5,6 +5,8 @@
 //! (`crate::solver::stable_step`); the initial-overlap check is contact's.
 
 use super::contact_layout::ContactModel;
+use super::decomposition::{Decomposition, GhostRef, PlanCell};
+use super::periodic::{PeriodicCell, NO_IMAGE};
 use super::{GrainBlock, Model};
 use crate::boundary::{PrescribedMotion, Translation};
 use crate::element::TetReference;
@@ -51,23 +53,43 @@ pub fn premesh_surfaces(loaded: &LoadedScene) {
     }
 }
 
-/// Builds the model of the given grains (all grains on one rank: `owned = 0..n`).
+/// Builds the model of the given grains (all grains on one rank: `owned = 0..n`), with
+/// the periodic images they need ([`serial_images`]).
 pub fn build_model(
     loaded: &LoadedScene,
     owned: &[usize],
 ) -> Result<(Model, Vec<PrescribedMotion>), InputError> {
-    build_model_with_ghosts(loaded, owned, &[])
+    build_model_with_ghosts(loaded, owned, &serial_images(loaded)?)
+}
+
+/// The periodic images one rank holding every grain mirrors at t = 0 (none without a
+/// periodic cell).
+pub fn serial_images(loaded: &LoadedScene) -> Result<Vec<GhostRef>, InputError> {
+    let Some(cell) = PeriodicCell::of_scene(&loaded.scene) else {
+        return Ok(Vec::new());
+    };
+    let global = super::GlobalMesh::build(loaded)?;
+    let margin = super::global::ghost_margin(&global);
+    let at = PlanCell {
+        cell: &cell,
+        length: cell.length0,
+    };
+    let owner = vec![0; loaded.scene.grains.len()];
+    Ok(Decomposition::plan(&owner, &global.bounds, margin, 0, Some(at)).ghosts)
 }
 
 /// Builds the model of this rank: the `owned` grains (advanced here) followed by `ghosts`
-/// (other ranks' grains mirrored for contact; their surfaces are refreshed by the halo
-/// exchange, their elements only give them the masses their owners use). Both lists are
-/// global grain ids, ascending.
+/// (other ranks' grains and periodic images mirrored for contact; their surfaces are
+/// refreshed by the halo exchange or, for images of owned grains, by the solver; their
+/// elements only give them the masses their owners use). Both lists are ascending; an
+/// image starts at its grain's place shifted by the cell at t = 0.
 pub fn build_model_with_ghosts(
     loaded: &LoadedScene,
     owned: &[usize],
-    ghosts: &[usize],
+    ghosts: &[GhostRef],
 ) -> Result<(Model, Vec<PrescribedMotion>), InputError> {
+    let periodic = PeriodicCell::of_scene(&loaded.scene);
+    let at_rest = periodic.as_ref().map(|c| c.at_rest()).unwrap_or_default();
     let scene = &loaded.scene;
     let file = &loaded.path;
     let mat_names: Vec<&String> = scene.materials.keys().collect();
@@ -99,7 +121,15 @@ pub fn build_model_with_ghosts(
     let mut tets: Vec<[u32; 4]> = Vec::new();
     let mut tet_law: Vec<u16> = Vec::new();
     let (mut owned_nodes, mut owned_elements) = (0, 0);
-    for (slot, &gi) in owned.iter().chain(ghosts).enumerate() {
+    let held = owned
+        .iter()
+        .map(|&grain| GhostRef {
+            grain,
+            image: NO_IMAGE,
+        })
+        .chain(ghosts.iter().copied());
+    for (slot, GhostRef { grain: gi, image }) in held.enumerate() {
+        let shift = at_rest.offset(image);
         if slot == owned.len() {
             (owned_nodes, owned_elements) = (x0.len(), tets.len());
         }
@@ -136,7 +166,7 @@ pub fn build_model_with_ghosts(
         let quality = mesh::quality(&m);
         let surface_local = mesh::extract_surface(&m);
         for p in &m.nodes {
-            x0.push([p[0] + g.centre[0], p[1] + g.centre[1], p[2] + g.centre[2]]);
+            x0.push([0, 1, 2].map(|k| p[k] + g.centre[k] + shift[k]));
         }
         for t in &m.tets {
             tets.push(t.map(|n| n + node_base as u32));
@@ -184,6 +214,7 @@ pub fn build_model_with_ghosts(
             centre0: centroid,
             bounding_radius: br,
             quality,
+            image,
         });
     }
     if ghosts.is_empty() {
@@ -335,6 +366,7 @@ pub fn build_model_with_ghosts(
         });
     }
 
+    let local_images = local_images(&grains, owned.len());
     Ok((
         Model {
             grains,
@@ -363,9 +395,24 @@ pub fn build_model_with_ghosts(
             owned_elements,
             contact,
             stages: crate::boundary::stages::StagePlan::build(scene),
+            local_images,
+            periodic,
         },
         motions,
     ))
+}
+
+/// (ghost, owned grain) of every image whose grain is owned here.
+fn local_images(grains: &[GrainBlock], owned: usize) -> Vec<(usize, usize)> {
+    (owned..grains.len())
+        .filter(|&g| grains[g].image != NO_IMAGE)
+        .filter_map(|g| {
+            let source = grains[..owned]
+                .iter()
+                .position(|o| o.global_id == grains[g].global_id)?;
+            Some((g, source))
+        })
+        .collect()
 }
 
 fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {

@@ -36,6 +36,8 @@ pub struct GrainSurface {
     /// Energies, statistics and wall contacts count owned slave nodes only, so that the
     /// sums over ranks equal the serial ones.
     pub owned: bool,
+    /// Periodic image shift of the grain (all zero but for images).
+    pub image: super::periodic::Image,
     /// First model node of the grain (for node indices within the grain).
     pub node_base: u32,
     /// Plane-strain modulus E/(1−ν²) of the grain's material (Pa).
@@ -178,6 +180,7 @@ impl ContactModel {
                 facets: f0..cm.facet.len(),
                 global_id: g.global_id,
                 owned: gi < owned_grains,
+                image: g.image,
                 node_base: g.nodes.start as u32,
                 e_prime: e_prime[g.material],
                 h_min: hs.iter().cloned().fold(f64::INFINITY, f64::min),

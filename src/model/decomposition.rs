@@ -3,6 +3,8 @@
 //! (grain bounding spheres gathered from all ranks), so the plans of two ranks always
 //! match without negotiation.
 
+use super::periodic::{Image, PeriodicCell, NO_IMAGE};
+
 /// Current bounding sphere of a grain (m).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct GrainBound {
@@ -31,6 +33,17 @@ pub struct Partition {
     pub owner: Vec<u32>,
     /// Bounding spheres at the last ghost plan.
     pub planned_bounds: Vec<GrainBound>,
+    /// Edge lengths of the periodic cell at the last ghost plan (m; zero without one).
+    #[serde(default)]
+    pub planned_cell: [f64; 3],
+}
+
+/// A grain mirrored on a rank: the grain itself (another rank's) or one of its periodic
+/// images (`image` ≠ 0; its own grains' images too). Ordered by (grain, image).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct GhostRef {
+    pub grain: usize,
+    pub image: Image,
 }
 
 /// One rank's share of the grains and its halo pattern.
@@ -42,19 +55,35 @@ pub struct Decomposition {
     pub rank: usize,
     /// Global ids of the grains this rank owns, ascending.
     pub owned: Vec<usize>,
-    /// Global ids of other ranks' grains mirrored here (surface only), ascending.
-    pub ghosts: Vec<usize>,
-    /// For each neighbour rank (ascending): owned grains whose surfaces it mirrors, ascending.
-    pub sends: Vec<(usize, Vec<usize>)>,
-    /// For each neighbour rank (ascending): its grains mirrored here, ascending.
-    pub receives: Vec<(usize, Vec<usize>)>,
+    /// Grains and images mirrored here (surface only), ascending: other ranks' grains
+    /// near an owned one, and periodic images near an owned one.
+    pub ghosts: Vec<GhostRef>,
+    /// For each neighbour rank (ascending): owned grains (and images) whose surfaces it
+    /// mirrors, ascending. An image of an owned grain mirrored here is copied locally.
+    pub sends: Vec<(usize, Vec<GhostRef>)>,
+    /// For each neighbour rank (ascending): its grains (and images) mirrored here.
+    pub receives: Vec<(usize, Vec<GhostRef>)>,
+}
+
+/// The periodic cell when the ghosts are planned: its layout and current edge lengths.
+#[derive(Debug, Clone, Copy)]
+pub struct PlanCell<'a> {
+    pub cell: &'a PeriodicCell,
+    pub length: [f64; 3],
 }
 
 impl Decomposition {
-    /// Builds the plan of `rank` from the global owner table and grain bounds. A grain g
-    /// owned by q ≠ r is a ghost on r iff some grain owned by r is near g; q evaluates the
-    /// same predicate to decide what to send, so both sides agree.
-    pub fn plan(owner: &[u32], bounds: &[GrainBound], margin: f64, rank: usize) -> Self {
+    /// Builds the plan of `rank` from the global owner table and grain bounds. Grain g
+    /// (or its image s) is a ghost on r iff some grain owned by r is near it (not g
+    /// itself unshifted); its owner evaluates the same predicate to decide what to send,
+    /// so both sides agree.
+    pub fn plan(
+        owner: &[u32],
+        bounds: &[GrainBound],
+        margin: f64,
+        rank: usize,
+        cell: Option<PlanCell>,
+    ) -> Self {
         let n = owner.len();
         let ranks = owner.iter().map(|&r| r as usize + 1).max().unwrap_or(1);
         // grains per rank, for the neighbour test
@@ -62,29 +91,65 @@ impl Decomposition {
         for (g, &r) in owner.iter().enumerate() {
             by_rank[r as usize].push(g);
         }
-        let near_rank = |g: usize, r: usize| {
+        let images = cell.map_or_else(|| vec![NO_IMAGE], |c| c.cell.images());
+        let reach = 2.0 * bounds.iter().map(|b| b.radius).fold(0.0, f64::max) + margin;
+        // an image can touch anything only when its grain lies within reach of the face
+        // the shift carries it across
+        let relevant = |g: usize, s: Image| {
+            let Some(c) = cell else {
+                return s == NO_IMAGE;
+            };
+            (0..3).all(|k| match s[k] {
+                1 => bounds[g].centre[k] - c.cell.min[k] < reach,
+                -1 => c.cell.min[k] + c.length[k] - bounds[g].centre[k] < reach,
+                _ => true,
+            })
+        };
+        let shifted = |g: usize, s: Image| {
+            let mut b = bounds[g];
+            if let Some(c) = cell {
+                for k in 0..3 {
+                    b.centre[k] += f64::from(s[k]) * c.length[k];
+                }
+            }
+            b
+        };
+        let near_rank = |g: usize, s: Image, r: usize| {
+            let b = shifted(g, s);
             by_rank[r]
                 .iter()
-                .any(|&h| bounds[h].near(&bounds[g], margin))
+                .any(|&h| (h != g || s != NO_IMAGE) && bounds[h].near(&b, margin))
         };
         let owned = by_rank.get(rank).cloned().unwrap_or_default();
-        let ghosts: Vec<usize> = (0..n)
-            .filter(|&g| owner[g] as usize != rank && near_rank(g, rank))
-            .collect();
+        let mut ghosts = Vec::new();
+        for g in 0..n {
+            for &s in &images {
+                let other = owner[g] as usize != rank || s != NO_IMAGE;
+                if other && relevant(g, s) && near_rank(g, s, rank) {
+                    ghosts.push(GhostRef { grain: g, image: s });
+                }
+            }
+        }
+        ghosts.sort_unstable();
         let mut sends = Vec::new();
         let mut receives = Vec::new();
         for q in 0..ranks {
             if q == rank {
                 continue;
             }
-            let s: Vec<usize> = owned.iter().copied().filter(|&g| near_rank(g, q)).collect();
+            let mut s: Vec<GhostRef> = owned
+                .iter()
+                .flat_map(|&g| images.iter().map(move |&i| GhostRef { grain: g, image: i }))
+                .filter(|r| relevant(r.grain, r.image) && near_rank(r.grain, r.image, q))
+                .collect();
+            s.sort_unstable();
             if !s.is_empty() {
                 sends.push((q, s));
             }
-            let r: Vec<usize> = ghosts
+            let r: Vec<GhostRef> = ghosts
                 .iter()
                 .copied()
-                .filter(|&g| owner[g] as usize == q)
+                .filter(|r| owner[r.grain] as usize == q)
                 .collect();
             if !r.is_empty() {
                 receives.push((q, r));
@@ -98,6 +163,11 @@ impl Decomposition {
             sends,
             receives,
         }
+    }
+
+    /// Whether grain `g` is held here (owned, mirrored, or as an image).
+    pub fn holds(&self, g: usize) -> bool {
+        self.owned.binary_search(&g).is_ok() || self.ghosts.iter().any(|r| r.grain == g)
     }
 }
 
@@ -128,15 +198,69 @@ mod tests {
     fn plans_of_two_ranks_match() {
         let bounds = row(6);
         let owner = [0, 0, 0, 1, 1, 1];
-        let p0 = Decomposition::plan(&owner, &bounds, 0.1, 0);
-        let p1 = Decomposition::plan(&owner, &bounds, 0.1, 1);
+        let p0 = Decomposition::plan(&owner, &bounds, 0.1, 0, None);
+        let p1 = Decomposition::plan(&owner, &bounds, 0.1, 1, None);
         assert_eq!(p0.owned, vec![0, 1, 2]);
-        assert_eq!(p0.ghosts, vec![3]);
-        assert_eq!(p1.ghosts, vec![2]);
-        assert_eq!(p0.sends, vec![(1, vec![2])]);
-        assert_eq!(p1.receives, vec![(0, vec![2])]);
-        assert_eq!(p1.sends, vec![(0, vec![3])]);
-        assert_eq!(p0.receives, vec![(1, vec![3])]);
+        assert_eq!(p0.ghosts, vec![real(3)]);
+        assert_eq!(p1.ghosts, vec![real(2)]);
+        assert_eq!(p0.sends, vec![(1, vec![real(2)])]);
+        assert_eq!(p1.receives, vec![(0, vec![real(2)])]);
+        assert_eq!(p1.sends, vec![(0, vec![real(3)])]);
+        assert_eq!(p0.receives, vec![(1, vec![real(3)])]);
+    }
+
+    fn real(grain: usize) -> GhostRef {
+        GhostRef {
+            grain,
+            image: NO_IMAGE,
+        }
+    }
+
+    #[test]
+    fn a_periodic_row_mirrors_the_images_across_the_box() {
+        // six grains 2 apart in a box of length 12 along x: the last touches the first's
+        // image and the first the last's
+        let bounds = row(6);
+        let cell = PeriodicCell {
+            periodic: [true, false, false],
+            min: [-1.0, -1.0, -1.0],
+            length0: [12.0, 2.0, 2.0],
+        };
+        let at = Some(PlanCell {
+            cell: &cell,
+            length: cell.length0,
+        });
+        let image = |grain: usize, x: i8| GhostRef {
+            grain,
+            image: [x, 0, 0],
+        };
+        let serial = Decomposition::plan(&[0; 6], &bounds, 0.1, 0, at);
+        assert_eq!(serial.ghosts, vec![image(0, 1), image(5, -1)]);
+        assert!(serial.sends.is_empty() && serial.receives.is_empty());
+        let owner = [0, 0, 0, 1, 1, 1];
+        let p0 = Decomposition::plan(&owner, &bounds, 0.1, 0, at);
+        let p1 = Decomposition::plan(&owner, &bounds, 0.1, 1, at);
+        assert_eq!(p0.ghosts, vec![real(3), image(5, -1)]);
+        assert_eq!(p1.ghosts, vec![image(0, 1), real(2)]);
+        assert_eq!(p0.sends, vec![(1, vec![image(0, 1), real(2)])]);
+        assert_eq!(
+            p1.receives,
+            p0.sends
+                .iter()
+                .map(|(_, g)| (0, g.clone()))
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(p1.sends, vec![(0, vec![real(3), image(5, -1)])]);
+        assert_eq!(p0.receives, vec![(1, vec![real(3), image(5, -1)])]);
+        // the cell shortened by half a spacing: still the same neighbours, nothing more
+        let shorter = Some(PlanCell {
+            cell: &cell,
+            length: [11.0, 2.0, 2.0],
+        });
+        assert_eq!(
+            Decomposition::plan(&[0; 6], &bounds, 0.1, 0, shorter).ghosts,
+            serial.ghosts
+        );
     }
 
     #[test]
@@ -153,7 +277,7 @@ mod tests {
             .collect();
         let owner: Vec<u32> = (0..27).map(|i| ((i * 7) % 3) as u32).collect();
         let plans: Vec<Decomposition> = (0..3)
-            .map(|r| Decomposition::plan(&owner, &bounds, 0.05, r))
+            .map(|r| Decomposition::plan(&owner, &bounds, 0.05, r, None))
             .collect();
         for p in &plans {
             for (q, grains) in &p.sends {

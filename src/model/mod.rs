@@ -15,8 +15,9 @@ pub mod assemble;
 pub mod contact_layout;
 pub mod decomposition;
 pub mod global;
+pub mod periodic;
 
-pub use assemble::{build_model, build_model_with_ghosts, mesh_shape};
+pub use assemble::{build_model, build_model_with_ghosts, mesh_shape, serial_images};
 pub use contact_layout::{ContactModel, NONE};
 pub use global::GlobalMesh;
 
@@ -42,6 +43,8 @@ pub struct GrainBlock {
     pub bounding_radius: f64,
     /// Mesh quality of the grain's mesh.
     pub quality: mesh::QualityReport,
+    /// Periodic image shift of a ghost (all zero for grains and plain ghosts).
+    pub image: periodic::Image,
 }
 
 /// The model as laid out on this rank.
@@ -95,6 +98,11 @@ pub struct Model {
     pub owned_grains: usize,
     pub owned_nodes: usize,
     pub owned_elements: usize,
+    /// The periodic cell, when the scene has one.
+    pub periodic: Option<periodic::PeriodicCell>,
+    /// (ghost grain, owned grain) for every image of an owned grain mirrored here: the
+    /// solver copies the owned grain's surface into it, shifted, every step.
+    pub local_images: Vec<(usize, usize)>,
     /// Names of all prescribed motions of the scene (on every rank, whichever grains it
     /// owns), so that history columns are the same everywhere.
     pub boundary_names: Vec<String>,

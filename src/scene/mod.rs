@@ -2,6 +2,7 @@
 //! overrides applied to the TOML tree before typing (so they get the same validation),
 //! and semantic checks that name the offending field. SI units throughout.
 
+pub mod cell;
 mod checker;
 pub mod compare;
 pub mod estimate;
@@ -46,6 +47,9 @@ pub struct Scene {
     /// Rigid plane walls (`[[walls]]`).
     #[serde(default)]
     pub walls: Vec<WallSpec>,
+    /// A periodic cell (`[cell]`, see [`cell`]); none: the scene ends where its grains do.
+    #[serde(default)]
+    pub cell: Option<cell::CellSpec>,
     /// Loading stages run in sequence (`[[stages]]`, see [`stages`]); none = one stage
     /// driven by the walls' own settings for `simulation.duration`.
     #[serde(default)]

@@ -31,6 +31,11 @@ pub struct StageSpec {
     /// Mode of each wall by wall name; walls not listed are fixed during the stage.
     #[serde(default)]
     pub walls: BTreeMap<String, WallModeSpec>,
+    /// Mode of each periodic cell axis (`x`, `y`, `z`) in the same terms as a wall's:
+    /// shortening of the axis instead of the wall's advance, the cell's homogenised stress
+    /// instead of the wall's (`crate::boundary::stages`); axes not listed are fixed.
+    #[serde(default)]
+    pub cell: BTreeMap<String, WallModeSpec>,
     /// What ends the stage.
     pub until: UntilSpec,
     /// Mass-proportional damping during the stage (1/s), in place of
@@ -158,6 +163,10 @@ fn opposite_exists(scene: &Scene, wall: usize) -> bool {
 pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputError> {
     let pairs = wall_pairs(scene);
     let cell = pairs.iter().all(|p| p.is_some());
+    let periodic_box = scene
+        .cell
+        .as_ref()
+        .is_some_and(|c| c.periodic.iter().all(|&p| p));
     for (i, st) in scene.stages.iter().enumerate() {
         let f = |x: &str| format!("stages[{i}].{x}");
         c.identifier(&f("name"), &st.name)?;
@@ -211,6 +220,35 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
                 }
             }
         }
+        let stage_servo = st
+            .walls
+            .values()
+            .chain(st.cell.values())
+            .any(|m| matches!(m, WallModeSpec::Servo(_)));
+        for (name, mode) in &st.cell {
+            let field = f(&format!("cell.{name}"));
+            let k = crate::scene::cell::AXES.iter().position(|a| a == name);
+            match mode {
+                WallModeSpec::Fixed => {}
+                WallModeSpec::Servo(s) => {
+                    validate_cell_servo(c, scene, &format!("{field}.servo"), s)?
+                }
+                WallModeSpec::Velocity(v) => c.finite(&format!("{field}.velocity"), *v)?,
+                WallModeSpec::StrainRate(r) => c.finite(&format!("{field}.strain_rate"), *r)?,
+                WallModeSpec::InertialNumber(i) => {
+                    c.positive(&format!("{field}.inertial_number"), *i)?;
+                    if scene.packings.is_empty() || !stage_servo {
+                        return Err(c.err(
+                            format!("{field}.inertial_number"),
+                            "needs a packing (for d and ρ) and a servo-held axis in the stage (for p); use strain_rate instead",
+                        ));
+                    }
+                }
+            }
+            if !matches!(mode, WallModeSpec::Fixed | WallModeSpec::Servo(_)) {
+                moving_axes.push((k, field.clone()));
+            }
+        }
         let u = &st.until;
         c.positive(&f("until.max_time"), u.max_time)?;
         if let Some(g) = &st.gravity {
@@ -222,11 +260,7 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
         if let Some(h) = &u.stress_held {
             c.positive(&f("until.stress_held.tolerance"), h.tolerance)?;
             c.non_negative(&f("until.stress_held.time_constants"), h.time_constants)?;
-            if !st
-                .walls
-                .values()
-                .any(|m| matches!(m, WallModeSpec::Servo(_)))
-            {
+            if !stage_servo {
                 return Err(c.err(
                     f("until.stress_held"),
                     "the stage has no servo wall whose stress could be held",
@@ -239,14 +273,14 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
             if axes.is_empty() || axes.iter().any(|a| a.is_none() || *a != axes[0]) {
                 return Err(c.err(
                     f("until"),
-                    "axial_strain and failure need the stage's moving walls (velocity or strain_rate) on one coordinate axis, which is then the axial direction",
+                    "axial_strain and failure need the stage's moving walls or cell axes (velocity, strain_rate or inertial_number) on one coordinate axis, which is then the axial direction",
                 ));
             }
             let k = axes[0].unwrap_or(2);
-            if pairs[k].is_none() {
+            if pairs[k].is_none() && !periodic_box {
                 return Err(c.err(
                     f("until"),
-                    "axial_strain and failure need a pair of opposite walls on the axial axis to measure the strain",
+                    "axial_strain and failure need a pair of opposite walls (or a periodic cell) on the axial axis to measure the strain",
                 ));
             }
         }
@@ -275,13 +309,42 @@ pub(super) fn validate_stages(c: &Checker, scene: &Scene) -> Result<(), InputErr
                     "must be < 1 (a fraction of the peak)",
                 ));
             }
-            if !cell {
+            if !cell && !periodic_box {
                 return Err(c.err(
                     f("until.failure"),
-                    "needs a closed box of walls (a pair of opposite walls on each coordinate axis) to measure the stress ratio",
+                    "needs a closed box of walls (a pair of opposite walls on each coordinate axis) or a cell periodic along every axis to measure the stress ratio",
                 ));
             }
         }
     }
     Ok(())
+}
+
+/// Checks the servo of a cell axis: it acts on the cell's face, so no area is given.
+fn validate_cell_servo(
+    c: &Checker,
+    scene: &Scene,
+    prefix: &str,
+    s: &ServoSpec,
+) -> Result<(), InputError> {
+    if s.area.is_some() || s.area_of.is_some() {
+        return Err(c.err(
+            format!("{prefix}.area"),
+            "a cell axis holds the cell's homogenised stress on its current face; give no area or area_of",
+        ));
+    }
+    let probe = crate::scene::WallSpec {
+        name: String::new(),
+        point: [0.0; 3],
+        normal: [0.0, 0.0, 1.0],
+        friction: 0.0,
+        velocity: None,
+        displacement: None,
+        servo: None,
+    };
+    let with_area = ServoSpec {
+        area: Some(1.0),
+        ..s.clone()
+    };
+    validate_servo(c, scene, prefix, &probe, &with_area)
 }

@@ -110,6 +110,7 @@ pub(super) fn validate_scene(file: &str, scene: &Scene) -> Result<(), InputError
     for (i, w) in scene.walls.iter().enumerate() {
         validate_wall(&c, scene, i, w)?;
     }
+    super::cell::validate_cell(&c, scene)?;
     super::stages::validate_stages(&c, scene)?;
 
     c.non_negative(

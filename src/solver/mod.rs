@@ -6,6 +6,7 @@
 //! - [`step`]: the step pipeline as named, timed stages ([`timing`]): internal forces
 //!   ([`forces`]), halo, contact, boundary ([`damping`], [`motions`]), walls, integrate,
 //!   energy; [`diagnose`] names the element behind a blow-up;
+//! - [`periodic`]: the periodic cell in a step (images, homogenised stress, its work);
 //! - [`state`]: the one serde [`State`] that evolves; everything else is model or scratch.
 //!
 //! Nothing here knows about output, partitioning or the command line (that is
@@ -17,6 +18,7 @@ mod element_loops;
 pub mod element_schedule;
 pub mod forces;
 pub mod motions;
+pub mod periodic;
 pub mod setup;
 pub mod stable_step;
 pub mod state;

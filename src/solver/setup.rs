@@ -5,18 +5,23 @@
 use super::stable_step::set_time_step_and_mass_scaling;
 use super::step::Solver;
 use crate::error::Result;
-use crate::model::{build_model_with_ghosts, Model};
+use crate::model::decomposition::GhostRef;
+use crate::model::{build_model_with_ghosts, serial_images, Model};
 use crate::scene::LoadedScene;
 
 /// Builds the solver of a scene with all grains on this rank.
 pub fn build_solver(loaded: &LoadedScene) -> Result<Solver> {
     let owned: Vec<usize> = (0..loaded.scene.grains.len()).collect();
-    build_solver_for(loaded, &owned, &[])
+    build_solver_for(loaded, &owned, &serial_images(loaded)?)
 }
 
 /// Builds the solver of one rank (input errors name the scene file and field): the `owned` grains (advanced here) and the `ghosts`
-/// (other ranks' grains mirrored for contact), global ids ascending, at t = 0.
-pub fn build_solver_for(loaded: &LoadedScene, owned: &[usize], ghosts: &[usize]) -> Result<Solver> {
+/// (other ranks' grains and periodic images mirrored for contact), ascending, at t = 0.
+pub fn build_solver_for(
+    loaded: &LoadedScene,
+    owned: &[usize],
+    ghosts: &[GhostRef],
+) -> Result<Solver> {
     let (mut model, motions) = build_model_with_ghosts(loaded, owned, ghosts)?;
     set_time_step_and_mass_scaling(&mut model, &loaded.scene.simulation, &loaded.path)?;
     crate::contact::check_initial_overlap(&model, &loaded.path)?;

@@ -76,6 +76,7 @@ pub fn set_time_step_and_mass_scaling(
         &mut mass,
         sim.dt_safety,
         sim.target_dt,
+        model.owned_nodes,
     );
     added_mass += model.contact.stable_step.added_mass;
     let dt_stable = dt_stable_elements.min(dt_contact);
@@ -114,7 +115,7 @@ pub fn set_time_step_and_mass_scaling(
 /// Accounts for the contact springs in the stable step (see module docs) and, with a
 /// target step, raises the mass of the contact nodes that would limit it. `elem_dt` is
 /// each element's own critical step (no safety, physical mass) and `elem_scale` its
-/// mass-scaling factor. Returns the contact-limited stable step of the unscaled model
+/// mass-scaling factor; the scaled nodes and added mass reported are the owned nodes'. Returns the contact-limited stable step of the unscaled model
 /// (with safety), infinite when no grain can touch another.
 #[allow(clippy::too_many_arguments)]
 fn account_contact_springs(
@@ -126,6 +127,7 @@ fn account_contact_springs(
     mass: &mut [f64],
     safety: f64,
     target_dt: Option<f64>,
+    owned_nodes: usize,
 ) -> f64 {
     let element_omega = elem_dt.iter().map(|d| 2.0 / d).fold(0.0, f64::max);
     let mut report = StableStepReport {
@@ -171,8 +173,11 @@ fn account_contact_springs(
             let w2s = w2_scaled[s] + 2.0 * k / m;
             if w2s > wt * wt {
                 let needed = (w2_scaled[s] * m + 2.0 * k) / (wt * wt);
-                report.scaled_nodes += 1;
-                report.added_mass += needed - m;
+                // ghosts get their owner's mass but are reported by their owner
+                if node < owned_nodes {
+                    report.scaled_nodes += 1;
+                    report.added_mass += needed - m;
+                }
                 mass[node] = needed;
             }
         }

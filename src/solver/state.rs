@@ -2,6 +2,7 @@
 //! scene. Scratch buffers (`crate::solver::Scratch`, contact candidate lists, element
 //! corner forces) are not state: they are rebuilt from the model and the state.
 
+use super::periodic::CellState;
 use crate::boundary::stages::StageProgress;
 use crate::contact::ContactState;
 use crate::energy::{EnergyLedger, WorkAccumulator};
@@ -61,6 +62,9 @@ pub struct State {
     /// Owner of every grain and the grain bounds of the last ghost plan (maintained by the
     /// run driver; one part on a serial run).
     pub partition: Partition,
+    /// The periodic cell's axes, work and stress (scenes with `[cell]`).
+    #[serde(default)]
+    pub cell: Option<CellState>,
 }
 
 /// The quantities of a [`State`] that each rank accumulates over what it owns (energies,
@@ -74,6 +78,9 @@ pub struct RankTotals {
     pub friction_dissipation: f64,
     /// Each wall's `work` and `friction` accumulators (J).
     pub wall_work: Vec<[WorkAccumulator; 2]>,
+    /// Work of the periodic cell on the rank's grains (J).
+    #[serde(default)]
+    pub cell_work: WorkAccumulator,
 }
 
 impl RankTotals {
@@ -86,6 +93,8 @@ impl RankTotals {
                 *e += v;
             }
             total.friction_dissipation += p.friction_dissipation;
+            total.cell_work.work += p.cell_work.work;
+            total.cell_work.pending += p.cell_work.pending;
             total
                 .wall_work
                 .resize(p.wall_work.len(), [WorkAccumulator::default(); 2]);
@@ -112,6 +121,7 @@ impl RankTotals {
             energy,
             friction_dissipation: 0.0,
             wall_work: vec![[WorkAccumulator::default(); 2]; self.wall_work.len()],
+            cell_work: WorkAccumulator::default(),
         }
     }
 }
@@ -125,6 +135,7 @@ impl State {
             wall_work: (self.contact.walls.iter())
                 .map(|w| [w.work, w.friction])
                 .collect(),
+            cell_work: self.cell.as_ref().map(|c| c.work).unwrap_or_default(),
         }
     }
 
@@ -140,6 +151,9 @@ impl State {
         for (w, t) in self.contact.walls.iter_mut().zip(&totals.wall_work) {
             w.work = t[0];
             w.friction = t[1];
+        }
+        if let Some(c) = &mut self.cell {
+            c.work = totals.cell_work;
         }
     }
 
@@ -166,6 +180,7 @@ impl State {
             stages,
             supplied_energy,
             partition,
+            cell,
         } = from;
         let ContactState {
             history: _,
@@ -182,6 +197,8 @@ impl State {
         self.stages = stages.clone();
         self.supplied_energy = *supplied_energy;
         self.partition = partition.clone();
+        // the cell's axes, stress and wraps are run-level; its work is this rank's total
+        self.cell = cell.clone();
         self.contact.friction_dissipation = *friction_dissipation;
         self.contact.walls = walls.clone();
         self.contact.stats.max_penetration_run = stats.max_penetration_run;

@@ -12,6 +12,9 @@ use super::damping::{
 };
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::motions::drive_prescribed_motions;
+use super::periodic::{
+    cell_contact_sums, cell_kinematics, cell_power, refresh_local_images, CellState,
+};
 use super::state::{Reaction, State};
 use super::timing::{Stage, StageTimers};
 use crate::boundary::PrescribedMotion;
@@ -19,6 +22,7 @@ use crate::contact::{ContactScratch, ContactState};
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::error::MufeError;
 use crate::model::decomposition::Partition;
+use crate::model::periodic::CellKinematics;
 use crate::model::Model;
 use rayon::prelude::*;
 
@@ -29,8 +33,14 @@ pub trait StepHooks {
     fn ghosts_in(&mut self, _x: &mut [[f64; 3]], _v: &mut [[f64; 3]]) -> Result<(), MufeError> {
         Ok(())
     }
-    /// Starts sending owned surface x_{n+1}, v_{n+½} to the ranks that mirror them.
-    fn ghosts_out(&mut self, _x: &[[f64; 3]], _v: &[[f64; 3]]) -> Result<(), MufeError> {
+    /// Starts sending owned surface x_{n+1}, v_{n+½} to the ranks that mirror them
+    /// (images shifted by the periodic cell at that time, `cell`).
+    fn ghosts_out(
+        &mut self,
+        _x: &[[f64; 3]],
+        _v: &[[f64; 3]],
+        _cell: &CellKinematics,
+    ) -> Result<(), MufeError> {
         Ok(())
     }
     /// Logical OR over ranks (all ranks must call).
@@ -62,6 +72,8 @@ pub struct Scratch {
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
     pub(super) grain_rigid: Vec<RigidVelocity>,
+    /// Centre of each grain for the periodic cell's stress.
+    grain_centres: Vec<[f64; 3]>,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -123,7 +135,9 @@ impl Solver {
             partition: Partition {
                 owner: vec![0; model.grains.len()],
                 planned_bounds: Vec::new(),
+                ..Default::default()
             },
+            cell: (model.periodic.as_ref()).map(|c| CellState::new(c, model.owned_grains)),
         };
         let scratch = Scratch {
             force: vec![[0.0; 3]; n],
@@ -134,6 +148,7 @@ impl Solver {
             wall_forces: Vec::new(),
             node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
+            grain_centres: Vec::with_capacity(model.grains.len()),
         };
         Self {
             model,
@@ -162,7 +177,8 @@ impl Solver {
                 ws.servo.is_some() == m.stages.as_ref().is_some_and(|p| p.drives_wall(w))
             })
             && state.stages.index <= m.stages.as_ref().map_or(0, |p| p.stages.len())
-            && state.partition.owner.len() == self.state.partition.owner.len();
+            && state.partition.owner.len() == self.state.partition.owner.len()
+            && state.cell.is_some() == m.periodic.is_some();
         if !fits {
             return Err(MufeError::Run(format!(
                 "the state ({} nodes, {} motions, {} walls) does not fit this model ({} nodes, {} motions, {} walls)",
@@ -215,6 +231,13 @@ impl Solver {
             )
         });
         timers.time(Stage::Halo, || hooks.ghosts_in(&mut state.x, &mut state.v))?;
+        // the cell at t_n, with its rate over the step that led there
+        let cell_before = cell_kinematics(model, state);
+        if model.periodic.is_some() {
+            timers.time(Stage::Halo, || {
+                refresh_local_images(model, &mut state.x, &mut state.v, &cell_before)
+            });
+        }
         timers.time(Stage::Contact, || {
             let local = crate::contact::needs_rebuild(
                 model,
@@ -289,6 +312,23 @@ impl Solver {
                 &mut scratch.contact,
             )
         });
+        let cell_sums = (model.periodic.as_ref()).map(|_| {
+            timers.time(Stage::Contact, || {
+                let sums = cell_contact_sums(
+                    model,
+                    &state.x,
+                    &scratch.contact,
+                    &mut scratch.grain_centres,
+                );
+                let mut total = sums.force_branch;
+                hooks.sum(&mut total);
+                let volume: f64 = cell_before.length.iter().product();
+                if let Some(c) = &mut state.cell {
+                    c.contact_stress = total.map(|v| v / volume);
+                }
+                sums
+            })
+        });
         if let Some(plan) = &model.stages {
             // State-driven walls must move identically on every rank, and stages end at
             // the same step everywhere: one small sum of the walls' normal forces (serial
@@ -307,15 +347,32 @@ impl Solver {
                     model.contact.walls.len(),
                     &mut scratch.wall_forces,
                 );
+                if let Some(c) = &state.cell {
+                    // a cell axis acts as a wall pushing with σ_kk on the current face
+                    let l = cell_before.length;
+                    for k in 0..3 {
+                        let area = l[(k + 1) % 3] * l[(k + 2) % 3];
+                        scratch.wall_forces.push(c.contact_stress[4 * k] * area);
+                    }
+                }
                 crate::contact::advance_walls(
                     plan,
                     &mut state.contact,
+                    state.cell.as_mut().map(|c| &mut c.axes),
                     &mut state.stages,
                     &scratch.wall_forces,
                     state.time + dt,
                     dt,
                 );
             });
+        }
+        let cell_after = cell_kinematics(model, state);
+        if let (Some(sums), Some(c)) = (cell_sums, &mut state.cell) {
+            c.work.record(
+                dt,
+                cell_power(&sums.image_force, &cell_before.rate),
+                cell_power(&sums.image_force, &cell_after.rate),
+            );
         }
 
         // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
@@ -327,7 +384,9 @@ impl Solver {
         let partials = timers.time(Stage::Integrate, || {
             integrate_and_sum(model, alpha, gravity, state, scratch, dt)
         });
-        timers.time(Stage::Halo, || hooks.ghosts_out(&state.x, &state.v))?;
+        timers.time(Stage::Halo, || {
+            hooks.ghosts_out(&state.x, &state.v, &cell_after)
+        })?;
         if let Some(node) = partials.bad_node {
             let g = &model.grains[model.grains.partition_point(|g| g.nodes.end <= node)];
             return Err(MufeError::Run(format!(
@@ -354,7 +413,8 @@ impl Solver {
             e.friction_dissipation = state.contact.friction_dissipation_total();
             e.contact_energy = state.contact.stats.energy;
             e.boundary_work = state.motion_work.iter().map(|w| w.work).sum::<f64>()
-                + state.contact.wall_external_work();
+                + state.contact.wall_external_work()
+                + state.cell.as_ref().map_or(0.0, |c| c.work.work);
             if e.initial_total.is_none() {
                 e.initial_total = Some(e.total());
             }
