@@ -30,7 +30,7 @@ fn halo_plans_of_two_ranks_pair_up_node_for_node() {
     let owner: Vec<u32> = (0..27).map(|g| if g < 14 { 0 } else { 1 }).collect();
     let margin = ghost_margin(&global);
     let plans: Vec<Decomposition> = (0..2)
-        .map(|r| Decomposition::plan(&owner, &global.bounds, margin, r))
+        .map(|r| Decomposition::plan(&owner, &global.bounds, margin, r, None))
         .collect();
     assert!(
         !plans[0].ghosts.is_empty() && !plans[1].ghosts.is_empty(),
@@ -54,6 +54,55 @@ fn halo_plans_of_two_ranks_pair_up_node_for_node() {
             assert_eq!(s as usize - gs.nodes.start, g as usize - gg.nodes.start);
             assert!(g as usize >= mg.owned_nodes, "received into ghost nodes");
             assert_eq!(ms.x0[s as usize], mg.x0[g as usize]);
+        }
+    }
+}
+
+#[test]
+fn periodic_images_pair_up_node_for_node_shifted_by_the_cell() {
+    let loaded = load_scene(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/periodic/thornton_cell.toml"),
+        &[],
+    )
+    .unwrap();
+    let global = GlobalMesh::build(&loaded).unwrap();
+    let cell = mufe::model::periodic::PeriodicCell::of_scene(&loaded.scene).unwrap();
+    let at = Some(mufe::model::decomposition::PlanCell {
+        cell: &cell,
+        length: cell.length0,
+    });
+    let owner = [0, 0, 1, 1];
+    let margin = ghost_margin(&global);
+    let plans: Vec<Decomposition> = (0..2)
+        .map(|r| Decomposition::plan(&owner, &global.bounds, margin, r, at))
+        .collect();
+    let solvers: Vec<Solver> = plans.iter().map(|p| rank_solver(&loaded, p)).collect();
+    let halos: Vec<HaloPlan> = (0..2)
+        .map(|r| HaloPlan::new(&solvers[r].model, &plans[r]))
+        .collect();
+    let at_rest = cell.at_rest();
+    for r in 0..2 {
+        let q = 1 - r;
+        // every one of the 12 neighbours of each owned sphere is held: as the other rank's
+        // grain, its image, or an image of an own grain (copied locally)
+        let m = &solvers[r].model;
+        assert_eq!(
+            m.grains.len() - m.owned_grains,
+            plans[r].ghosts.len(),
+            "one model grain per ghost"
+        );
+        assert!(!m.local_images.is_empty(), "images of own grains");
+        let ((_, send), images) = (&halos[r].sends[0], &halos[r].send_images[0]);
+        let (_, recv) = &halos[q].receives[0];
+        assert_eq!(send.len(), recv.len());
+        for ((&s, &g), &image) in send.iter().zip(recv).zip(images) {
+            let (ms, mg) = (&solvers[r].model, &solvers[q].model);
+            let gs = &ms.grains[ms.node_grain[s as usize] as usize];
+            let gg = &mg.grains[mg.node_grain[g as usize] as usize];
+            assert_eq!((gs.global_id, image), (gg.global_id, gg.image));
+            let shift = at_rest.offset(image);
+            let expected: Vec<f64> = (0..3).map(|k| ms.x0[s as usize][k] + shift[k]).collect();
+            assert_eq!(expected, mg.x0[g as usize].to_vec());
         }
     }
 }

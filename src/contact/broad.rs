@@ -233,11 +233,7 @@ impl BroadPhase {
                 &cm.surfaces[p.slave as usize],
                 &cm.surfaces[p.master as usize],
             );
-            (
-                s.global_id,
-                m.global_id,
-                crate::model::periodic::relative_image(s.image, m.image),
-            )
+            (s.global_id, m.global_id, s.image, m.image)
         });
         lists.entries.clear();
         lists.candidates.clear();

@@ -122,18 +122,23 @@ pub const OVERLAP_TOLERANCE: f64 = 1e-3;
 const ENTRY_CHUNK: usize = 256;
 
 /// Global key of a grain–grain contact point: the slave node (grain id + node index within
-/// that grain) and the opposing grain with its periodic image relative to the slave's
-/// (the same on every rank, whichever of the two it holds as an image). Ordered by
-/// (grain, other, image, node).
+/// that grain) and the opposing grain, each with its periodic image. A contact with an
+/// image is seen twice (A against B's image, A's image against B); the two passes are
+/// distinct points with their own history, held by whichever ranks hold them, so a run
+/// gives the same history on any number of ranks. Ordered by (grain, other, image,
+/// other_image, node).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct ContactKey {
     /// Global id (scene index) of the slave node's grain.
     pub grain: u32,
     /// Global id of the master grain.
     pub other: u32,
-    /// Image of the master relative to the slave (all zero without a periodic cell).
+    /// Periodic image of the slave grain (all zero without a periodic cell).
     #[serde(default)]
     pub image: crate::model::periodic::Image,
+    /// Periodic image of the master grain.
+    #[serde(default)]
+    pub other_image: crate::model::periodic::Image,
     /// Node index within the slave grain's mesh.
     pub node: u32,
 }
@@ -145,7 +150,8 @@ impl ContactKey {
         Self {
             grain: slave.global_id,
             other: master.global_id,
-            image: crate::model::periodic::relative_image(slave.image, master.image),
+            image: slave.image,
+            other_image: master.image,
             node: node - slave.node_base,
         }
     }

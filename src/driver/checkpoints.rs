@@ -11,7 +11,7 @@
 //! `latest` takes the newest readable checkpoint of `OUT/checkpoints/`, naming on stderr
 //! every newer one it skipped as damaged.
 
-use super::migration::{pack_grain, unpack_grains};
+use super::migration::{pack_grain, pack_image_history, remote_images, unpack_grains};
 use super::rank::{build_rank_solver, metis_owner};
 use crate::domain::Domain;
 use crate::error::{InputError, MufeError, Result};
@@ -162,6 +162,15 @@ fn write_solver_checkpoint(
         pack_grain(solver, mg, &mut packages);
         ids.push(u64::from(g.global_id));
         lengths.push((packages.len() - before) as u64);
+    }
+    // the history of passes computed only here, for a restart on another rank count
+    for mg in remote_images(solver) {
+        let before = packages.len();
+        pack_image_history(solver, mg, &mut packages);
+        if packages.len() > before {
+            ids.push(u64::from(m.grains[mg].global_id));
+            lengths.push((packages.len() - before) as u64);
+        }
     }
     let part = RankCheckpoint {
         state: &state,

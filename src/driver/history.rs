@@ -176,6 +176,11 @@ pub fn history_columns(solver: &Solver) -> Vec<HistoryColumn> {
     for (name, units, desc) in stage_columns(solver) {
         c.push(HistoryColumn::new(&name, units, None, desc));
     }
+    if solver.model.periodic.is_some() {
+        for (name, units, desc) in periodic_columns() {
+            c.push(HistoryColumn::new(&name, units, None, desc));
+        }
+    }
     if cm.grain_contact {
         for (name, units, desc) in FABRIC_COLUMNS {
             c.push(HistoryColumn::new(name, units, None, desc));
@@ -223,6 +228,11 @@ pub fn history_reductions(solver: &Solver) -> Vec<Reduce> {
     // from the wall forces already summed over ranks in the step
     let same = 3 * servo_walls(solver).count() + stage_columns(solver).len();
     k.extend(std::iter::repeat_n(Reduce::Same, same));
+    if solver.model.periodic.is_some() {
+        // lengths and the contact stress are global already; the rest are rank shares
+        k.extend([Reduce::Same; 3 + 6]);
+        k.extend([Reduce::Sum; 6 + 6 + 1]);
+    }
     if solver.model.contact.grain_contact {
         // counts from rank 0 (zero elsewhere); each rank's share of the mean rotation
         k.extend([Reduce::Sum; FABRIC_COLUMNS.len()]);
@@ -279,6 +289,9 @@ pub fn history_row(solver: &Solver, row: &mut Vec<f64>) {
     }
     if let Some(plan) = &solver.model.stages {
         push_stage_values(solver, plan, row);
+    }
+    if let (Some(cell), Some(c)) = (&solver.model.periodic, &s.cell) {
+        push_periodic_values(solver, cell, c, row);
     }
     if solver.model.contact.grain_contact {
         let m = &solver.model;
@@ -373,6 +386,89 @@ fn stage_columns(solver: &Solver) -> Vec<(String, &'static str, &'static str)> {
         ));
     }
     c
+}
+
+/// Tensor components in the order of the element stress fields.
+const COMPONENTS: [(&str, usize); 6] = [
+    ("xx", 0),
+    ("yy", 4),
+    ("zz", 8),
+    ("yz", 5),
+    ("xz", 2),
+    ("xy", 1),
+];
+
+/// The periodic cell's columns: (name, units, description).
+fn periodic_columns() -> Vec<(String, &'static str, &'static str)> {
+    let mut c = Vec::new();
+    for axis in crate::scene::cell::AXES {
+        c.push((
+            format!("cell_length_{axis}"),
+            "m",
+            "edge length of the periodic cell",
+        ));
+    }
+    for (what, desc) in [
+        ("cell_contact_stress", "homogenised stress of the cell, contact part (Love–Weber): Σ f ⊗ l / V over contact points, l the branch vector between grain centres with the periodic image shift, compression positive; the servo holds its diagonal"),
+        ("cell_kinetic_stress", "homogenised stress of the cell, kinetic part: Σ m v′ ⊗ v′ / V, v′ each grain's velocity relative to the cell's homogeneous flow; σ = contact + kinetic"),
+        ("cell_grain_stress", "volume average over the cell of the grains' Cauchy stress, −Σ V_e σ_e / V, compression positive: equals the Love–Weber stress in equilibrium"),
+    ] {
+        for (comp, _) in COMPONENTS {
+            c.push((format!("{what}_{comp}"), "Pa", desc));
+        }
+    }
+    c.push((
+        "cell_work".into(),
+        "J",
+        "work of the periodic cell on the grains (part of ALLWK): Σ f·(s ∘ L̇) over contacts with images",
+    ));
+    c
+}
+
+/// Values of [`periodic_columns`]: this rank's shares where they are sums.
+fn push_periodic_values(
+    solver: &Solver,
+    cell: &crate::model::periodic::PeriodicCell,
+    c: &crate::solver::periodic::CellState,
+    row: &mut Vec<f64>,
+) {
+    let m = &solver.model;
+    let s = &solver.state;
+    let kin = crate::solver::periodic::cell_kinematics(m, s);
+    let volume: f64 = kin.length.iter().product();
+    row.extend_from_slice(&kin.length);
+    row.extend(COMPONENTS.map(|(_, i)| c.contact_stress[i]));
+    let mut kinetic = [0.0; 9];
+    for g in &m.grains[..m.owned_grains] {
+        let (mut mass, mut x, mut v) = (0.0, [0.0; 3], [0.0; 3]);
+        for n in g.nodes.clone() {
+            mass += m.mass[n];
+            for k in 0..3 {
+                x[k] += m.mass[n] * s.x[n][k];
+                v[k] += m.mass[n] * s.v[n][k];
+            }
+        }
+        let flow = |k: usize| kin.rate[k] / kin.length[k] * (x[k] / mass - cell.min[k]);
+        let dv = [0, 1, 2].map(|k| v[k] / mass - flow(k));
+        for i in 0..3 {
+            for j in 0..3 {
+                kinetic[3 * i + j] += mass * dv[i] * dv[j] / volume;
+            }
+        }
+    }
+    row.extend(COMPONENTS.map(|(_, i)| kinetic[i]));
+    let mut grains = [0.0; 9];
+    for e in 0..m.owned_elements {
+        let (f, r) = crate::solver::element_response(m, &s.x, &s.plastic, e);
+        let sigma = crate::material::cauchy_from_first_piola(&r.first_piola, &f);
+        let jacobian = crate::math::det3(&f);
+        let v = jacobian * m.tet_reference[e].volume;
+        for i in 0..9 {
+            grains[i] -= v * sigma[i] / volume;
+        }
+    }
+    row.extend(COMPONENTS.map(|(_, i)| grains[i]));
+    row.push(c.work.work);
 }
 
 /// How a history column combines over ranks.

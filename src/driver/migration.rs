@@ -11,8 +11,9 @@ use crate::scene::LoadedScene;
 use crate::solver::periodic::cell_kinematics;
 use crate::solver::{build_solver_for, Solver};
 
-/// Values per friction history point in a package: other, node, image (3), traction (3).
-const HISTORY_VALUES: usize = 8;
+/// Values per friction history point in a package: other, node, the slave's and the
+/// master's image (3 + 3), traction (3).
+const HISTORY_VALUES: usize = 11;
 
 /// Serialises what travels with a grain when it changes hands: its nodes' x and v, the
 /// friction history of its surface nodes as slaves, the state of its prescribed motions
@@ -57,16 +58,7 @@ pub fn pack_grain(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
         out.extend_from_slice(&st.v[n]);
     }
     for p in hist {
-        out.extend_from_slice(&[
-            p.key.other as f64,
-            p.key.node as f64,
-            f64::from(p.key.image[0]),
-            f64::from(p.key.image[1]),
-            f64::from(p.key.image[2]),
-            p.traction[0],
-            p.traction[1],
-            p.traction[2],
-        ]);
+        push_history_point(p, out);
     }
     for k in motion_ix {
         let b = m
@@ -88,6 +80,51 @@ pub fn pack_grain(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
     }
 }
 
+/// Serialises the friction history of the passes whose slave is `model_grain`, a ghost
+/// image of another rank's grain: a contact with an image is computed twice, as A against
+/// B's image (by A's owner) and as A's image against B (by B's owner), and the second
+/// pass's history lives only where it was computed, so it travels on its own (a package
+/// without nodes, see [`unpack_grains`]). Writes nothing when there is none.
+pub fn pack_image_history(solver: &Solver, model_grain: usize, out: &mut Vec<f64>) {
+    let g = &solver.model.grains[model_grain];
+    let hist: Vec<&crate::contact::FrictionPoint> = (solver.state.contact.history.iter())
+        .filter(|p| p.key.grain == g.global_id && p.key.image == g.image)
+        .collect();
+    if hist.is_empty() || g.image == crate::model::periodic::NO_IMAGE {
+        return;
+    }
+    out.extend_from_slice(&[g.global_id as f64, 0.0, hist.len() as f64, 0.0, 0.0]);
+    for p in hist {
+        push_history_point(p, out);
+    }
+}
+
+/// Model grains whose image histories travel separately ([`pack_image_history`]):
+/// images of other ranks' grains.
+pub fn remote_images(solver: &Solver) -> impl Iterator<Item = usize> + '_ {
+    let m = &solver.model;
+    (m.owned_grains..m.grains.len()).filter(move |&g| {
+        m.grains[g].image != crate::model::periodic::NO_IMAGE
+            && !m.local_images.iter().any(|&(i, _)| i == g)
+    })
+}
+
+fn push_history_point(p: &crate::contact::FrictionPoint, out: &mut Vec<f64>) {
+    out.extend_from_slice(&[
+        p.key.other as f64,
+        p.key.node as f64,
+        f64::from(p.key.image[0]),
+        f64::from(p.key.image[1]),
+        f64::from(p.key.image[2]),
+        f64::from(p.key.other_image[0]),
+        f64::from(p.key.other_image[1]),
+        f64::from(p.key.other_image[2]),
+        p.traction[0],
+        p.traction[1],
+        p.traction[2],
+    ]);
+}
+
 /// Installs packed grains (see [`pack_grain`]) into a freshly built solver. Returns the
 /// global ids installed.
 pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
@@ -104,19 +141,20 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
             head[4] as usize,
         );
         i += 5;
+        let history_only = nn == 0;
         let Some(mg) = solver.model.grains.iter().position(|g| g.global_id == gid) else {
             // not held here: skip the package
             i += 6 * nn + HISTORY_VALUES * nh + nm * (1 + 9 + 12 + 2) + 7 * np;
             continue;
         };
         let range = solver.model.grains[mg].nodes.clone();
-        if range.len() != nn {
+        if range.len() != nn && !history_only {
             return Err(MufeError::Run(format!(
                 "migration: grain {gid} has {} nodes here, {nn} in the package",
                 range.len()
             )));
         }
-        for (k, n) in range.clone().enumerate() {
+        for (k, n) in range.clone().enumerate().take(nn) {
             let p = data.get(i + 3 * k..i + 3 * k + 3).ok_or_else(bad)?;
             solver.state.x[n] = [p[0], p[1], p[2]];
             let q = data
@@ -136,9 +174,10 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
                         grain: gid,
                         other: p[0] as u32,
                         image: [p[2] as i8, p[3] as i8, p[4] as i8],
+                        other_image: [p[5] as i8, p[6] as i8, p[7] as i8],
                         node: p[1] as u32,
                     },
-                    traction: [p[5], p[6], p[7]],
+                    traction: [p[8], p[9], p[10]],
                 });
             i += HISTORY_VALUES;
         }
@@ -165,7 +204,7 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
             i += 24;
         }
         // plastic state: only an owner keeps it (ghost elements are not evaluated)
-        if let Some(range) = solver.model.plastic_range(mg) {
+        if let Some(range) = solver.model.plastic_range(mg).filter(|_| !history_only) {
             if range.len() != np {
                 return Err(MufeError::Run(format!(
                     "migration: grain {gid} has {} plastic elements here, {np} in the package",
@@ -181,7 +220,9 @@ pub fn unpack_grains(solver: &mut Solver, data: &[f64]) -> Result<Vec<u32>> {
             }
         }
         i += 7 * np;
-        installed.push(gid);
+        if !history_only {
+            installed.push(gid);
+        }
     }
     solver.state.contact.history.sort_by_key(|p| p.key);
     solver.state.contact.history.dedup_by_key(|p| p.key);
@@ -219,6 +260,14 @@ pub fn redistribute(
         for (r, p) in plans.iter().enumerate() {
             if p.holds(gid) {
                 pack_grain(old, mg, &mut sends[r]);
+            }
+        }
+    }
+    for mg in remote_images(old) {
+        let gid = old.model.grains[mg].global_id as usize;
+        for (r, p) in plans.iter().enumerate() {
+            if p.holds(gid) {
+                pack_image_history(old, mg, &mut sends[r]);
             }
         }
     }

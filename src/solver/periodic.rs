@@ -7,7 +7,8 @@
 //! point c on its slave grain and l_c = x_slave − x_master the branch vector between the
 //! two grains' centres, the master's periodic image shift included; each point is counted
 //! by the rank owning its slave node, and the two passes of a pair (weight ½ each) add up
-//! to the pair's force. A grain's centre here is the mean of its surface nodes: in
+//! to the pair's force. The sum is kept per slave grain and added in global grain order
+//! after the sum over ranks, so the servo sees the same number on any rank count. A grain's centre here is the mean of its surface nodes: in
 //! equilibrium (every grain's net force zero) any point of each grain gives the same sum.
 //! The kinetic term uses each grain's velocity relative to the cell's homogeneous flow
 //! L̇ₖ/Lₖ (xₖ − minₖ) and is added in the history (it is ~ρv², negligible quasi-statically,
@@ -99,22 +100,25 @@ pub fn refresh_local_images(
     }
 }
 
-/// This rank's contact sums of one step: Σ f ⊗ l over its contact points (N·m,
-/// row-major; divide by V for the stress) and, per axis, Σ f_el,k r_k (N): the cell's
-/// power is that dotted with L̇ (see the module docs).
+/// This rank's part of the contact sums of one step, per axis Σ f_el,k r_k (N): the
+/// cell's power is that dotted with L̇ (see the module docs).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct CellContactSums {
-    pub force_branch: [f64; 9],
     pub image_force: [f64; 3],
 }
 
-/// [`CellContactSums`] of the last contact evaluation at `x`; `centres` is scratch (one
-/// entry per model grain).
+/// The sums of the last contact evaluation at `x`: Σ f ⊗ l of each owned slave grain
+/// (N·m, row-major) into `per_grain` at 9 × its global id (zero elsewhere, `grains`
+/// global grains), so that summing over ranks and then over grains in global order gives
+/// every rank count the serial total bit for bit ([`total_over_grains`]); and the
+/// returned image forces. `centres` is scratch (one entry per model grain).
 pub fn cell_contact_sums(
     model: &Model,
     x: &[[f64; 3]],
     contact: &ContactScratch,
     centres: &mut Vec<[f64; 3]>,
+    per_grain: &mut Vec<f64>,
+    grains: usize,
 ) -> CellContactSums {
     let cm = &model.contact;
     centres.clear();
@@ -128,6 +132,8 @@ pub fn cell_contact_sums(
         }
         c.map(|v| v / nodes.len().max(1) as f64)
     }));
+    per_grain.clear();
+    per_grain.resize(9 * grains, 0.0);
     let mut sums = CellContactSums::default();
     let lists = &contact.lists;
     for (e, r) in lists.entries.iter().zip(&contact.results) {
@@ -137,9 +143,10 @@ pub fn cell_contact_sums(
             continue;
         }
         let l = [0, 1, 2].map(|k| centres[s][k] - centres[m][k]);
+        let g = 9 * model.grains[s].global_id as usize;
         for i in 0..3 {
             for j in 0..3 {
-                sums.force_branch[3 * i + j] += r.force[i] * l[j];
+                per_grain[g + 3 * i + j] += r.force[i] * l[j];
             }
         }
         let shift = relative_image(model.grains[s].image, model.grains[m].image);
@@ -149,6 +156,44 @@ pub fn cell_contact_sums(
         }
     }
     sums
+}
+
+/// Σ over grains, in global order, of the per-grain sums of [`cell_contact_sums`].
+pub fn total_over_grains(per_grain: &[f64]) -> [f64; 9] {
+    let mut total = [0.0; 9];
+    for g in per_grain.chunks_exact(9) {
+        for i in 0..9 {
+            total[i] += g[i];
+        }
+    }
+    total
+}
+
+/// Limits how fast each axis' speed may change: by at most max(|v_old|, |v_new|) × Δt/T
+/// per step, T one P-wave transit across the cell, so the cell takes up a new speed over
+/// at least one transit. The stages set speeds stepwise (a servo starts at G F*, a strain
+/// rate at its full value); a wall can take such a step (it is a kinematic constraint),
+/// but an image jumping to a new speed hits the grains it touches like an impact, and the
+/// penalty contacts' integration error at such an impact shows in the ledger.
+pub fn ramp_axis_speeds(model: &Model, cell: &mut CellState, before: [f64; 3], dt: f64) {
+    let Some(periodic) = &model.periodic else {
+        return;
+    };
+    let wave_speed = (model.materials.iter())
+        .map(|m| m.dilatational_wave_speed())
+        .fold(0.0, f64::max);
+    let transit = periodic.length0.iter().cloned().fold(0.0, f64::max) / wave_speed;
+    for (axis, old) in cell.axes.iter_mut().zip(before) {
+        if let Some(a) = axis {
+            let step = old.abs().max(a.velocity.abs()) * dt / transit;
+            a.velocity = old + (a.velocity - old).clamp(-step, step);
+        }
+    }
+}
+
+/// Speed of each axis over the next step (m/s of shortening; 0 along fixed axes).
+pub fn axis_speeds(cell: &CellState) -> [f64; 3] {
+    cell.axes.map(|a| a.map_or(0.0, |s| s.velocity))
 }
 
 /// Power of the cell (W) for image forces `q` (N) at rates `rate` (m/s).

@@ -13,7 +13,8 @@ use super::damping::{
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::motions::drive_prescribed_motions;
 use super::periodic::{
-    cell_contact_sums, cell_kinematics, cell_power, refresh_local_images, CellState,
+    axis_speeds, cell_contact_sums, cell_kinematics, cell_power, ramp_axis_speeds,
+    refresh_local_images, total_over_grains, CellState,
 };
 use super::state::{Reaction, State};
 use super::timing::{Stage, StageTimers};
@@ -74,6 +75,8 @@ pub struct Scratch {
     pub(super) grain_rigid: Vec<RigidVelocity>,
     /// Centre of each grain for the periodic cell's stress.
     grain_centres: Vec<[f64; 3]>,
+    /// Σ f ⊗ l of each grain of the scene (9 per global id) for the cell's stress.
+    cell_grain_sums: Vec<f64>,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -149,6 +152,7 @@ impl Solver {
             node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
             grain_centres: Vec::with_capacity(model.grains.len()),
+            cell_grain_sums: Vec::new(),
         };
         Self {
             model,
@@ -319,9 +323,11 @@ impl Solver {
                     &state.x,
                     &scratch.contact,
                     &mut scratch.grain_centres,
+                    &mut scratch.cell_grain_sums,
+                    state.partition.owner.len(),
                 );
-                let mut total = sums.force_branch;
-                hooks.sum(&mut total);
+                hooks.sum(&mut scratch.cell_grain_sums);
+                let total = total_over_grains(&scratch.cell_grain_sums);
                 let volume: f64 = cell_before.length.iter().product();
                 if let Some(c) = &mut state.cell {
                     c.contact_stress = total.map(|v| v / volume);
@@ -355,6 +361,7 @@ impl Solver {
                         scratch.wall_forces.push(c.contact_stress[4 * k] * area);
                     }
                 }
+                let speeds = state.cell.as_ref().map(axis_speeds);
                 crate::contact::advance_walls(
                     plan,
                     &mut state.contact,
@@ -364,6 +371,9 @@ impl Solver {
                     state.time + dt,
                     dt,
                 );
+                if let (Some(c), Some(before)) = (&mut state.cell, speeds) {
+                    ramp_axis_speeds(model, c, before, dt);
+                }
             });
         }
         let cell_after = cell_kinematics(model, state);

@@ -1,0 +1,136 @@
+//! The periodic FCC cell (issue 12): `jobs/periodic/thornton_cell.toml`, one cubic cell
+//! of 4 spheres repeated along x, y, z (no walls), isotropic compression on the cell's
+//! homogenised stress, then axial shortening at a constant inertial number with σx = σy
+//! servo-held, to failure.
+//! - both stages end as they should (stress held; failure + margin) and the servo holds
+//!   the lateral stress;
+//! - the peak σ1/σ3 is within 2 % of Thornton's 2(1+μ)/(1−μ) for the scene's μ;
+//! - the Love–Weber contact stress equals the volume average of the grains' Cauchy
+//!   stress once the cell slides slowly (equilibrium), and the ledger balances with the
+//!   cell's work in ALLWK;
+//! - `/history` is the same on 2 and 3 ranks as on 1 (1e-10 of each series' scale): the
+//!   images of grains on other ranks come through the halo, shifted by the cell.
+
+#[path = "common/mpi_launch.rs"]
+mod mpi_launch;
+#[path = "common/results.rs"]
+mod results;
+
+use results::{column, history};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+const SCENE: &str = "jobs/periodic/thornton_cell.toml";
+
+fn scene_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(SCENE)
+}
+
+fn run(ranks: usize, name: &str) -> (PathBuf, String) {
+    let out = std::env::temp_dir().join(format!("mufe_periodic_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let scene = scene_path();
+    let args = [
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        "1",
+    ];
+    let o = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(300));
+    mpi_launch::assert_success(&o);
+    (out, String::from_utf8_lossy(&o.stdout).into_owned())
+}
+
+#[test]
+fn the_periodic_cell_fails_at_thornton_and_agrees_on_two_and_three_ranks() {
+    let scene = mufe::scene::load_scene(&scene_path(), &[]).unwrap().scene;
+    let mu = scene.contact.friction;
+    let sigma3 = 5.0e4;
+    let (serial_dir, stdout) = run(1, "r1");
+    let serial = history(&serial_dir.join("results.h5"));
+    assert!(
+        stdout.contains("stage 'isotropic' done") && stdout.contains("ended by stress held"),
+        "stage 1 did not hold the stress:\n{stdout}"
+    );
+    assert!(
+        stdout.contains("stage 'shear' done") && stdout.contains("ended by failure + margin"),
+        "no failure detected in stage 2:\n{stdout}"
+    );
+    let stage = column(&serial, "stage");
+    let end1 = stage.iter().rposition(|&s| s == 1.0).unwrap();
+    for a in ["sigma_x", "sigma_y", "sigma_z"] {
+        let s = column(&serial, a)[end1];
+        assert!((s / sigma3 - 1.0).abs() <= 0.01, "{a} = {s:.5e} Pa");
+    }
+    for (i, _) in stage.iter().enumerate().filter(|(_, &s)| s == 2.0) {
+        for a in ["sigma_x", "sigma_y"] {
+            let s = column(&serial, a)[i];
+            assert!(
+                (s / sigma3 - 1.0).abs() <= 0.05,
+                "{a} = {s:.4e} Pa at row {i}"
+            );
+        }
+    }
+    let ratio = column(&serial, "stress_ratio");
+    let peak = (ratio.iter().zip(stage))
+        .filter(|(_, &s)| s == 2.0)
+        .map(|(r, _)| *r)
+        .fold(0.0, f64::max);
+    let thornton = 2.0 * (1.0 + mu) / (1.0 - mu);
+    assert!(
+        (peak / thornton - 1.0).abs() <= 0.02,
+        "peak σ1/σ3 = {peak:.4} against Thornton {thornton:.4} (μ = {mu})"
+    );
+
+    // sliding slowly at the end: Love–Weber = volume-averaged grain stress
+    let last = stage.len() - 1;
+    let scale = column(&serial, "cell_contact_stress_zz")[last];
+    for c in ["xx", "yy", "zz", "yz", "xz", "xy"] {
+        let lw = column(&serial, &format!("cell_contact_stress_{c}"))[last]
+            + column(&serial, &format!("cell_kinetic_stress_{c}"))[last];
+        let grains = column(&serial, &format!("cell_grain_stress_{c}"))[last];
+        assert!(
+            (lw - grains).abs() <= 0.005 * scale,
+            "{c}: Love–Weber {lw:.5e} Pa, grains {grains:.5e} Pa"
+        );
+    }
+    // the ledger closes with the cell's work as the only external work
+    let work = column(&serial, "external_work");
+    let cell = column(&serial, "cell_work");
+    let balance = column(&serial, "energy_balance");
+    let w_max = work.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for i in 0..work.len() {
+        assert_eq!(work[i], cell[i], "row {i}: ALLWK is the cell's work");
+        assert!(
+            balance[i].abs() <= 5e-4 * w_max,
+            "row {i}: ETOTAL {:.3e} J of ALLWK {w_max:.3e} J",
+            balance[i]
+        );
+    }
+
+    for ranks in [2, 3] {
+        let (dir, _) = run(ranks, &format!("r{ranks}"));
+        let parallel = history(&dir.join("results.h5"));
+        assert_eq!(serial.len(), parallel.len(), "same columns");
+        for ((name, a), (name_b, b)) in serial.iter().zip(&parallel) {
+            assert_eq!(name, name_b);
+            assert_eq!(a.len(), b.len(), "{name}: rows on {ranks} ranks");
+            let scale = a.iter().map(|v| v.abs()).fold(0.0, f64::max).max(1e-300);
+            let scale = if name == "energy_balance" {
+                scale.max(w_max)
+            } else {
+                scale
+            };
+            for (i, (x, y)) in a.iter().zip(b).enumerate() {
+                assert!(
+                    (x - y).abs() <= 1e-10 * scale,
+                    "/history/{name}[{i}]: {ranks} ranks {y:e}, 1 rank {x:e}"
+                );
+            }
+        }
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    let _ = std::fs::remove_dir_all(serial_dir);
+}
