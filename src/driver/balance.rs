@@ -19,7 +19,6 @@ use crate::error::Result;
 use crate::model::decomposition::{imbalance, GrainBound, Partition};
 use crate::model::global::{ghost_margin, GlobalMesh};
 use crate::scene::LoadedScene;
-use crate::solver::periodic::cell_kinematics;
 use crate::solver::Solver;
 
 /// A new decomposition: grains changed hands or the ghosts were re-planned.
@@ -95,6 +94,84 @@ fn gather_grain_status(
         .unzip()
 }
 
+/// Brings every owned grain whose centroid has left the periodic box back into it by a
+/// whole cell vector (nodes shifted, the shift added to `CellState::wrapped` so that
+/// reported displacements stay continuous), and renames the friction history of its
+/// contacts to the images they now are. Returns whether any grain of the scene was
+/// wrapped (the ghosts must then be re-planned: the grain moved by a cell length). All
+/// ranks must call.
+pub fn wrap_into_cell(domain: &Domain, solver: &mut Solver) -> bool {
+    let Some(cell) = solver.model.periodic.clone() else {
+        return false;
+    };
+    let n = solver.state.partition.owner.len();
+    let length = solver.state.cell_kinematics(&solver.model).length;
+    let m = &solver.model;
+    // whole cell vectors per grain of the scene, this rank's owned grains filled in
+    let mut shifts = vec![0.0; 3 * n];
+    for g in &m.grains[..m.owned_grains] {
+        let nodes = &solver.state.x[g.nodes.clone()];
+        let mut c = [0.0; 3];
+        for p in nodes {
+            for k in 0..3 {
+                c[k] += p[k] / nodes.len() as f64;
+            }
+        }
+        let offset = cell.wrap_offset(c, length);
+        for k in 0..3 {
+            if length[k] > 0.0 {
+                shifts[3 * g.global_id as usize + k] = (offset[k] / length[k]).round();
+            }
+        }
+    }
+    if domain.size() > 1 {
+        domain.sum_in_place(&mut shifts);
+    }
+    if shifts.iter().all(|&s| s == 0.0) {
+        return false;
+    }
+    let shift_of = |gid: u32| -> [f64; 3] {
+        let i = 3 * gid as usize;
+        [shifts[i], shifts[i + 1], shifts[i + 2]]
+    };
+    let state = &mut solver.state;
+    for g in &m.grains[..m.owned_grains] {
+        let k = shift_of(g.global_id);
+        for x in &mut state.x[g.nodes.clone()] {
+            for a in 0..3 {
+                x[a] += k[a] * length[a];
+            }
+        }
+    }
+    if let Some(c) = &mut state.cell {
+        c.wrapped.resize(n, [0.0; 3]);
+        for (gid, w) in c.wrapped.iter_mut().enumerate() {
+            let k = shift_of(gid as u32);
+            for a in 0..3 {
+                w[a] += k[a] * length[a];
+            }
+        }
+    }
+    // a grain moved by k cell vectors is, to everything it touched, its image −k
+    let history = &mut state.contact.history;
+    history.retain_mut(|p| {
+        let (ks, km) = (shift_of(p.key.grain), shift_of(p.key.other));
+        let mut inside = true;
+        for a in 0..3 {
+            let (s, o) = (
+                f64::from(p.key.image[a]) - ks[a],
+                f64::from(p.key.other_image[a]) - km[a],
+            );
+            inside &= s.abs() <= 1.0 && o.abs() <= 1.0;
+            p.key.image[a] = s as i8;
+            p.key.other_image[a] = o as i8;
+        }
+        inside
+    });
+    history.sort_by_key(|p| p.key);
+    true
+}
+
 /// Re-partitions when the counted load imbalance exceeds the threshold, or re-plans the
 /// ghosts when some grain moved far from the last plan (see the module docs); `None` when
 /// nothing needs to change. The caller must have completed any halo exchange in flight.
@@ -124,7 +201,7 @@ pub fn rebalance(
         })
         .fold(0.0, f64::max);
     // the images move with the cell's edges
-    let cell_now = cell_kinematics(&solver.model, &solver.state).length;
+    let cell_now = solver.state.cell_kinematics(&solver.model).length;
     let cell_moved = (0..3)
         .map(|k| (cell_now[k] - partition.planned_cell[k]).abs())
         .sum::<f64>();

@@ -68,10 +68,18 @@ pub fn write_frame(
     let grain_offset: Vec<usize> = (0..=global.meshes.len()).collect();
     let grain_blocks = grain_row_blocks(owned(), &grain_offset);
 
-    let disp: Vec<f64> = solver.state.x[..nn]
-        .iter()
-        .zip(&m.x0[..nn])
-        .flat_map(|(x, x0)| [x[0] - x0[0], x[1] - x0[1], x[2] - x0[2]])
+    // a grain wrapped back into a periodic cell is measured from its shifted reference
+    let wrapped = |n: usize| {
+        let gid = m.grains[m.node_grain[n] as usize].global_id as usize;
+        (solver.state.cell.as_ref())
+            .and_then(|c| c.wrapped.get(gid).copied())
+            .unwrap_or([0.0; 3])
+    };
+    let disp: Vec<f64> = (0..nn)
+        .flat_map(|n| {
+            let (x, x0, w) = (solver.state.x[n], m.x0[n], wrapped(n));
+            [0, 1, 2].map(|k| x[k] - x0[k] - w[k])
+        })
         .collect();
     let vel = solver.state.v[..nn].as_flattened();
     let mut contact = vec![[0.0; 3]; m.num_nodes()];
@@ -178,7 +186,11 @@ fn grain_records(solver: &Solver, element_stress: &[f64]) -> GrainRecords {
     };
     for g in 0..m.owned_grains {
         let motion = grain_motion(m, &solver.state.x, g);
-        r.displacement.extend_from_slice(&motion.displacement);
+        let w = (solver.state.cell.as_ref())
+            .and_then(|c| c.wrapped.get(m.grains[g].global_id as usize).copied())
+            .unwrap_or([0.0; 3]);
+        r.displacement
+            .extend_from_slice(&[0, 1, 2].map(|k| motion.displacement[k] - w[k]));
         r.rotation.extend_from_slice(&motion.rotation);
         let (mut sum, mut volume) = ([0.0; 6], 0.0);
         for e in m.grains[g].elements.clone() {

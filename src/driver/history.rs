@@ -434,7 +434,7 @@ fn push_periodic_values(
 ) {
     let m = &solver.model;
     let s = &solver.state;
-    let kin = crate::solver::periodic::cell_kinematics(m, s);
+    let kin = s.cell_kinematics(m);
     let volume: f64 = kin.length.iter().product();
     row.extend_from_slice(&kin.length);
     row.extend(COMPONENTS.map(|(_, i)| c.contact_stress[i]));

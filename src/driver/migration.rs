@@ -8,7 +8,6 @@ use crate::error::{MufeError, Result};
 use crate::model::decomposition::{Decomposition, GrainBound};
 use crate::model::global::GlobalMesh;
 use crate::scene::LoadedScene;
-use crate::solver::periodic::cell_kinematics;
 use crate::solver::{build_solver_for, Solver};
 
 /// Values per friction history point in a package: other, node, the slave's and the
@@ -243,7 +242,7 @@ pub fn redistribute(
     new_owner: &[u32],
     bounds: &[GrainBound],
 ) -> Result<(Solver, Decomposition, HaloPlan)> {
-    let cell = cell_kinematics(&old.model, &old.state).length;
+    let cell = old.state.cell_kinematics(&old.model).length;
     let plan = plan_ghosts(loaded, global, new_owner, bounds, cell, domain.rank());
     // who will hold each grain (owner + ghost holders): every rank can compute every plan
     let plans: Vec<Decomposition> = (0..domain.size())

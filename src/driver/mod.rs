@@ -31,7 +31,6 @@ use crate::domain::Domain;
 use crate::error::{MufeError, Result};
 use crate::model::global::GlobalMesh;
 use crate::scene::LoadedScene;
-use crate::solver::periodic::cell_kinematics;
 use crate::solver::{Solver, Stage};
 use balance::{rebalance, Rebalanced};
 use output::Output;
@@ -73,6 +72,8 @@ pub struct RunSummary {
     pub time: f64,
     pub dt: f64,
     pub wall_s: f64,
+    /// Elements and nodes of the scene (every rank's owned ones; ghosts and periodic
+    /// images are copies and not counted).
     pub elements: usize,
     pub nodes: usize,
     pub energy: crate::energy::EnergyLedger,
@@ -164,7 +165,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     if restarted {
         // the ghosts' values in flight when the checkpoint was written
         let s = &run.solver.state;
-        let cell = cell_kinematics(&run.solver.model, s);
+        let cell = s.cell_kinematics(&run.solver.model);
         run.hooks.halo.begin(&s.x, &s.v, &cell)?;
     }
     let mut output = Output::open(
@@ -390,10 +391,13 @@ impl Run<'_, '_> {
         let (domain, loaded) = (self.domain, self.loaded);
         let s = &mut self.solver.state;
         self.hooks.halo.end(&mut s.x, &mut s.v)?;
+        if balance::wrap_into_cell(domain, &mut self.solver) && self.talk {
+            println!("grains wrapped back into the periodic cell at step {step}");
+        }
         match rebalance(domain, loaded, self.global, &self.solver)? {
             None => {
                 let s = &self.solver.state;
-                let cell = cell_kinematics(&self.solver.model, s);
+                let cell = s.cell_kinematics(&self.solver.model);
                 self.hooks.halo.begin(&s.x, &s.v, &cell)?;
             }
             Some(Rebalanced {
@@ -405,7 +409,7 @@ impl Run<'_, '_> {
                 self.hooks.halo = Halo::new(domain, halo);
                 // the new ghosts (images too: a package fills one copy) from their owners
                 let s = &self.solver.state;
-                let cell = cell_kinematics(&self.solver.model, s);
+                let cell = s.cell_kinematics(&self.solver.model);
                 self.hooks.halo.begin(&s.x, &s.v, &cell)?;
                 if self.talk {
                     println!(
@@ -450,8 +454,8 @@ impl Run<'_, '_> {
             time: solver.state.time,
             dt: solver.model.dt,
             wall_s: wall0.elapsed().as_secs_f64(),
-            elements: solver.model.num_elements(),
-            nodes: solver.model.num_nodes(),
+            elements: self.global.total_elements(),
+            nodes: self.global.total_nodes(),
             energy,
             timing_table: solver.timers.table(solver.state.step - self.first_step),
             results: opts.out.join(crate::io::results::RESULTS_FILE_NAME),

@@ -213,7 +213,7 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
     let e = &summary.energy;
     println!("{}", summary.timing_table);
     println!(
-        "done: {} steps to t = {:.6e} s in {:.2} s wall ({:.3e} element updates/s)",
+        "done: {} steps to t = {:.6e} s in {:.2} s wall ({:.3e} element updates/s, all ranks)",
         summary.steps,
         summary.time,
         summary.wall_s,

@@ -5,7 +5,7 @@
 //! (`crate::solver::stable_step`); the initial-overlap check is contact's.
 
 use super::contact_layout::ContactModel;
-use super::decomposition::{Decomposition, GhostRef, PlanCell};
+use super::decomposition::GhostRef;
 use super::periodic::{PeriodicCell, NO_IMAGE};
 use super::{GrainBlock, Model};
 use crate::boundary::{PrescribedMotion, Translation};
@@ -51,31 +51,6 @@ pub fn premesh_surfaces(loaded: &LoadedScene) {
             start.elapsed().as_secs_f64()
         );
     }
-}
-
-/// Builds the model of the given grains (all grains on one rank: `owned = 0..n`), with
-/// the periodic images they need ([`serial_images`]).
-pub fn build_model(
-    loaded: &LoadedScene,
-    owned: &[usize],
-) -> Result<(Model, Vec<PrescribedMotion>), InputError> {
-    build_model_with_ghosts(loaded, owned, &serial_images(loaded)?)
-}
-
-/// The periodic images one rank holding every grain mirrors at t = 0 (none without a
-/// periodic cell).
-pub fn serial_images(loaded: &LoadedScene) -> Result<Vec<GhostRef>, InputError> {
-    let Some(cell) = PeriodicCell::of_scene(&loaded.scene) else {
-        return Ok(Vec::new());
-    };
-    let global = super::GlobalMesh::build(loaded)?;
-    let margin = super::global::ghost_margin(&global);
-    let at = PlanCell {
-        cell: &cell,
-        length: cell.length0,
-    };
-    let owner = vec![0; loaded.scene.grains.len()];
-    Ok(Decomposition::plan(&owner, &global.bounds, margin, 0, Some(at)).ghosts)
 }
 
 /// Builds the model of this rank: the `owned` grains (advanced here) followed by `ghosts`

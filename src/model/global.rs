@@ -3,7 +3,8 @@
 //! spheres. It sizes the partition, the results file and the ghost margin.
 
 use super::assemble::mesh_shape;
-use super::decomposition::GrainBound;
+use super::decomposition::{Decomposition, GhostRef, GrainBound, PlanCell};
+use super::periodic::PeriodicCell;
 use crate::error::InputError;
 use crate::mesh::{self, TetMesh};
 use crate::scene::LoadedScene;
@@ -94,4 +95,20 @@ pub fn ghost_margin(global: &GlobalMesh) -> f64 {
         .map(|b| b.radius)
         .fold(f64::INFINITY, f64::min);
     0.25 * r_min
+}
+
+/// The periodic images one rank holding every grain mirrors at t = 0 (none without a
+/// periodic cell).
+pub fn serial_images(loaded: &LoadedScene) -> Result<Vec<GhostRef>, InputError> {
+    let Some(cell) = PeriodicCell::of_scene(&loaded.scene) else {
+        return Ok(Vec::new());
+    };
+    let global = GlobalMesh::build(loaded)?;
+    let margin = ghost_margin(&global);
+    let at = PlanCell {
+        cell: &cell,
+        length: cell.length0,
+    };
+    let owner = vec![0; loaded.scene.grains.len()];
+    Ok(Decomposition::plan(&owner, &global.bounds, margin, 0, Some(at)).ghosts)
 }

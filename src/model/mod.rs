@@ -17,9 +17,9 @@ pub mod decomposition;
 pub mod global;
 pub mod periodic;
 
-pub use assemble::{build_model, build_model_with_ghosts, mesh_shape, serial_images};
+pub use assemble::{build_model_with_ghosts, mesh_shape};
 pub use contact_layout::{ContactModel, NONE};
-pub use global::GlobalMesh;
+pub use global::{serial_images, GlobalMesh};
 
 use crate::element::TetReference;
 use crate::material::{ElasticParameters, MaterialLaw};

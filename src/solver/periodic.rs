@@ -22,7 +22,6 @@
 //! ALLWK. The normal dashpot's part is not in it: ALLVD already counts the dashpot's power
 //! on each node with the node's own velocity.
 
-use super::state::State;
 use crate::boundary::servo::ServoState;
 use crate::contact::ContactScratch;
 use crate::energy::WorkAccumulator;
@@ -71,14 +70,6 @@ impl CellState {
     /// Volume of the box (m³).
     pub fn volume(&self, cell: &PeriodicCell) -> f64 {
         self.kinematics(cell, 1.0).length.iter().product()
-    }
-}
-
-/// The cell's kinematics in `state` (zero lengths without a cell).
-pub fn cell_kinematics(model: &Model, state: &State) -> CellKinematics {
-    match (&model.periodic, &state.cell) {
-        (Some(cell), Some(c)) => c.kinematics(cell, model.dt),
-        _ => CellKinematics::default(),
     }
 }
 

@@ -8,6 +8,7 @@ use crate::contact::ContactState;
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::material::PlasticPoint;
 use crate::model::decomposition::Partition;
+use crate::model::periodic::CellKinematics;
 use serde::{Deserialize, Serialize};
 
 /// Reaction of a prescribed motion at the last step.
@@ -136,6 +137,15 @@ impl State {
                 .map(|w| [w.work, w.friction])
                 .collect(),
             cell_work: self.cell.as_ref().map(|c| c.work).unwrap_or_default(),
+        }
+    }
+
+    /// The periodic cell's edge lengths at t_n and their rates over the step that led
+    /// there (zero without a cell).
+    pub fn cell_kinematics(&self, model: &crate::model::Model) -> CellKinematics {
+        match (&model.periodic, &self.cell) {
+            (Some(cell), Some(c)) => c.kinematics(cell, model.dt),
+            _ => CellKinematics::default(),
         }
     }
 

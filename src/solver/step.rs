@@ -13,8 +13,8 @@ use super::damping::{
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::motions::drive_prescribed_motions;
 use super::periodic::{
-    axis_speeds, cell_contact_sums, cell_kinematics, cell_power, ramp_axis_speeds,
-    refresh_local_images, total_over_grains, CellState,
+    axis_speeds, cell_contact_sums, cell_power, ramp_axis_speeds, refresh_local_images,
+    total_over_grains, CellState,
 };
 use super::state::{Reaction, State};
 use super::timing::{Stage, StageTimers};
@@ -236,7 +236,7 @@ impl Solver {
         });
         timers.time(Stage::Halo, || hooks.ghosts_in(&mut state.x, &mut state.v))?;
         // the cell at t_n, with its rate over the step that led there
-        let cell_before = cell_kinematics(model, state);
+        let cell_before = state.cell_kinematics(model);
         if model.periodic.is_some() {
             timers.time(Stage::Halo, || {
                 refresh_local_images(model, &mut state.x, &mut state.v, &cell_before)
@@ -376,7 +376,7 @@ impl Solver {
                 }
             });
         }
-        let cell_after = cell_kinematics(model, state);
+        let cell_after = state.cell_kinematics(model);
         if let (Some(sums), Some(c)) = (cell_sums, &mut state.cell) {
             c.work.record(
                 dt,

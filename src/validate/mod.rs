@@ -13,8 +13,8 @@ pub mod record;
 pub mod reference;
 pub mod runner;
 pub mod scenes;
+pub mod thornton;
 pub mod thornton_scene;
-pub mod thornton_walls;
 pub mod two_sphere;
 
 use crate::error::InputError;
@@ -25,7 +25,7 @@ use runner::{Case, CaseOutcome};
 pub const QUICK_TOLERANCE_FACTOR: f64 = 1.5;
 
 /// All cases, in the order they run.
-pub const CASE_NAMES: [&str; 9] = [
+pub const CASE_NAMES: [&str; 10] = [
     "hertz",
     "hertz_ellipsoid",
     "mindlin",
@@ -35,6 +35,7 @@ pub const CASE_NAMES: [&str; 9] = [
     "plastic_cube",
     "plastic_spheres",
     "thornton_walls",
+    "thornton",
 ];
 
 /// Resolves case names (empty: all) to case objects.
@@ -64,7 +65,8 @@ pub fn select_cases(names: &[String]) -> Result<Vec<Box<dyn Case>>, InputError> 
                 })),
                 "plastic_cube" => Ok(Box::new(plastic_cube::PlasticCubeCase)),
                 "plastic_spheres" => Ok(Box::new(plastic_spheres::PlasticSpheresCase)),
-                "thornton_walls" => Ok(Box::new(thornton_walls::ThorntonWallsCase)),
+                "thornton_walls" => Ok(Box::new(thornton::ThorntonCase { periodic: false })),
+                "thornton" => Ok(Box::new(thornton::ThorntonCase { periodic: true })),
                 other => Err(InputError::new(
                     "<command line>",
                     "CASE",

@@ -489,6 +489,7 @@ pub struct Params {
     pub torsion: TwoSphereParams,
     pub rolling: TwoSphereParams,
     pub thornton_walls: super::thornton_scene::ThorntonParams,
+    pub thornton: super::thornton_scene::ThorntonParams,
     pub hertz_ellipsoid: HertzEllipsoidParams,
 }
 
@@ -501,6 +502,7 @@ impl Default for Params {
             torsion: TwoSphereParams::torsion(),
             rolling: TwoSphereParams::rolling(),
             thornton_walls: Default::default(),
+            thornton: super::thornton_scene::ThorntonParams::periodic(),
             hertz_ellipsoid: Default::default(),
         }
     }
@@ -578,6 +580,7 @@ impl Params {
             "torsion" => self.torsion.fields(),
             "rolling" => self.rolling.fields(),
             "thornton_walls" => self.thornton_walls.fields(),
+            "thornton" => self.thornton.fields(),
             "hertz_ellipsoid" => self.hertz_ellipsoid.fields(),
             other => {
                 return Err(bad(format!(

@@ -156,12 +156,20 @@ impl ThorntonInputs {
             .stages
             .first()
             .and_then(|s| {
-                s.walls.values().find_map(|m| match m {
-                    WallModeSpec::Servo(spec) => Some(spec.stress),
-                    _ => None,
-                })
+                s.walls
+                    .values()
+                    .chain(s.cell.values())
+                    .find_map(|m| match m {
+                        WallModeSpec::Servo(spec) => Some(spec.stress),
+                        _ => None,
+                    })
             })
-            .ok_or_else(|| need("stages[0].walls", "a servo wall in the first stage (σ3)"))?;
+            .ok_or_else(|| {
+                need(
+                    "stages[0]",
+                    "a servo wall or cell axis in the first stage (σ3)",
+                )
+            })?;
         if confining_stress <= 0.0 {
             return Err(InputError::new(
                 &file,
@@ -187,6 +195,109 @@ impl ThorntonInputs {
             confining_stress,
         })
     }
+}
+
+impl ThorntonParams {
+    /// Defaults of the periodic cell of `mufe validate thornton`: one cubic cell of 4
+    /// spheres (the cell-count study in docs/BENCHMARKS.md: 2 and 3 cells move the peak
+    /// by less than the target), contacts meshed at R/7.3 (coarser contacts tilt the
+    /// contact normal and raise the peak: +4.9 % at R/3.7); the rest as the walled cell.
+    pub fn periodic() -> Self {
+        Self {
+            cells: 1.0,
+            contact_seeding: 1.5e-4 / 1.1e-3,
+            ..Self::default()
+        }
+    }
+}
+
+/// The scene text of the periodic cell at friction `mu`: an open block of n × n × n cubic
+/// cells (4n³ spheres) repeated along x, y and z, no walls; stage 1 holds the cell's
+/// homogenised stress at σ3 on every axis, stage 2 shortens z at the inertial number with
+/// σx = σy held.
+pub fn thornton_periodic_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams) -> String {
+    let r = inputs.radius;
+    let m = &inputs.material;
+    let t = r / m.dilatational_wave_speed();
+    let n = p.cell_count();
+    let e = |v: f64| format!("{v:.10e}");
+    let mut extra = String::new();
+    for (k, v) in &inputs.material_extra {
+        extra.push_str(&format!("{k} = {v}\n"));
+    }
+    let sigma = e(inputs.confining_stress);
+    let periods = p.servo_periods;
+    let servo = format!("{{ servo = {{ stress = {sigma}, periods = {periods} }} }}");
+    format!(
+        r#"# Periodic FCC triaxial cell of `mufe validate thornton` (src/validate/thornton_scene.rs):
+# an open block of {n}×{n}×{n} cubic cells of touching spheres (R = {r} m) repeated along x,
+# y and z, no walls; stage 1 isotropic compression of the cell's homogenised stress to
+# σ3 = {s3} Pa, stage 2 axial shortening along z at the inertial number I = {inertial}
+# with σx = σy = σ3 servo-held, to failure. Generated for the material, radius and σ3 of
+# the case scene; every other number is dimensionless in R, R/c_p and c_p/R
+# (docs/PERIODIC.md).
+
+[simulation]
+duration = {duration}   # s: a cap; the stages end the run
+damping = {damping}   # 1/s: mass-proportional, stage 1 (ALLVD)
+target_dt = {target_dt}   # s: mass scaling of the smallest elements
+
+[materials.{mat}]
+youngs_modulus = {youngs}   # Pa
+poisson_ratio = {nu}   # –
+density = {rho}   # kg/m³
+{extra}
+[contact]
+friction = {mu}
+
+[[packings]]
+name = "cell"
+lattice = "fcc"
+cells = [{n}, {n}, {n}]
+faces = "open"
+material = "{mat}"
+sphere = {{ radius = {r}, seeding = {seeding}, contact_seeding = {contact_seeding} }}   # m
+
+[cell]
+packing = "cell"   # the box is the lattice period
+
+[[stages]]
+name = "isotropic"
+cell = {{ x = {servo}, y = {servo}, z = {servo} }}   # Pa
+until = {{ stress_held = {{ tolerance = {tol}, time_constants = {hold} }}, max_time = {iso_max} }}   # –, –, s
+
+[[stages]]
+name = "shear"
+damping = {shear_damping}   # 1/s: none while shearing
+cell = {{ x = {servo}, y = {servo}, z = {{ inertial_number = {inertial} }} }}
+until = {{ failure = {{ drop = {drop}, strain_margin = {margin}, plateau_strain = {plateau} }}, max_time = {shear_max} }}
+
+[output]
+history_interval = {history}   # s
+frame_interval = {duration}   # s: first and last frame only
+"#,
+        s3 = num(inputs.confining_stress),
+        r = e(r),
+        inertial = num(p.inertial_number),
+        duration = e((p.isotropic_max_time + p.shear_max_time) * t),
+        damping = e(p.damping / t),
+        shear_damping = e(p.shear_damping / t),
+        target_dt = e(p.target_dt * t),
+        mat = inputs.material_name,
+        youngs = e(m.youngs_modulus),
+        nu = num(m.poisson_ratio),
+        rho = num(m.density),
+        seeding = e(p.seeding * r),
+        contact_seeding = e(p.contact_seeding * r),
+        tol = num(p.tolerance),
+        hold = num(p.hold),
+        iso_max = e(p.isotropic_max_time * t),
+        drop = num(p.drop),
+        margin = num(p.strain_margin),
+        plateau = num(p.plateau_strain),
+        shear_max = e(p.shear_max_time * t),
+        history = e(p.history_interval * t),
+    )
 }
 
 /// The scene text of the cell at friction `mu`.
