@@ -16,20 +16,21 @@ mod mpi_launch;
 #[path = "common/results.rs"]
 mod results;
 
-use results::{column, history};
+use results::{assert_same_history, column, history};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 const SCENE: &str = "jobs/periodic/thornton_cell.toml";
 
-fn scene_path() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(SCENE)
+fn scene_path(scene: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(scene)
 }
 
-fn run(ranks: usize, name: &str) -> (PathBuf, String) {
+/// Runs `scene` on `ranks` ranks (1 thread each); returns the output directory and stdout.
+fn run(scene: &str, ranks: usize, name: &str) -> (PathBuf, String) {
     let out = std::env::temp_dir().join(format!("mufe_periodic_{name}_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
-    let scene = scene_path();
+    let scene = scene_path(scene);
     let args = [
         "run",
         scene.to_str().unwrap(),
@@ -45,10 +46,12 @@ fn run(ranks: usize, name: &str) -> (PathBuf, String) {
 
 #[test]
 fn the_periodic_cell_fails_at_thornton_and_agrees_on_two_and_three_ranks() {
-    let scene = mufe::scene::load_scene(&scene_path(), &[]).unwrap().scene;
+    let scene = mufe::scene::load_scene(&scene_path(SCENE), &[])
+        .unwrap()
+        .scene;
     let mu = scene.contact.friction;
     let sigma3 = 5.0e4;
-    let (serial_dir, stdout) = run(1, "r1");
+    let (serial_dir, stdout) = run(SCENE, 1, "r1");
     let serial = history(&serial_dir.join("results.h5"));
     assert!(
         stdout.contains("stage 'isotropic' done") && stdout.contains("ended by stress held"),
@@ -111,25 +114,9 @@ fn the_periodic_cell_fails_at_thornton_and_agrees_on_two_and_three_ranks() {
     }
 
     for ranks in [2, 3] {
-        let (dir, _) = run(ranks, &format!("r{ranks}"));
+        let (dir, _) = run(SCENE, ranks, &format!("r{ranks}"));
         let parallel = history(&dir.join("results.h5"));
-        assert_eq!(serial.len(), parallel.len(), "same columns");
-        for ((name, a), (name_b, b)) in serial.iter().zip(&parallel) {
-            assert_eq!(name, name_b);
-            assert_eq!(a.len(), b.len(), "{name}: rows on {ranks} ranks");
-            let scale = a.iter().map(|v| v.abs()).fold(0.0, f64::max).max(1e-300);
-            let scale = if name == "energy_balance" {
-                scale.max(w_max)
-            } else {
-                scale
-            };
-            for (i, (x, y)) in a.iter().zip(b).enumerate() {
-                assert!(
-                    (x - y).abs() <= 1e-10 * scale,
-                    "/history/{name}[{i}]: {ranks} ranks {y:e}, 1 rank {x:e}"
-                );
-            }
-        }
+        assert_same_history(&serial, &parallel, w_max, &format!("{ranks} ranks"));
         let _ = std::fs::remove_dir_all(dir);
     }
     let _ = std::fs::remove_dir_all(serial_dir);
@@ -137,24 +124,14 @@ fn the_periodic_cell_fails_at_thornton_and_agrees_on_two_and_three_ranks() {
 
 #[test]
 fn a_grain_leaving_the_cell_is_wrapped_and_its_displacement_stays_continuous() {
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/periodic_wrap.toml");
-    let loaded = mufe::scene::load_scene(&scene, &[]).unwrap().scene;
+    const WRAP: &str = "jobs/tests/periodic_wrap.toml";
+    let loaded = mufe::scene::load_scene(&scene_path(WRAP), &[])
+        .unwrap()
+        .scene;
     let speed = loaded.grains[0].velocity[0];
     let mut finals = Vec::new();
     for ranks in [1, 2] {
-        let out = std::env::temp_dir().join(format!("mufe_wrap_{ranks}_{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&out);
-        let args = [
-            "run",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--threads",
-            "1",
-        ];
-        let o = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(300));
-        mpi_launch::assert_success(&o);
-        let stdout = String::from_utf8_lossy(&o.stdout);
+        let (out, stdout) = run(WRAP, ranks, &format!("wrap{ranks}"));
         assert!(
             stdout.contains("grains wrapped back into the periodic cell"),
             "no wrap on {ranks} ranks:\n{stdout}"

@@ -50,14 +50,13 @@ pub fn set_time_step_and_mass_scaling(
         let rho = model.materials[model.tet_law[e] as usize].density;
         let m_phys = rho * model.tet_reference[e].volume / 4.0;
         let scale = match target {
-            Some(tgt) if elem_dt[e] < tgt => {
-                scaled_elements += 1;
-                (tgt / elem_dt[e]).powi(2)
-            }
+            Some(tgt) if elem_dt[e] < tgt => (tgt / elem_dt[e]).powi(2),
             _ => 1.0,
         };
+        // ghosts and images are scaled like their owners but reported by them
         if e < model.owned_elements {
             added_mass += 4.0 * m_phys * (scale - 1.0);
+            scaled_elements += usize::from(scale > 1.0);
         }
         elem_scale[e] = scale;
         for &node in t {

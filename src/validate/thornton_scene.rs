@@ -211,33 +211,18 @@ impl ThorntonParams {
     }
 }
 
-/// The scene text of the periodic cell at friction `mu`: an open block of n × n × n cubic
-/// cells (4n³ spheres) repeated along x, y and z, no walls; stage 1 holds the cell's
-/// homogenised stress at σ3 on every axis, stage 2 shortens z at the inertial number with
-/// σx = σy held.
-pub fn thornton_periodic_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams) -> String {
-    let r = inputs.radius;
+/// The sections both cells share, from `[simulation]` to `[contact]` (ending with the
+/// friction line), and the unit of time R/c_p (s).
+fn head_sections(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams) -> (String, f64) {
     let m = &inputs.material;
-    let t = r / m.dilatational_wave_speed();
-    let n = p.cell_count();
+    let t = inputs.radius / m.dilatational_wave_speed();
     let e = |v: f64| format!("{v:.10e}");
     let mut extra = String::new();
     for (k, v) in &inputs.material_extra {
         extra.push_str(&format!("{k} = {v}\n"));
     }
-    let sigma = e(inputs.confining_stress);
-    let periods = p.servo_periods;
-    let servo = format!("{{ servo = {{ stress = {sigma}, periods = {periods} }} }}");
-    format!(
-        r#"# Periodic FCC triaxial cell of `mufe validate thornton` (src/validate/thornton_scene.rs):
-# an open block of {n}×{n}×{n} cubic cells of touching spheres (R = {r} m) repeated along x,
-# y and z, no walls; stage 1 isotropic compression of the cell's homogenised stress to
-# σ3 = {s3} Pa, stage 2 axial shortening along z at the inertial number I = {inertial}
-# with σx = σy = σ3 servo-held, to failure. Generated for the material, radius and σ3 of
-# the case scene; every other number is dimensionless in R, R/c_p and c_p/R
-# (docs/PERIODIC.md).
-
-[simulation]
+    let text = format!(
+        r#"[simulation]
 duration = {duration}   # s: a cap; the stages end the run
 damping = {damping}   # 1/s: mass-proportional, stage 1 (ALLVD)
 target_dt = {target_dt}   # s: mass scaling of the smallest elements
@@ -249,7 +234,83 @@ density = {rho}   # kg/m³
 {extra}
 [contact]
 friction = {mu}
+"#,
+        duration = e((p.isotropic_max_time + p.shear_max_time) * t),
+        damping = e(p.damping / t),
+        target_dt = e(p.target_dt * t),
+        mat = inputs.material_name,
+        youngs = e(m.youngs_modulus),
+        nu = num(m.poisson_ratio),
+        rho = num(m.density),
+    );
+    (text, t)
+}
 
+/// The two stages around the modes `iso` (stage 1) and `shear` (stage 2) of `group`
+/// (`walls` or `cell`), and the `[output]` section.
+fn stage_sections(p: &ThorntonParams, t: f64, group: &str, iso: &str, shear: &str) -> String {
+    let e = |v: f64| format!("{v:.10e}");
+    format!(
+        r#"[[stages]]
+name = "isotropic"
+{group} = {{ {iso} }}   # Pa
+until = {{ stress_held = {{ tolerance = {tol}, time_constants = {hold} }}, max_time = {iso_max} }}   # –, –, s
+
+[[stages]]
+name = "shear"
+damping = {shear_damping}   # 1/s: none while shearing
+{group} = {{ {shear} }}
+until = {{ failure = {{ drop = {drop}, strain_margin = {margin}, plateau_strain = {plateau} }}, max_time = {shear_max} }}
+
+[output]
+history_interval = {history}   # s
+frame_interval = {duration}   # s: first and last frame only
+"#,
+        tol = num(p.tolerance),
+        hold = num(p.hold),
+        iso_max = e(p.isotropic_max_time * t),
+        shear_damping = e(p.shear_damping / t),
+        drop = num(p.drop),
+        margin = num(p.strain_margin),
+        plateau = num(p.plateau_strain),
+        shear_max = e(p.shear_max_time * t),
+        history = e(p.history_interval * t),
+        duration = e((p.isotropic_max_time + p.shear_max_time) * t),
+    )
+}
+
+/// The scene text of the periodic cell at friction `mu`: an open block of n × n × n cubic
+/// cells (4n³ spheres) repeated along x, y and z, no walls; stage 1 holds the cell's
+/// homogenised stress at σ3 on every axis, stage 2 shortens z at the inertial number with
+/// σx = σy held.
+pub fn thornton_periodic_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams) -> String {
+    let r = inputs.radius;
+    let n = p.cell_count();
+    let e = |v: f64| format!("{v:.10e}");
+    let (head, t) = head_sections(inputs, mu, p);
+    let sigma = e(inputs.confining_stress);
+    let servo = format!(
+        "{{ servo = {{ stress = {sigma}, periods = {} }} }}",
+        p.servo_periods
+    );
+    let inertial = num(p.inertial_number);
+    let stages = stage_sections(
+        p,
+        t,
+        "cell",
+        &format!("x = {servo}, y = {servo}, z = {servo}"),
+        &format!("x = {servo}, y = {servo}, z = {{ inertial_number = {inertial} }}"),
+    );
+    format!(
+        r#"# Periodic FCC triaxial cell of `mufe validate thornton` (src/validate/thornton_scene.rs):
+# an open block of {n}×{n}×{n} cubic cells of touching spheres (R = {r} m) repeated along x,
+# y and z, no walls; stage 1 isotropic compression of the cell's homogenised stress to
+# σ3 = {s3} Pa, stage 2 axial shortening along z at the inertial number I = {inertial}
+# with σx = σy = σ3 servo-held, to failure. Generated for the material, radius and σ3 of
+# the case scene; every other number is dimensionless in R, R/c_p and c_p/R
+# (docs/PERIODIC.md).
+
+{head}
 [[packings]]
 name = "cell"
 lattice = "fcc"
@@ -261,63 +322,36 @@ sphere = {{ radius = {r}, seeding = {seeding}, contact_seeding = {contact_seedin
 [cell]
 packing = "cell"   # the box is the lattice period
 
-[[stages]]
-name = "isotropic"
-cell = {{ x = {servo}, y = {servo}, z = {servo} }}   # Pa
-until = {{ stress_held = {{ tolerance = {tol}, time_constants = {hold} }}, max_time = {iso_max} }}   # –, –, s
-
-[[stages]]
-name = "shear"
-damping = {shear_damping}   # 1/s: none while shearing
-cell = {{ x = {servo}, y = {servo}, z = {{ inertial_number = {inertial} }} }}
-until = {{ failure = {{ drop = {drop}, strain_margin = {margin}, plateau_strain = {plateau} }}, max_time = {shear_max} }}
-
-[output]
-history_interval = {history}   # s
-frame_interval = {duration}   # s: first and last frame only
-"#,
+{stages}"#,
         s3 = num(inputs.confining_stress),
         r = e(r),
-        inertial = num(p.inertial_number),
-        duration = e((p.isotropic_max_time + p.shear_max_time) * t),
-        damping = e(p.damping / t),
-        shear_damping = e(p.shear_damping / t),
-        target_dt = e(p.target_dt * t),
         mat = inputs.material_name,
-        youngs = e(m.youngs_modulus),
-        nu = num(m.poisson_ratio),
-        rho = num(m.density),
         seeding = e(p.seeding * r),
         contact_seeding = e(p.contact_seeding * r),
-        tol = num(p.tolerance),
-        hold = num(p.hold),
-        iso_max = e(p.isotropic_max_time * t),
-        drop = num(p.drop),
-        margin = num(p.strain_margin),
-        plateau = num(p.plateau_strain),
-        shear_max = e(p.shear_max_time * t),
-        history = e(p.history_interval * t),
     )
 }
 
 /// The scene text of the cell at friction `mu`.
 pub fn thornton_walls_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams) -> String {
     let r = inputs.radius;
-    let m = &inputs.material;
-    let t = r / m.dilatational_wave_speed();
     let n = p.cell_count();
     let a = 2.0 * std::f64::consts::SQRT_2 * r;
     let (lo, hi) = (-r, n as f64 * a + r);
     let e = |v: f64| format!("{v:.10e}");
-    let mut extra = String::new();
-    for (k, v) in &inputs.material_extra {
-        extra.push_str(&format!("{k} = {v}\n"));
-    }
+    let (head, t) = head_sections(inputs, mu, p);
     let sigma = e(inputs.confining_stress);
     let periods = p.servo_periods;
     let servo =
         format!("{{ servo = {{ stress = {sigma}, area_of = \"cell\", periods = {periods} }} }}");
     let lateral = format!("x_min = {servo}, x_max = {servo}, y_min = {servo}, y_max = {servo}");
+    let inertial = num(p.inertial_number);
+    let stages = stage_sections(
+        p,
+        t,
+        "walls",
+        &format!("{lateral}, top = {servo}"),
+        &format!("{lateral}, top = {{ inertial_number = {inertial} }}"),
+    );
     let walls: String = [
         ("x_min", [lo, 0.0, 0.0], [1.0, 0.0, 0.0]),
         ("x_max", [hi, 0.0, 0.0], [-1.0, 0.0, 0.0]),
@@ -347,19 +381,7 @@ pub fn thornton_walls_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams
 # material, radius and σ3 of the case scene; every other number is dimensionless in
 # R, R/c_p and c_p/R (docs/THEORY.md §9).
 
-[simulation]
-duration = {duration}   # s: a cap; the stages end the run
-damping = {damping}   # 1/s: mass-proportional, stage 1 (ALLVD)
-target_dt = {target_dt}   # s: mass scaling of the smallest elements
-
-[materials.{mat}]
-youngs_modulus = {youngs}   # Pa
-poisson_ratio = {nu}   # –
-density = {rho}   # kg/m³
-{extra}
-[contact]
-friction = {mu}
-
+{head}
 [[packings]]
 name = "cell"
 lattice = "fcc"
@@ -368,41 +390,11 @@ faces = "closed"
 material = "{mat}"
 sphere = {{ radius = {r}, seeding = {seeding}, contact_seeding = {contact_seeding}, axis_patches = true }}   # m
 
-{walls}[[stages]]
-name = "isotropic"
-walls = {{ {lateral}, top = {servo} }}   # Pa
-until = {{ stress_held = {{ tolerance = {tol}, time_constants = {hold} }}, max_time = {iso_max} }}   # –, –, s
-
-[[stages]]
-name = "shear"
-damping = {shear_damping}   # 1/s: none while shearing
-walls = {{ {lateral}, top = {{ inertial_number = {inertial} }} }}
-until = {{ failure = {{ drop = {drop}, strain_margin = {margin}, plateau_strain = {plateau} }}, max_time = {shear_max} }}
-
-[output]
-history_interval = {history}   # s
-frame_interval = {duration}   # s: first and last frame only
-"#,
+{walls}{stages}"#,
         s3 = num(inputs.confining_stress),
         r = e(r),
-        inertial = num(p.inertial_number),
-        duration = e((p.isotropic_max_time + p.shear_max_time) * t),
-        damping = e(p.damping / t),
-        shear_damping = e(p.shear_damping / t),
-        target_dt = e(p.target_dt * t),
         mat = inputs.material_name,
-        youngs = e(m.youngs_modulus),
-        nu = num(m.poisson_ratio),
-        rho = num(m.density),
         seeding = e(p.seeding * r),
         contact_seeding = e(p.contact_seeding * r),
-        tol = num(p.tolerance),
-        hold = num(p.hold),
-        iso_max = e(p.isotropic_max_time * t),
-        drop = num(p.drop),
-        margin = num(p.strain_margin),
-        plateau = num(p.plateau_strain),
-        shear_max = e(p.shear_max_time * t),
-        history = e(p.history_interval * t),
     )
 }

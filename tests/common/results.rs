@@ -24,3 +24,31 @@ pub fn column<'a>(h: &'a [(String, Vec<f64>)], name: &str) -> &'a [f64] {
         .unwrap_or_else(|| panic!("/history/{name} missing"))
         .1
 }
+
+/// Asserts that two histories have the same columns and rows, every value within 1e-10 of
+/// its column's largest magnitude in `a` (`energy_balance` against `balance_scale` too: a
+/// drift near zero is measured against the energies in play). `what` names `b` in failures.
+pub fn assert_same_history(
+    a: &[(String, Vec<f64>)],
+    b: &[(String, Vec<f64>)],
+    balance_scale: f64,
+    what: &str,
+) {
+    assert_eq!(a.len(), b.len(), "same columns");
+    for ((name, x), (name_b, y)) in a.iter().zip(b) {
+        assert_eq!(name, name_b);
+        assert_eq!(x.len(), y.len(), "{name}: rows on {what}");
+        let scale = x.iter().map(|v| v.abs()).fold(0.0, f64::max).max(1e-300);
+        let scale = if name == "energy_balance" {
+            scale.max(balance_scale)
+        } else {
+            scale
+        };
+        for (i, (u, v)) in x.iter().zip(y).enumerate() {
+            assert!(
+                (u - v).abs() <= 1e-10 * scale,
+                "/history/{name}[{i}]: {what} {v:e}, 1 rank {u:e}"
+            );
+        }
+    }
+}
