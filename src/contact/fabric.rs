@@ -11,9 +11,14 @@
 //!
 //! Each rank sees the passes whose slave grain it owns, so a pair may come in two
 //! partials from two ranks: [`PairPartial`]s are gathered and merged by [`merge_pairs`].
+//!
+//! In a periodic cell two grains may touch through several images (in a one-cell FCC
+//! cell, each pair four times): a pair is (a, b, image of b seen from a), and its point is
+//! given where a itself is.
 
 use super::ContactScratch;
 use crate::math::{add, dot, norm, scale, sub};
+use crate::model::periodic::{relative_image, CellKinematics, Image};
 use crate::model::Model;
 
 /// One rank's share of a pair's contact points.
@@ -21,6 +26,8 @@ use crate::model::Model;
 pub struct PairPartial {
     pub a: u32,
     pub b: u32,
+    /// Periodic image of b relative to a (all zero without a cell).
+    pub image: Image,
     /// Force on grain a (N).
     pub force_on_a: [f64; 3],
     /// Σ wᵢ xᵢ over points (N·m), w = normal force.
@@ -34,12 +41,13 @@ pub struct PairPartial {
 }
 
 /// Values per partial in [`PairPartial::encode`].
-pub const PARTIAL_LEN: usize = 14;
+pub const PARTIAL_LEN: usize = 17;
 
 impl PairPartial {
     /// As f64s, for a gather over ranks (ids are exact in f64 below 2⁵³).
     pub fn encode(&self, out: &mut Vec<f64>) {
         out.extend_from_slice(&[self.a as f64, self.b as f64]);
+        out.extend_from_slice(&self.image.map(f64::from));
         out.extend_from_slice(&self.force_on_a);
         out.extend_from_slice(&self.weighted_point);
         out.extend_from_slice(&self.weighted_normal);
@@ -51,13 +59,19 @@ impl PairPartial {
         Self {
             a: v[0] as u32,
             b: v[1] as u32,
-            force_on_a: v3(2),
-            weighted_point: v3(5),
-            weighted_normal: v3(8),
-            weight: v[11],
-            points: v[12] as u32,
-            sliding_points: v[13] as u32,
+            image: [v[2] as i8, v[3] as i8, v[4] as i8],
+            force_on_a: v3(5),
+            weighted_point: v3(8),
+            weighted_normal: v3(11),
+            weight: v[14],
+            points: v[15] as u32,
+            sliding_points: v[16] as u32,
         }
+    }
+
+    /// The pair: (a, b, image of b relative to a).
+    pub fn key(&self) -> (u32, u32, Image) {
+        (self.a, self.b, self.image)
     }
 
     fn absorb(&mut self, o: &PairPartial) {
@@ -75,6 +89,8 @@ impl PairPartial {
 pub struct PairContact {
     pub a: u32,
     pub b: u32,
+    /// Periodic image of b relative to a (all zero without a cell).
+    pub image: Image,
     /// Contact point (m).
     pub point: [f64; 3],
     /// Unit normal from a to b.
@@ -87,11 +103,13 @@ pub struct PairContact {
 }
 
 /// This rank's partials from the last contact evaluation (owned slave grains only), in
-/// `out` (cleared first), sorted by (a, b) with one entry per pair.
+/// `out` (cleared first), sorted by (a, b, image) with one entry per pair; `cell` places
+/// the images.
 pub fn pair_partials(
     model: &Model,
     x: &[[f64; 3]],
     scratch: &ContactScratch,
+    cell: &CellKinematics,
     out: &mut Vec<PairPartial>,
 ) {
     out.clear();
@@ -110,25 +128,28 @@ pub fn pair_partials(
             continue;
         }
         // the master's outward normal points from master to slave
-        let slave_is_a = slave.global_id < master.global_id;
+        let slave_is_a = (slave.global_id, slave.image) < (master.global_id, master.image);
         let (a, b, sign) = if slave_is_a {
-            (slave.global_id, master.global_id, 1.0)
+            (slave, master, 1.0)
         } else {
-            (master.global_id, slave.global_id, -1.0)
+            (master, slave, -1.0)
         };
         let w = r.pressure * r.area;
+        // the point where a itself is (not its image)
+        let point = sub(x[r.slave as usize], cell.offset(a.image));
         let p = PairPartial {
-            a,
-            b,
+            a: a.global_id,
+            b: b.global_id,
+            image: relative_image(a.image, b.image),
             force_on_a: scale(r.force, sign),
-            weighted_point: scale(x[r.slave as usize], w),
+            weighted_point: scale(point, w),
             weighted_normal: scale(r.normal, -sign * w),
             weight: w,
             points: 1,
             sliding_points: u32::from(r.sliding),
         };
         match out.last_mut() {
-            Some(last) if (last.a, last.b) == (a, b) => last.absorb(&p),
+            Some(last) if last.key() == p.key() => last.absorb(&p),
             _ => out.push(p),
         }
     }
@@ -137,10 +158,10 @@ pub fn pair_partials(
 
 /// Sorts partials by pair and merges duplicates in place.
 fn merge_sorted(parts: &mut Vec<PairPartial>) {
-    parts.sort_by_key(|p| (p.a, p.b));
+    parts.sort_by_key(|p| p.key());
     let mut kept = 0;
     for i in 0..parts.len() {
-        if kept > 0 && (parts[kept - 1].a, parts[kept - 1].b) == (parts[i].a, parts[i].b) {
+        if kept > 0 && parts[kept - 1].key() == parts[i].key() {
             let p = parts[i];
             parts[kept - 1].absorb(&p);
         } else {
@@ -151,7 +172,8 @@ fn merge_sorted(parts: &mut Vec<PairPartial>) {
     parts.truncate(kept);
 }
 
-/// The pair contacts from all ranks' partials (their encodings concatenated), by (a, b).
+/// The pair contacts from all ranks' partials (their encodings concatenated), by (a, b,
+/// image).
 pub fn merge_pairs(encoded: &[f64]) -> Vec<PairContact> {
     let mut parts: Vec<PairPartial> = encoded
         .chunks_exact(PARTIAL_LEN)
@@ -171,6 +193,7 @@ pub fn merge_pairs(encoded: &[f64]) -> Vec<PairContact> {
             PairContact {
                 a: p.a,
                 b: p.b,
+                image: p.image,
                 point: scale(p.weighted_point, 1.0 / p.weight),
                 normal: n,
                 normal_force: f_n,
@@ -189,6 +212,7 @@ mod tests {
         PairPartial {
             a,
             b,
+            image: [0; 3],
             force_on_a: f,
             weighted_point: [w, 0.0, 0.0],
             weighted_normal: scale(n, w),

@@ -6,6 +6,7 @@
 use super::history::{FABRIC_COLUMNS, INTERNAL, KINETIC};
 use crate::contact::fabric::{merge_pairs, pair_partials, PairContact, PairPartial};
 use crate::domain::Domain;
+use crate::model::periodic::Image;
 use crate::solver::Solver;
 
 /// The grain-pair contacts of the last contact evaluation, merged over ranks: `Some` on
@@ -20,6 +21,7 @@ pub fn gather_pair_contacts(
         &solver.model,
         &solver.state.x,
         &solver.scratch.contact,
+        &solver.state.cell_kinematics(&solver.model),
         partials,
     );
     encoded.clear();
@@ -49,8 +51,8 @@ pub struct ContactWatch {
     encoded: Vec<f64>,
     /// Stage whose start defines "initially touching" (staged runs with a cell only).
     watched_stage: Option<usize>,
-    /// Pairs touching at the first row of the watched stage, by (a, b).
-    touching: Option<Vec<(u32, u32)>>,
+    /// Pairs touching at the first row of the watched stage, by (a, b, image).
+    touching: Option<Vec<(u32, u32, Image)>>,
     pub first_opening: Option<GapOpening>,
     /// Largest ALLKE/ALLIE seen at the history rows of each stage (quasi-static check).
     pub max_kinetic_ratio: Vec<f64>,
@@ -111,12 +113,12 @@ impl ContactWatch {
         if progress.index != stage || progress.finished || self.first_opening.is_some() {
             return;
         }
-        let now: Vec<(u32, u32)> = pairs.iter().map(|p| (p.a, p.b)).collect();
+        let now: Vec<(u32, u32, Image)> = pairs.iter().map(|p| (p.a, p.b, p.image)).collect();
         let Some(before) = &self.touching else {
             self.touching = Some(now);
             return;
         };
-        if let Some(&(a, b)) = before.iter().find(|k| now.binary_search(k).is_err()) {
+        if let Some(&(a, b, _)) = before.iter().find(|k| now.binary_search(k).is_err()) {
             let axial_strain = plan
                 .measure(&progress.wall_displacements, &progress.wall_forces)
                 .map_or(0.0, |m| plan.stage_axial_strain(progress, &m));

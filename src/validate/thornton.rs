@@ -668,7 +668,7 @@ mod tests {
         let sets: Vec<String> = [
             "materials.glass.youngs_modulus=7.0e10",
             "materials.glass.density=2650",
-            "packings[0].sphere.radius=0.3e-3",
+            "packings[0].sphere.radius=2.0e-3",
             "stages[0].cell.x.servo.stress=1.0e5",
         ]
         .map(String::from)
@@ -676,10 +676,10 @@ mod tests {
         let text = case.generated_scene(&sets, &Params::default()).unwrap();
         let sand = parse_scene("sand", &text, &[]).unwrap();
         let inputs = ThorntonInputs::from_scene(&sand).unwrap();
-        assert_eq!((inputs.radius, inputs.confining_stress), (0.3e-3, 1.0e5));
+        assert_eq!((inputs.radius, inputs.confining_stress), (2.0e-3, 1.0e5));
         let cell = sand.scene.cell.as_ref().unwrap();
         let (_, length) = cell.box_of(&sand.scene);
-        let a = 2.0 * std::f64::consts::SQRT_2 * 0.3e-3;
+        let a = 2.0 * std::f64::consts::SQRT_2 * 2.0e-3;
         assert!((length[2] / a - ThorntonParams::periodic().cells).abs() < 1e-12);
         assert!(sand.scene.walls.is_empty());
     }

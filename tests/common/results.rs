@@ -52,3 +52,27 @@ pub fn assert_same_history(
         }
     }
 }
+
+/// Every stage-2 row of a triaxial cell holds σx and σy within `tolerance` (relative) of
+/// `sigma3`.
+pub fn assert_lateral_stress_held(h: &[(String, Vec<f64>)], sigma3: f64, tolerance: f64) {
+    let stage = column(h, "stage");
+    for (i, _) in stage.iter().enumerate().filter(|(_, &s)| s == 2.0) {
+        for a in ["sigma_x", "sigma_y"] {
+            let s = column(h, a)[i];
+            assert!(
+                (s / sigma3 - 1.0).abs() <= tolerance,
+                "{a} = {s:.4e} Pa at row {i}"
+            );
+        }
+    }
+}
+
+/// The largest stress ratio of the stage-2 rows.
+pub fn stage2_peak_ratio(h: &[(String, Vec<f64>)]) -> f64 {
+    let stage = column(h, "stage");
+    (column(h, "stress_ratio").iter().zip(stage))
+        .filter(|(_, &s)| s == 2.0)
+        .map(|(r, _)| *r)
+        .fold(0.0, f64::max)
+}
