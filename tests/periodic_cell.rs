@@ -103,6 +103,31 @@ fn the_periodic_cell_fails_at_thornton_and_agrees_on_two_and_three_ranks() {
         );
     }
 
+    // the cell's work is ∫ V σ : D dt (σ the Love–Weber stress, sampled at the rows)
+    let length: Vec<&[f64]> = ["x", "y", "z"]
+        .iter()
+        .map(|a| column(&serial, &format!("cell_length_{a}")))
+        .collect();
+    let sigma: Vec<&[f64]> = ["xx", "yy", "zz"]
+        .iter()
+        .map(|c| column(&serial, &format!("cell_contact_stress_{c}")))
+        .collect();
+    let mut stress_power = 0.0;
+    for i in 1..work.len() {
+        let volume = |j: usize| length.iter().map(|l| l[j]).product::<f64>();
+        for k in 0..3 {
+            let (l0, l1) = (length[k][i - 1], length[k][i]);
+            let mean = |v: &[f64]| 0.5 * (v[i - 1] + v[i]);
+            stress_power -=
+                0.5 * (volume(i - 1) + volume(i)) * mean(sigma[k]) * (l1 - l0) / (0.5 * (l0 + l1));
+        }
+    }
+    let done = cell[cell.len() - 1] - cell[0];
+    assert!(
+        (stress_power / done - 1.0).abs() <= 0.005,
+        "∫ V σ:D dt = {stress_power:.5e} J, cell work {done:.5e} J"
+    );
+
     for ranks in [2, 3] {
         let (dir, _) = run(SCENE, ranks, &format!("r{ranks}"));
         let parallel = history(&dir.join("results.h5"));
