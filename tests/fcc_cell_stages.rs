@@ -21,7 +21,6 @@ use results::{
     assert_lateral_stress_held, assert_same_history, column, history, stage2_peak_ratio,
 };
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 const SCENE: &str = "jobs/tests/fcc_cell_stages.toml";
 const MU: f64 = 0.22;
@@ -29,20 +28,7 @@ const SIGMA3: f64 = 5.0e4;
 const RADIUS: f64 = 1.1e-3;
 
 fn run(ranks: usize, name: &str) -> (PathBuf, String) {
-    let out = std::env::temp_dir().join(format!("mufe_fcc_stages_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join(SCENE);
-    let args = [
-        "run",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--threads",
-        "1",
-    ];
-    let o = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(300));
-    mpi_launch::assert_success(&o);
-    (out, String::from_utf8_lossy(&o.stdout).into_owned())
+    mpi_launch::run_scene(SCENE, ranks, &format!("fcc_stages_{name}"))
 }
 
 #[test]

@@ -20,7 +20,6 @@ use results::{
     assert_lateral_stress_held, assert_same_history, column, history, stage2_peak_ratio,
 };
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 const SCENE: &str = "jobs/periodic/thornton_cell.toml";
 
@@ -30,20 +29,7 @@ fn scene_path(scene: &str) -> PathBuf {
 
 /// Runs `scene` on `ranks` ranks (1 thread each); returns the output directory and stdout.
 fn run(scene: &str, ranks: usize, name: &str) -> (PathBuf, String) {
-    let out = std::env::temp_dir().join(format!("mufe_periodic_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
-    let scene = scene_path(scene);
-    let args = [
-        "run",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--threads",
-        "1",
-    ];
-    let o = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(300));
-    mpi_launch::assert_success(&o);
-    (out, String::from_utf8_lossy(&o.stdout).into_owned())
+    mpi_launch::run_scene(scene, ranks, &format!("periodic_{name}"))
 }
 
 #[test]

@@ -9,6 +9,7 @@
 //! decisions at the same step without further communication.
 
 use super::servo::{servo_control, ServoControl, ServoState};
+use crate::scene::cell::PeriodicBox;
 use crate::scene::packing::PackingSpec;
 use crate::scene::stages::{wall_pairs, StageSpec, WallModeSpec};
 use crate::scene::{normal_axis, Scene, ServoSpec, WallSpec};
@@ -217,7 +218,7 @@ impl StagePlan {
             })
             .collect();
         let mut walls = walls;
-        let periodic = CellBox::of_scene(scene);
+        let periodic = PeriodicBox::of_scene(scene);
         let first_axis = walls.len();
         if let Some(c) = &periodic {
             // the cell's axes as walls on its upper faces, pushing along −eₖ
@@ -615,30 +616,10 @@ fn build_stage(
     }
 }
 
-/// The periodic cell's box at t = 0, as the stages see it (the model layer has its own
-/// `PeriodicCell`; this layer sits below it).
-struct CellBox {
-    periodic: [bool; 3],
-    min: [f64; 3],
-    length0: [f64; 3],
-}
-
-impl CellBox {
-    fn of_scene(scene: &Scene) -> Option<Self> {
-        let spec = scene.cell.as_ref()?;
-        let (min, length0) = spec.box_of(scene);
-        Some(Self {
-            periodic: spec.periodic,
-            min,
-            length0,
-        })
-    }
-}
-
 /// Modes of the periodic cell's three axes in stage `st` (none without a cell): the
 /// displacement of an axis is its shortening, its servo holds σ_kk on the current face.
 fn cell_axis_modes(scene: &Scene, st: &StageSpec) -> Vec<WallMode> {
-    let Some(cell) = CellBox::of_scene(scene) else {
+    let Some(cell) = PeriodicBox::of_scene(scene) else {
         return Vec::new();
     };
     (0..3)

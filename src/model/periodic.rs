@@ -3,7 +3,7 @@
 //! them, `crate::solver::periodic`); an image of grain g with shift s sits at
 //! x + Σₖ sₖ Lₖ(t) eₖ and moves with v + Σₖ sₖ L̇ₖ eₖ.
 
-use crate::scene::Scene;
+use crate::scene::cell::PeriodicBox;
 
 /// Image shift of a grain in cell lengths along x, y, z (each −1, 0 or 1: grains stay
 /// inside the box, so a neighbour is at most one period away).
@@ -12,15 +12,9 @@ pub type Image = [i8; 3];
 /// The shift of the grain itself.
 pub const NO_IMAGE: Image = [0; 3];
 
-/// The periodic cell of a scene (identical on every rank).
-#[derive(Debug, Clone, PartialEq)]
-pub struct PeriodicCell {
-    pub periodic: [bool; 3],
-    /// Lower corner of the box (m): fixed, the box deforms about it.
-    pub min: [f64; 3],
-    /// Edge lengths at t = 0 (m).
-    pub length0: [f64; 3],
-}
+/// The periodic cell of a scene (identical on every rank): the scene's box, with the
+/// image shifts and wrapping below.
+pub type PeriodicCell = PeriodicBox;
 
 /// Edge lengths and their rates at one instant (m, m/s); all zero without a cell.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -44,16 +38,6 @@ impl CellKinematics {
 }
 
 impl PeriodicCell {
-    pub fn of_scene(scene: &Scene) -> Option<Self> {
-        let spec = scene.cell.as_ref()?;
-        let (min, length0) = spec.box_of(scene);
-        Some(Self {
-            periodic: spec.periodic,
-            min,
-            length0,
-        })
-    }
-
     /// Every image shift of the cell, the grain itself (all zero) first, then ascending:
     /// ±1 along periodic axes only.
     pub fn images(&self) -> Vec<Image> {

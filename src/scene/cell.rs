@@ -40,6 +40,29 @@ fn all_axes() -> [bool; 3] {
     [true; 3]
 }
 
+/// The periodic box of a scene at t = 0 (`crate::model::periodic` adds its images and
+/// shifts; the stages read its lengths).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PeriodicBox {
+    pub periodic: [bool; 3],
+    /// Lower corner of the box (m): fixed, the box deforms about it.
+    pub min: [f64; 3],
+    /// Edge lengths at t = 0 (m).
+    pub length0: [f64; 3],
+}
+
+impl PeriodicBox {
+    pub fn of_scene(scene: &Scene) -> Option<Self> {
+        let spec = scene.cell.as_ref()?;
+        let (min, length0) = spec.box_of(scene);
+        Some(Self {
+            periodic: spec.periodic,
+            min,
+            length0,
+        })
+    }
+}
+
 /// Names of the cell axes in `[[stages]] cell = { … }` and history columns.
 pub const AXES: [&str; 3] = ["x", "y", "z"];
 

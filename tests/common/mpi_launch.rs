@@ -195,6 +195,26 @@ pub fn relaunch_test(
     )
 }
 
+/// `mufe run SCENE` (a path relative to the crate) on `ranks` ranks with one thread each
+/// into a fresh temporary directory named after `name`; panics unless it succeeds.
+/// Returns the output directory and the job's stdout.
+pub fn run_scene(scene: &str, ranks: usize, name: &str) -> (std::path::PathBuf, String) {
+    let out = std::env::temp_dir().join(format!("mufe_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join(scene);
+    let args = [
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        "1",
+    ];
+    let o = run_mufe(ranks, &args, Duration::from_secs(300));
+    assert_success(&o);
+    (out, String::from_utf8_lossy(&o.stdout).into_owned())
+}
+
 /// Panics with the job's output unless it exited successfully.
 pub fn assert_success(out: &Output) {
     assert!(
