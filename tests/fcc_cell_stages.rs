@@ -18,7 +18,8 @@ mod mpi_launch;
 mod results;
 
 use results::{
-    assert_lateral_stress_held, assert_same_history, column, history, stage2_peak_ratio,
+    assert_held_then_failed, assert_lateral_stress_held, assert_same_history, column, history,
+    stage2_peak_ratio,
 };
 use std::path::{Path, PathBuf};
 
@@ -35,14 +36,7 @@ fn run(ranks: usize, name: &str) -> (PathBuf, String) {
 fn both_stages_run_hold_fail_and_agree_on_two_ranks() {
     let (serial_dir, stdout) = run(1, "r1");
     let serial = history(&serial_dir.join("results.h5"));
-    assert!(
-        stdout.contains("stage 'isotropic' done") && stdout.contains("ended by stress held"),
-        "stage 1 did not hold the stress:\n{stdout}"
-    );
-    assert!(
-        stdout.contains("stage 'shear' done") && stdout.contains("ended by failure + margin"),
-        "no failure detected in stage 2:\n{stdout}"
-    );
+    assert_held_then_failed(&stdout);
     assert!(stdout.contains("first gap opening between initially touching grains"));
 
     let stage = column(&serial, "stage");

@@ -44,23 +44,17 @@ impl HaloPlan {
                 .map(|g| g.surface.nodes.clone())
                 .unwrap_or_default()
         };
-        let sends: Vec<(usize, Vec<u32>)> = (plan.sends.iter())
-            .map(|(q, refs)| {
-                (
-                    *q,
-                    refs.iter()
-                        .flat_map(|r| surface_in(owned, r, false))
-                        .collect(),
-                )
-            })
-            .collect();
-        let send_images = (plan.sends.iter())
-            .map(|(_, refs)| {
-                refs.iter()
-                    .flat_map(|r| std::iter::repeat_n(r.image, surface_in(owned, r, false).len()))
-                    .collect()
-            })
-            .collect();
+        let (mut sends, mut send_images) = (Vec::new(), Vec::new());
+        for (q, refs) in &plan.sends {
+            let (mut nodes, mut images) = (Vec::new(), Vec::new());
+            for r in refs {
+                let surface = surface_in(owned, r, false);
+                images.extend(std::iter::repeat_n(r.image, surface.len()));
+                nodes.extend(surface);
+            }
+            sends.push((*q, nodes));
+            send_images.push(images);
+        }
         let receives = (plan.receives.iter())
             .map(|(q, refs)| {
                 (

@@ -69,12 +69,7 @@ pub fn write_frame(
     let grain_blocks = grain_row_blocks(owned(), &grain_offset);
 
     // a grain wrapped back into a periodic cell is measured from its shifted reference
-    let wrapped = |n: usize| {
-        let gid = m.grains[m.node_grain[n] as usize].global_id as usize;
-        (solver.state.cell.as_ref())
-            .and_then(|c| c.wrapped.get(gid).copied())
-            .unwrap_or([0.0; 3])
-    };
+    let wrapped = |n: usize| (solver.state).wrapped(m.grains[m.node_grain[n] as usize].global_id);
     let disp: Vec<f64> = (0..nn)
         .flat_map(|n| {
             let (x, x0, w) = (solver.state.x[n], m.x0[n], wrapped(n));
@@ -186,9 +181,7 @@ fn grain_records(solver: &Solver, element_stress: &[f64]) -> GrainRecords {
     };
     for g in 0..m.owned_grains {
         let motion = grain_motion(m, &solver.state.x, g);
-        let w = (solver.state.cell.as_ref())
-            .and_then(|c| c.wrapped.get(m.grains[g].global_id as usize).copied())
-            .unwrap_or([0.0; 3]);
+        let w = solver.state.wrapped(m.grains[g].global_id);
         r.displacement
             .extend_from_slice(&[0, 1, 2].map(|k| motion.displacement[k] - w[k]));
         r.rotation.extend_from_slice(&motion.rotation);

@@ -149,6 +149,14 @@ impl State {
         }
     }
 
+    /// Cell vector by which grain `global_id` has been wrapped back into the periodic
+    /// cell so far (m; zero without a cell): displacements are reported net of it.
+    pub fn wrapped(&self, global_id: u32) -> [f64; 3] {
+        (self.cell.as_ref())
+            .and_then(|c| c.wrapped.get(global_id as usize).copied())
+            .unwrap_or([0.0; 3])
+    }
+
     /// t_n for step n at the step Δt, on this state's clock.
     pub fn time_at_step(&self, step: u64, dt: f64) -> f64 {
         self.time_origin + (step - self.step_origin) as f64 * dt

@@ -211,12 +211,16 @@ impl ThorntonParams {
     }
 }
 
+/// A length, time or stress as the generated scenes write it (11 significant digits).
+fn sci(v: f64) -> String {
+    format!("{v:.10e}")
+}
+
 /// The sections both cells share, from `[simulation]` to `[contact]` (ending with the
 /// friction line), and the unit of time R/c_p (s).
 fn head_sections(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams) -> (String, f64) {
     let m = &inputs.material;
     let t = inputs.radius / m.dilatational_wave_speed();
-    let e = |v: f64| format!("{v:.10e}");
     let mut extra = String::new();
     for (k, v) in &inputs.material_extra {
         extra.push_str(&format!("{k} = {v}\n"));
@@ -235,11 +239,11 @@ density = {rho}   # kg/m³
 [contact]
 friction = {mu}
 "#,
-        duration = e((p.isotropic_max_time + p.shear_max_time) * t),
-        damping = e(p.damping / t),
-        target_dt = e(p.target_dt * t),
+        duration = sci((p.isotropic_max_time + p.shear_max_time) * t),
+        damping = sci(p.damping / t),
+        target_dt = sci(p.target_dt * t),
         mat = inputs.material_name,
-        youngs = e(m.youngs_modulus),
+        youngs = sci(m.youngs_modulus),
         nu = num(m.poisson_ratio),
         rho = num(m.density),
     );
@@ -249,7 +253,6 @@ friction = {mu}
 /// The two stages around the modes `iso` (stage 1) and `shear` (stage 2) of `group`
 /// (`walls` or `cell`), and the `[output]` section.
 fn stage_sections(p: &ThorntonParams, t: f64, group: &str, iso: &str, shear: &str) -> String {
-    let e = |v: f64| format!("{v:.10e}");
     format!(
         r#"[[stages]]
 name = "isotropic"
@@ -268,14 +271,14 @@ frame_interval = {duration}   # s: first and last frame only
 "#,
         tol = num(p.tolerance),
         hold = num(p.hold),
-        iso_max = e(p.isotropic_max_time * t),
-        shear_damping = e(p.shear_damping / t),
+        iso_max = sci(p.isotropic_max_time * t),
+        shear_damping = sci(p.shear_damping / t),
         drop = num(p.drop),
         margin = num(p.strain_margin),
         plateau = num(p.plateau_strain),
-        shear_max = e(p.shear_max_time * t),
-        history = e(p.history_interval * t),
-        duration = e((p.isotropic_max_time + p.shear_max_time) * t),
+        shear_max = sci(p.shear_max_time * t),
+        history = sci(p.history_interval * t),
+        duration = sci((p.isotropic_max_time + p.shear_max_time) * t),
     )
 }
 
@@ -286,9 +289,8 @@ frame_interval = {duration}   # s: first and last frame only
 pub fn thornton_periodic_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams) -> String {
     let r = inputs.radius;
     let n = p.cell_count();
-    let e = |v: f64| format!("{v:.10e}");
     let (head, t) = head_sections(inputs, mu, p);
-    let sigma = e(inputs.confining_stress);
+    let sigma = sci(inputs.confining_stress);
     let servo = format!(
         "{{ servo = {{ stress = {sigma}, periods = {} }} }}",
         p.servo_periods
@@ -324,10 +326,10 @@ packing = "cell"   # the box is the lattice period
 
 {stages}"#,
         s3 = num(inputs.confining_stress),
-        r = e(r),
+        r = sci(r),
         mat = inputs.material_name,
-        seeding = e(p.seeding * r),
-        contact_seeding = e(p.contact_seeding * r),
+        seeding = sci(p.seeding * r),
+        contact_seeding = sci(p.contact_seeding * r),
     )
 }
 
@@ -337,9 +339,8 @@ pub fn thornton_walls_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams
     let n = p.cell_count();
     let a = 2.0 * std::f64::consts::SQRT_2 * r;
     let (lo, hi) = (-r, n as f64 * a + r);
-    let e = |v: f64| format!("{v:.10e}");
     let (head, t) = head_sections(inputs, mu, p);
-    let sigma = e(inputs.confining_stress);
+    let sigma = sci(inputs.confining_stress);
     let periods = p.servo_periods;
     let servo =
         format!("{{ servo = {{ stress = {sigma}, area_of = \"cell\", periods = {periods} }} }}");
@@ -364,9 +365,9 @@ pub fn thornton_walls_scene(inputs: &ThorntonInputs, mu: f64, p: &ThorntonParams
     .map(|(name, point, normal)| {
         format!(
             "[[walls]]\nname = \"{name}\"\npoint = [{}, {}, {}]   # m\nnormal = [{:.1}, {:.1}, {:.1}]\n\n",
-            e(point[0]),
-            e(point[1]),
-            e(point[2]),
+            sci(point[0]),
+            sci(point[1]),
+            sci(point[2]),
             normal[0],
             normal[1],
             normal[2]
@@ -392,9 +393,9 @@ sphere = {{ radius = {r}, seeding = {seeding}, contact_seeding = {contact_seedin
 
 {walls}{stages}"#,
         s3 = num(inputs.confining_stress),
-        r = e(r),
+        r = sci(r),
         mat = inputs.material_name,
-        seeding = e(p.seeding * r),
-        contact_seeding = e(p.contact_seeding * r),
+        seeding = sci(p.seeding * r),
+        contact_seeding = sci(p.contact_seeding * r),
     )
 }

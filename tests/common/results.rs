@@ -76,3 +76,16 @@ pub fn stage2_peak_ratio(h: &[(String, Vec<f64>)]) -> f64 {
         .map(|(r, _)| *r)
         .fold(0.0, f64::max)
 }
+
+/// The stdout of a two-stage triaxial run says that stage 1 held its stress and stage 2
+/// ended at failure.
+pub fn assert_held_then_failed(stdout: &str) {
+    assert!(
+        stdout.contains("stage 'isotropic' done") && stdout.contains("ended by stress held"),
+        "stage 1 did not hold the stress:\n{stdout}"
+    );
+    assert!(
+        stdout.contains("stage 'shear' done") && stdout.contains("ended by failure + margin"),
+        "no failure detected in stage 2:\n{stdout}"
+    );
+}
