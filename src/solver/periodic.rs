@@ -47,10 +47,10 @@ pub struct CellState {
 }
 
 impl CellState {
-    pub fn new(cell: &PeriodicCell, grains: usize) -> Self {
+    /// The cell at rest at its t = 0 box (no grain wrapped yet: `wrapped` grows when one is).
+    pub fn new(cell: &PeriodicCell) -> Self {
         Self {
             axes: cell.periodic.map(|p| p.then(ServoState::default)),
-            wrapped: vec![[0.0; 3]; grains],
             ..Default::default()
         }
     }

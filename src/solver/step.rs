@@ -140,7 +140,7 @@ impl Solver {
                 planned_bounds: Vec::new(),
                 ..Default::default()
             },
-            cell: (model.periodic.as_ref()).map(|c| CellState::new(c, model.owned_grains)),
+            cell: (model.periodic.as_ref()).map(CellState::new),
         };
         let scratch = Scratch {
             force: vec![[0.0; 3]; n],
