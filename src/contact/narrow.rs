@@ -20,7 +20,7 @@
 //! the tilt off the friction angle).
 
 use super::friction::{return_map, rotate_onto_plane, tangential};
-use super::patch::Patch;
+use super::patch::{smooth_vertex_normal, Patch};
 use super::{ContactKey, ContactModel, FrictionPoint, NONE};
 use crate::math::{add, cross, dot, norm, scale, sub};
 
@@ -493,10 +493,31 @@ fn facet_patch(
     cm: &ContactModel,
     x: &[[f64; 3]],
     facet: usize,
-    vertex_normal: impl Fn(usize) -> [f64; 3],
+    vertex_normal: impl Fn(usize) -> Option<[f64; 3]>,
 ) -> Option<Patch> {
     let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
     Patch::of_facet([a, b, c], triangle_normal(a, b, c), vertex_normal)
+}
+
+/// The unit normal at corner `k` of `facet` when that vertex is smooth, `None` when it is
+/// sharp (see `patch`): the same answer from every facet around the vertex.
+fn smooth_corner_normal(
+    cm: &ContactModel,
+    x: &[[f64; 3]],
+    facet: usize,
+    k: usize,
+) -> Option<[f64; 3]> {
+    let vnode = cm.facet[facet][k];
+    let s = cm.surface_index[vnode as usize] as usize;
+    let around = &cm.vertex_facets
+        [cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize];
+    smooth_vertex_normal(
+        pseudo_normal(cm, x, facet, Feature::Vertex(k as u8)),
+        around.iter().map(|&f| {
+            let [a, b, c] = cm.facet[f as usize].map(|n| x[n as usize]);
+            triangle_normal(a, b, c)
+        }),
+    )
 }
 
 /// `xs` against the curved patch of `facet` (and of its neighbour across the edge the
@@ -512,7 +533,7 @@ fn locate_on_patch(
     cl: Closest,
     flat_inside: bool,
 ) -> Option<Located> {
-    let vertex_normal = |f: usize, k: usize| pseudo_normal(cm, x, f, Feature::Vertex(k as u8));
+    let vertex_normal = |f: usize, k: usize| smooth_corner_normal(cm, x, f, k);
     let patch = facet_patch(cm, x, facet, |k| vertex_normal(facet, k))?;
     let dist = cl.dist2.sqrt();
     let bulge = patch.bulge_bound();
