@@ -127,10 +127,10 @@ pub enum Command {
         /// for `mufe import`.
         #[arg(long)]
         image_voxel: Option<f64>,
-        /// Write a box of six walls and four stages instead (deposit under 100 g, damped;
-        /// approach: the top wall at constant speed until it carries 100 kPa; settle: walls
-        /// held, damped; compress: a constant strain rate), with frames: the shape demo of
-        /// jobs/shapes/ (docs/SHAPES.md, "Demo").
+        /// Write a box of six walls and five stages instead (deposit from a checkerboard
+        /// start under 200 g, damped; lower the top wall until it touches; approach until it
+        /// carries 10 kPa; consolidate: servo-held at 100 kPa; compress: a constant strain
+        /// rate), with frames: the shape demo of jobs/shapes/ (docs/SHAPES.md, "Demo").
         #[arg(long = "box")]
         in_box: bool,
     },

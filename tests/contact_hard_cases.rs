@@ -235,6 +235,8 @@ displacement = {{ times = [0.0, {t1:e}, {t2:e}, {t3:e}], values = [[0.0, 0.0, 0.
     let (mut sum_q, mut sum_n, mut samples) = (0.0, 0.0, 0usize);
     let (mut wq, mut wn, mut wk) = (0.0, 0.0, 0usize);
     let (mut worst, mut n_min, mut n_max) = (0.0f64, f64::INFINITY, 0.0f64);
+    // the friction work Q·v_slide·dt of the steady slide, and ALLFD at its start
+    let (mut slide_work, mut allfd_at_measure) = (0.0, None);
     while s.state.step < steps {
         s.step().unwrap();
         if s.state.time < t_measure {
@@ -242,6 +244,11 @@ displacement = {{ times = [0.0, {t1:e}, {t2:e}, {t3:e}], values = [[0.0, 0.0, 0.
         }
         let f = s.state.contact.stats.grain_force[ball];
         let q = (f[0] * f[0] + f[1] * f[1]).sqrt();
+        if allfd_at_measure.is_none() {
+            allfd_at_measure = Some(s.state.energy.friction_dissipation);
+        } else {
+            slide_work += q * v_slide * dt;
+        }
         sum_q += q;
         sum_n += f[2];
         samples += 1;
@@ -280,7 +287,14 @@ displacement = {{ times = [0.0, {t1:e}, {t2:e}, {t3:e}], values = [[0.0, 0.0, 0.
         worst < 0.02,
         "friction force deviates from μN by {worst:.3e}"
     );
-    assert!(s.state.energy.friction_dissipation > 0.0);
+    // ALLFD (the tractions' work less the spring energy they store) grows by the work of
+    // the sliding friction force
+    let allfd_gain = s.state.energy.friction_dissipation - allfd_at_measure.unwrap_or(0.0);
+    eprintln!("ALLFD over the slide {allfd_gain:.4e} J, Q·v·dt {slide_work:.4e} J");
+    assert!(
+        (allfd_gain / slide_work - 1.0).abs() < 0.03,
+        "ALLFD {allfd_gain:e} J against friction work {slide_work:e} J"
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -872,7 +886,9 @@ fn contact_is_bitwise_identical_on_1_and_2_threads() {
         a.state.contact.stats.max_contacts_run > 0,
         "no contact in the window"
     );
-    assert!(!a.state.contact.history.is_empty() || a.state.contact.friction_dissipation > 0.0);
+    assert!(
+        !a.state.contact.history.is_empty() || a.state.contact.friction_dissipation_total() > 0.0
+    );
     assert!(a.state.x == b.state.x, "positions differ");
     assert!(a.state.v == b.state.v, "velocities differ");
     assert!(a.state.energy == b.state.energy, "energies differ");

@@ -15,6 +15,12 @@ use crate::scene::stages::{wall_pairs, StageSpec, WallModeSpec};
 use crate::scene::{normal_axis, Scene, ServoSpec, WallSpec};
 use serde::{Deserialize, Serialize};
 
+/// The stress ratio σ1/σ3 is measured only while the mean lateral stress exceeds this
+/// part of the axial stress (–); below it the history's `stress_ratio` is 0 (undefined).
+/// A cohesionless packing fails below 2(1+μ)/(1−μ) (Thornton), 400 even at μ = 0.99, so a
+/// ratio above 1000 is a lateral wall grazed by a node, not a measurement.
+pub const RATIO_LATERAL_FLOOR: f64 = 1.0e-3;
+
 /// How one wall moves during a stage.
 #[derive(Debug, Clone, PartialEq)]
 pub enum WallMode {
@@ -355,9 +361,11 @@ impl StagePlan {
         let stress = [0, 1, 2].map(|k| force[k] / area[k]);
         let stress_wall_to_wall = [0, 1, 2].map(|k| force[k] / across(&distance, k));
         let a = self.axial;
+        // undefined (0) until the lateral walls carry a measurable load: a lateral wall
+        // grazed by one node gives σ3 ~ 1e-60 Pa and a ratio of 1e60
         let ratio_of = |s: &[f64; 3]| {
             let lateral = 0.5 * (s[(a + 1) % 3] + s[(a + 2) % 3]);
-            if lateral > 0.0 {
+            if lateral > RATIO_LATERAL_FLOOR * s[a].abs() && lateral > 0.0 {
                 s[a] / lateral
             } else {
                 0.0

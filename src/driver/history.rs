@@ -378,7 +378,7 @@ fn stage_columns(solver: &Solver) -> Vec<(String, &'static str, &'static str)> {
             "1",
             "1 − V/V0 of the wall box, compression positive",
         ));
-        c.push(("stress_ratio".into(), "1", "σ_axial / mean lateral σ on the lattice-span areas (axial = the axis of the moving walls; 0 while the lateral walls carry no load)"));
+        c.push(("stress_ratio".into(), "1", "σ_axial / mean lateral σ on the lattice-span areas (axial = the axis of the moving walls; 0 while the lateral walls carry no load, or less than 1e-3 of the axial stress)"));
         c.push((
             "stress_ratio_wall_to_wall".into(),
             "1",

@@ -360,7 +360,7 @@ pub fn describe_stage(r: &StageRecord) -> String {
         r.end,
         r.reason.describe()
     );
-    if let Some(p) = r.peak {
+    if let Some(p) = r.peak.filter(|p| p.ratio > 0.0) {
         line += &format!(
             "; peak σ1/σ3 = {:.4} at t = {:.4e} s, axial strain {:.4e}",
             p.ratio, p.time, p.axial_strain

@@ -75,8 +75,9 @@ pub struct State {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct RankTotals {
     pub energy: EnergyLedger,
-    /// `ContactState::friction_dissipation` (J).
-    pub friction_dissipation: f64,
+    /// `ContactState::tangential_work` (J).
+    #[serde(default)]
+    pub tangential_work: WorkAccumulator,
     /// Each wall's `work` and `friction` accumulators (J).
     pub wall_work: Vec<[WorkAccumulator; 2]>,
     /// Work of the periodic cell on the rank's grains (J).
@@ -93,7 +94,8 @@ impl RankTotals {
             for (e, v) in energy.iter_mut().zip(p.energy.to_sums()) {
                 *e += v;
             }
-            total.friction_dissipation += p.friction_dissipation;
+            total.tangential_work.work += p.tangential_work.work;
+            total.tangential_work.pending += p.tangential_work.pending;
             total.cell_work.work += p.cell_work.work;
             total.cell_work.pending += p.cell_work.pending;
             total
@@ -120,7 +122,7 @@ impl RankTotals {
         );
         RankTotals {
             energy,
-            friction_dissipation: 0.0,
+            tangential_work: WorkAccumulator::default(),
             wall_work: vec![[WorkAccumulator::default(); 2]; self.wall_work.len()],
             cell_work: WorkAccumulator::default(),
         }
@@ -132,7 +134,7 @@ impl State {
     pub fn rank_totals(&self) -> RankTotals {
         RankTotals {
             energy: self.energy.clone(),
-            friction_dissipation: self.contact.friction_dissipation,
+            tangential_work: self.contact.tangential_work,
             wall_work: (self.contact.walls.iter())
                 .map(|w| [w.work, w.friction])
                 .collect(),
@@ -165,7 +167,7 @@ impl State {
     /// Replaces this rank's additive totals.
     pub fn set_rank_totals(&mut self, totals: &RankTotals) {
         self.energy = totals.energy.clone();
-        self.contact.friction_dissipation = totals.friction_dissipation;
+        self.contact.tangential_work = totals.tangential_work;
         for (w, t) in self.contact.walls.iter_mut().zip(&totals.wall_work) {
             w.work = t[0];
             w.friction = t[1];
@@ -202,7 +204,7 @@ impl State {
         } = from;
         let ContactState {
             history: _,
-            friction_dissipation,
+            tangential_work,
             walls,
             stats,
             detection,
@@ -217,7 +219,7 @@ impl State {
         self.partition = partition.clone();
         // the cell's axes, stress and wraps are run-level; its work is this rank's total
         self.cell = cell.clone();
-        self.contact.friction_dissipation = *friction_dissipation;
+        self.contact.tangential_work = *tangential_work;
         self.contact.walls = walls.clone();
         self.contact.stats.max_penetration_run = stats.max_penetration_run;
         self.contact.stats.max_contacts_run = stats.max_contacts_run;
