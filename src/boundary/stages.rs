@@ -501,7 +501,13 @@ impl StagePlan {
                 start: p.started_at,
                 end: t_next,
                 reason,
-                peak: p.peak.filter(|_| axial.is_some() && stage.strains),
+                // a peak ratio means something in a stage that shears the cell to a strain
+                // or to failure, not while a lid approaches or grains settle
+                peak: p.peak.filter(|_| {
+                    axial.is_some()
+                        && stage.strains
+                        && (until.axial_strain.is_some() || until.failure.is_some())
+                }),
                 failure: p.failure,
             });
             p.index += 1;
@@ -865,6 +871,33 @@ until = { axial_strain = 0.01, max_time = 1.0 }
             "{}",
             r.end
         );
+    }
+
+    #[test]
+    fn the_stress_ratio_is_undefined_while_the_lateral_walls_only_graze() {
+        let scene = cell_scene(&format!(
+            r#"
+[[stages]]
+name = "shear"
+walls = {{ top = {{ strain_rate = 10.0 }}, x_min = {SERVO}, x_max = {SERVO}, y_min = {SERVO}, y_max = {SERVO} }}
+until = {{ max_time = 1.0 }}
+"#
+        ));
+        let plan = StagePlan::build(&scene).expect("staged");
+        let u = vec![[0.0; 3]; 6];
+        let ratio = |lateral: f64| {
+            plan.measure(&u, &[lateral, lateral, lateral, lateral, 1.0, 1.0])
+                .expect("cell")
+                .ratio
+        };
+        // equal areas at the start: σ1/σ3 is the force ratio
+        assert!((ratio(0.25) - 4.0).abs() < 1e-12);
+        assert!(
+            (ratio(2.0 * RATIO_LATERAL_FLOOR) - 0.5 / RATIO_LATERAL_FLOOR).abs()
+                < 1e-6 / RATIO_LATERAL_FLOOR
+        );
+        assert_eq!(ratio(1e-9), 0.0);
+        assert_eq!(ratio(0.0), 0.0);
     }
 
     #[test]

@@ -64,19 +64,10 @@
 //! loses its history.
 //!
 //! **Energy**: contact forces between grains are internal. The stored penalty energy
-//! ½ ε_n g² A + ½ |t|²/ε_t A (×½ per pass) is `contact_energy` (part of ALLIE). Slip
-//! dissipation (ALLFD) is what the tangential forces take out of the grains and do not
-//! store: minus their work, integrated by the ledger's trapezoidal rule like every other
-//! force (`crate::energy`), less the tangential spring energy ½ |t|²/ε_t A now. In stick
-//! that difference is zero to round-off (the central-difference work of a linear spring
-//! telescopes into its energy), so ALLFD grows only by slip, and a tangential spring that
-//! opens with energy in it counts as dissipated. (Summing the return map's own −t·Δs with
-//! the slip from v_{n−½} instead is a different quadrature of the same work: where
-//! tractions flicker in size and direction from step to step, as at the few-node contacts
-//! of a coarse grain creeping under a servo, it over-counted ALLFD by up to a third of its
-//! rate and left 0.6 % of the external work in the balance.) With central differences the
-//! normal penalty energy changes by minus the work of the normal forces (exactly for a
-//! linear spring, up to O(g/h) terms otherwise), so ETOTAL stays flat.
+//! ½ ε_n g² A + ½ |t|²/ε_t A (×½ per pass) is `contact_energy` (part of ALLIE), slip
+//! dissipation is `friction_dissipation` (ALLFD); with central differences their sum changes
+//! by minus the work of the contact forces (exactly for a linear spring in stick, up to
+//! O(g/h) terms otherwise), so ETOTAL stays flat.
 //!
 //! **Detection** ([`broad`], [`narrow`]): Verlet-list broad phase over grain boxes with a
 //! margin, per-grain facet BVHs, cached (node, candidate facets) lists; rebuilt only when some
@@ -116,7 +107,7 @@ use crate::boundary::servo::ServoState;
 use crate::boundary::stages::{StagePlan, StageProgress};
 use crate::energy::WorkAccumulator;
 use crate::error::MufeError;
-use crate::math::{dot, scale};
+use crate::math::dot;
 use crate::model::Model;
 pub use broad::DetectionReference;
 use broad::{BroadPhase, CandidateLists};
@@ -202,9 +193,6 @@ pub struct ContactStats {
     pub max_penetration: f64,
     /// Stored penalty energy at the last step (J).
     pub energy: f64,
-    /// Its tangential part Σ ½ |t|²/ε_t A (J).
-    #[serde(default)]
-    pub tangential_energy: f64,
     /// Largest penetration seen so far (m).
     pub max_penetration_run: f64,
     /// Most contact points (grain + wall) seen at one step so far.
@@ -220,10 +208,8 @@ pub struct ContactStats {
 pub struct ContactState {
     /// Friction history, sorted by key.
     pub history: Vec<FrictionPoint>,
-    /// Work of the grain–grain tangential (friction) forces on the grains so far (J, ≤ 0
-    /// in sum): ALLFD is minus it less the tangential energy still stored.
-    #[serde(default)]
-    pub tangential_work: WorkAccumulator,
+    /// Energy dissipated by grain–grain slip so far (J).
+    pub friction_dissipation: f64,
     pub walls: Vec<WallState>,
     pub stats: ContactStats,
     /// Surfaces at the last candidate-list rebuild.
@@ -252,9 +238,7 @@ impl ContactState {
 
     /// Grain–grain plus wall friction dissipation (J): ALLFD.
     pub fn friction_dissipation_total(&self) -> f64 {
-        -self.tangential_work.work
-            - self.stats.tangential_energy
-            - self.walls.iter().map(|w| w.friction.work).sum::<f64>()
+        self.friction_dissipation - self.walls.iter().map(|w| w.friction.work).sum::<f64>()
     }
 
     /// Work of the walls counted as external work (J): their total work on the grains plus
@@ -402,7 +386,7 @@ pub fn evaluate_with(
     stats.points = 0;
     stats.max_penetration = 0.0;
     stats.energy = 0.0;
-    stats.tangential_energy = 0.0;
+    let mut dissipation = 0.0;
     for (e, r) in lists.entries.iter().zip(&scratch.results) {
         if !r.active {
             continue;
@@ -426,9 +410,7 @@ pub fn evaluate_with(
             stats.points += 1;
             stats.max_penetration = stats.max_penetration.max(r.gap);
             stats.energy += r.energy;
-            if r.penalty > 0.0 {
-                stats.tangential_energy += 0.5 * dot(r.traction, r.traction) / r.penalty * r.area;
-            }
+            dissipation += r.dissipation;
         }
         if ctx.friction {
             let (sg, mg) = (
@@ -442,6 +424,7 @@ pub fn evaluate_with(
         }
     }
     debug_assert!(state.history.windows(2).all(|w| w[0].key < w[1].key));
+    state.friction_dissipation += dissipation;
     stats.max_penetration_run = stats.max_penetration_run.max(stats.max_penetration);
     let c = state.contacts();
     state.stats.max_contacts_run = state.stats.max_contacts_run.max(c);
@@ -513,51 +496,42 @@ fn add_point_force(r: &PointResult, force: &mut [[f64; 3]]) {
     }
 }
 
-/// Power sums [f_n·v_{n−½}, f_n·v_{n+½}] of two parts of the grain–grain contact forces
-/// of the last [`evaluate`], for the ledger's trapezoidal work rule (see `crate::energy`).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ContactPower {
-    /// The normal dampers (≤ 0 when they only resist).
-    pub damping: [f64; 2],
-    /// The tangential (friction) tractions.
-    pub tangential: [f64; 2],
-}
-
-/// [`ContactPower`] with the velocities `v_before` (v_{n−½}) and `v_after` (v_{n+½}).
-pub fn contact_power(
+/// Power sums of the contact damping forces of the last [`evaluate`] with the velocities
+/// `v_before` (v_{n−½}) and `v_after` (v_{n+½}), for the ledger's trapezoidal work rule
+/// (see `crate::energy`). Both are ≤ 0 when the damper only resists.
+pub fn damping_power(
     model: &Model,
     v_before: &[[f64; 3]],
     v_after: &[[f64; 3]],
     scratch: &ContactScratch,
-) -> ContactPower {
-    let mut p = ContactPower::default();
-    // Power of each force on each node it acts on, counted for owned nodes only: every node
+) -> (f64, f64) {
+    let (mut before, mut after) = (0.0, 0.0);
+    if model.contact.damping == 0.0 {
+        return (0.0, 0.0);
+    }
+    // Power of the damper on each node it acts on, counted for owned nodes only: every node
     // belongs to exactly one rank, so the sum over ranks is the serial one (and no ghost
     // v_{n+½}, which only its owner knows, is needed).
     let owned = model.owned_nodes;
-    let add = |sum: &mut [f64; 2], f: [f64; 3], r: &PointResult| {
+    for r in &scratch.results {
+        if !r.active || r.damping_force == 0.0 {
+            continue;
+        }
+        let f = r.damping_force;
         let s = r.slave as usize;
         if s < owned {
-            sum[0] += dot(f, v_before[s]);
-            sum[1] += dot(f, v_after[s]);
+            before += f * dot(v_before[s], r.normal);
+            after += f * dot(v_after[s], r.normal);
         }
         for (k, &m) in r.masters.iter().enumerate() {
             let m = m as usize;
             if m < owned {
-                sum[0] -= r.weights[k] * dot(f, v_before[m]);
-                sum[1] -= r.weights[k] * dot(f, v_after[m]);
+                before -= f * r.weights[k] * dot(v_before[m], r.normal);
+                after -= f * r.weights[k] * dot(v_after[m], r.normal);
             }
         }
-    };
-    for r in scratch.results.iter().filter(|r| r.active) {
-        if r.damping_force != 0.0 {
-            add(&mut p.damping, scale(r.normal, r.damping_force), r);
-        }
-        if r.traction != [0.0; 3] {
-            add(&mut p.tangential, scale(r.traction, r.area), r);
-        }
     }
-    p
+    (before, after)
 }
 
 /// Stage 3: kinematic walls on v_{n+½} (see [`walls`]). `t` = t_n.

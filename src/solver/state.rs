@@ -75,9 +75,8 @@ pub struct State {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct RankTotals {
     pub energy: EnergyLedger,
-    /// `ContactState::tangential_work` (J).
-    #[serde(default)]
-    pub tangential_work: WorkAccumulator,
+    /// `ContactState::friction_dissipation` (J).
+    pub friction_dissipation: f64,
     /// Each wall's `work` and `friction` accumulators (J).
     pub wall_work: Vec<[WorkAccumulator; 2]>,
     /// Work of the periodic cell on the rank's grains (J).
@@ -94,8 +93,7 @@ impl RankTotals {
             for (e, v) in energy.iter_mut().zip(p.energy.to_sums()) {
                 *e += v;
             }
-            total.tangential_work.work += p.tangential_work.work;
-            total.tangential_work.pending += p.tangential_work.pending;
+            total.friction_dissipation += p.friction_dissipation;
             total.cell_work.work += p.cell_work.work;
             total.cell_work.pending += p.cell_work.pending;
             total
@@ -122,7 +120,7 @@ impl RankTotals {
         );
         RankTotals {
             energy,
-            tangential_work: WorkAccumulator::default(),
+            friction_dissipation: 0.0,
             wall_work: vec![[WorkAccumulator::default(); 2]; self.wall_work.len()],
             cell_work: WorkAccumulator::default(),
         }
@@ -134,7 +132,7 @@ impl State {
     pub fn rank_totals(&self) -> RankTotals {
         RankTotals {
             energy: self.energy.clone(),
-            tangential_work: self.contact.tangential_work,
+            friction_dissipation: self.contact.friction_dissipation,
             wall_work: (self.contact.walls.iter())
                 .map(|w| [w.work, w.friction])
                 .collect(),
@@ -167,7 +165,7 @@ impl State {
     /// Replaces this rank's additive totals.
     pub fn set_rank_totals(&mut self, totals: &RankTotals) {
         self.energy = totals.energy.clone();
-        self.contact.tangential_work = totals.tangential_work;
+        self.contact.friction_dissipation = totals.friction_dissipation;
         for (w, t) in self.contact.walls.iter_mut().zip(&totals.wall_work) {
             w.work = t[0];
             w.friction = t[1];
@@ -204,7 +202,7 @@ impl State {
         } = from;
         let ContactState {
             history: _,
-            tangential_work,
+            friction_dissipation,
             walls,
             stats,
             detection,
@@ -219,7 +217,7 @@ impl State {
         self.partition = partition.clone();
         // the cell's axes, stress and wraps are run-level; its work is this rank's total
         self.cell = cell.clone();
-        self.contact.tangential_work = *tangential_work;
+        self.contact.friction_dissipation = *friction_dissipation;
         self.contact.walls = walls.clone();
         self.contact.stats.max_penetration_run = stats.max_penetration_run;
         self.contact.stats.max_contacts_run = stats.max_contacts_run;

@@ -385,10 +385,10 @@ impl Solver {
             );
         }
 
-        // Power of the contact dampers and tractions with v_{n−½} (state.v) and v_{n+½}
-        // (scratch.v_next), before integration overwrites v.
-        let contact_power = timers.time(Stage::Contact, || {
-            crate::contact::contact_power(model, &state.v, &scratch.v_next, &scratch.contact)
+        // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
+        // before integration overwrites v.
+        let contact_damping = timers.time(Stage::Contact, || {
+            crate::contact::damping_power(model, &state.v, &scratch.v_next, &scratch.contact)
         });
 
         let partials = timers.time(Stage::Integrate, || {
@@ -417,11 +417,9 @@ impl Solver {
                 .record(dt, partials.gravity_before, partials.gravity_after);
             e.damping.record(
                 dt,
-                partials.damping_before + contact_power.damping[0],
-                partials.damping_after + contact_power.damping[1],
+                partials.damping_before + contact_damping.0,
+                partials.damping_after + contact_damping.1,
             );
-            let [before, after] = contact_power.tangential;
-            state.contact.tangential_work.record(dt, before, after);
             e.friction_dissipation = state.contact.friction_dissipation_total();
             e.contact_energy = state.contact.stats.energy;
             e.boundary_work = state.motion_work.iter().map(|w| w.work).sum::<f64>()
