@@ -5,6 +5,7 @@ frictional bottom wall and a top wall moving down: the MPI test/benchmark assemb
 How to run: python3 scripts/gen_assembly.py K SEEDING PATCH_SEEDING OUT.toml
   K=3, 4.5e-4, 1.5e-4 -> jobs/tests/assembly.toml   (27 grains, 61k elements)
   K=4, 3.0e-4, 6.0e-5 -> jobs/bench/assembly_64.toml (64 grains, strong scaling)
+  K=2, 2.0e-4, 2.0e-4 -> jobs/tests/assembly_fine.toml (8 grains, uniformly fine: the trimmed-halo test)
 """
 import sys
 

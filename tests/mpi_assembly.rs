@@ -1,8 +1,9 @@
 //! The golden multi-rank check: `jobs/tests/assembly.toml` (27 contacting spheres, contacts
 //! straddling the partitions, a moving wall) run for 300 steps under 1, 2 and 3 ranks with
 //! 1 and 2 threads gives the same `/history` to 1e-10 relative and the same last frame to
-//! 1e-12, elastic and elastic–plastic, with and without grain migration; an error on one
-//! rank ends the job with a non-zero exit instead of a hang.
+//! 1e-12, elastic and elastic–plastic, with and without grain migration; a halo trimmed to
+//! the contact zones gives the whole halo's results bit for bit; an error on one rank ends
+//! the job with a non-zero exit instead of a hang.
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
@@ -259,6 +260,91 @@ fn assert_last_frame_equal(a: &Path, b: &Path, label: &str) {
             );
         }
     }
+}
+
+/// The trimmed halo (default) against whole ghost surfaces, 2 ranks, on
+/// `jobs/tests/assembly_fine.toml` (8 uniformly fine spheres meeting across the cut),
+/// contact zones re-aimed every 25 steps: the same history and last frame bit for bit,
+/// fewer bytes sent.
+#[test]
+fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/assembly_fine.toml");
+    let go = |name: &str, trim: &str| {
+        let out = out_dir(name);
+        let trim = format!("parallel.trim_ghosts={trim}");
+        let args = [
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--max-steps",
+            "1200",
+            "--set",
+            "parallel.check_interval=25",
+            "--set",
+            &trim,
+        ];
+        let o = mpi_launch::run_mufe(2, &args, Duration::from_secs(240));
+        mpi_launch::assert_success(&o);
+        (out.join("results.h5"), o)
+    };
+    let (trimmed, out_t) = go("trimmed", "true");
+    let (whole, out_w) = go("whole", "false");
+    let h = history(&whole);
+    let contacts = h.iter().find(|(n, _)| n == "contacts").unwrap();
+    assert!(
+        contacts.1.iter().cloned().fold(0.0, f64::max) > 20.0,
+        "contacts form"
+    );
+    for ((name, a), (_, b)) in h.iter().zip(&history(&trimmed)) {
+        assert!(
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "/history/{name} differs with a trimmed halo"
+        );
+    }
+    let (fa, fb) = (
+        hdf5::File::open(&whole).unwrap(),
+        hdf5::File::open(&trimmed).unwrap(),
+    );
+    let mut frames = fa.group("frames").unwrap().member_names().unwrap();
+    frames.sort();
+    let last = frames.last().unwrap();
+    for name in ["displacement", "velocity", "stress"] {
+        let path = format!("frames/{last}/{name}");
+        let read = |f: &hdf5::File| f.dataset(&path).unwrap().read_raw::<f64>().unwrap();
+        assert!(read(&fa) == read(&fb), "{path} differs with a trimmed halo");
+    }
+    // "halo: mean bytes sent per step by rank A, B (whole ghost surfaces: C, D); ... at most X m ... (limit Y m)"
+    let halo_line = |out: &std::process::Output| {
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .find(|l| l.starts_with("halo: mean bytes"))
+            .expect("halo line")
+            .to_string()
+    };
+    let numbers = |line: &str| -> Vec<f64> {
+        line.split(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
+            .filter_map(|t| t.parse().ok())
+            .collect()
+    };
+    let t = numbers(&halo_line(&out_t));
+    let w = numbers(&halo_line(&out_w));
+    assert!(t.len() >= 6 && w.len() >= 6, "{t:?} {w:?}");
+    for r in 0..2 {
+        // whole surfaces send the plan's bytes (plus the 7th value of the first exchange)
+        assert!(w[r] >= w[2 + r], "rank {r}: {w:?}");
+        assert!(
+            t[r] < 0.6 * t[2 + r],
+            "rank {r} sends {} of {} bytes",
+            t[r],
+            t[2 + r]
+        );
+    }
+    let (drift, limit) = (t[4], t[5]);
+    assert!(
+        drift > 0.0 && drift < limit,
+        "dormant nodes moved {drift} (limit {limit})"
+    );
 }
 
 #[test]

@@ -20,6 +20,7 @@
 use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
 use super::ContactModel;
 use crate::math::{dot, sub};
+use crate::model::periodic::NO_IMAGE;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -56,6 +57,8 @@ pub struct BroadPhase {
     pub moved: f64,
     order: Vec<u32>,
     chunk_max: Vec<f64>,
+    /// Whether each flat surface node counts in [`BroadPhase::max_displacement`].
+    counted: Vec<bool>,
     bvh_built: Vec<bool>,
 }
 
@@ -72,8 +75,11 @@ pub struct CandidateLists {
 }
 
 impl BroadPhase {
-    /// Largest displacement of a surface node since the last rebuild (m). Deterministic
-    /// (max is exact) and parallel over fixed chunks.
+    /// Largest displacement of a surface node since the last rebuild (m), over the nodes
+    /// this rank moves or shifts: owned grains and periodic images. A plain ghost's nodes
+    /// are its owner's to count (the rebuild decision is a max over ranks), and with a
+    /// trimmed halo most of them are dormant copies. Deterministic (max is exact) and
+    /// parallel over fixed chunks.
     pub fn max_displacement(
         &mut self,
         cm: &ContactModel,
@@ -81,16 +87,26 @@ impl BroadPhase {
         reference: &DetectionReference,
     ) -> f64 {
         let n = cm.node.len();
+        if self.counted.len() != n {
+            self.counted.clear();
+            for g in &cm.surfaces {
+                let counts = g.owned || g.image != NO_IMAGE;
+                self.counted
+                    .extend(std::iter::repeat_n(counts, g.nodes.len()));
+            }
+        }
         self.chunk_max.resize(n.div_ceil(NODE_CHUNK), 0.0);
-        let x_ref = &reference.x_ref;
+        let (x_ref, counted) = (&reference.x_ref, &self.counted);
         self.chunk_max
             .par_iter_mut()
             .enumerate()
             .for_each(|(c, out)| {
                 let mut m: f64 = 0.0;
                 for k in c * NODE_CHUNK..((c + 1) * NODE_CHUNK).min(n) {
-                    let d = sub(x[cm.node[k] as usize], x_ref[k]);
-                    m = m.max(dot(d, d));
+                    if counted[k] {
+                        let d = sub(x[cm.node[k] as usize], x_ref[k]);
+                        m = m.max(dot(d, d));
+                    }
                 }
                 *out = m;
             });

@@ -5,18 +5,100 @@
 //! Begin/end halves let interior work (internal forces) overlap the communication. The
 //! send and receive buffers, request and status lists are kept from step to step, so a
 //! step allocates nothing once they have grown to the plan's size.
+//!
+//! # Trimmed ghosts
+//! A ghost touches the receiving rank's grains over a small cap of its surface, so only
+//! the nodes of that cap are sent every step. After a plan, and then at every balance
+//! check ([`Halo::retarget`]), one *full* exchange sends every surface node with a flag
+//! the sender computes: whether the node lies within the *contact zone* of the receiver,
+//! |p − c_h| ≤ R_h + ½ M + cushion for a grain h (bounding sphere c_h, R_h, as gathered at
+//! the check) owned by the receiver, M the ghost margin and the cushion a few local edge
+//! lengths plus the broad-phase reach ([`HaloPlan::new`]). Until the next full exchange only the
+//! flagged nodes are sent; the others (*dormant*) keep their values. Why that loses no
+//! contact: a dormant node starts ½ M + cushion outside every receiving grain's bounding
+//! sphere; as long as it and those grains move less than ½ M together before the next
+//! check, every facet within the broad-phase reach of a receiving grain — and every node
+//! its curved patch depends on (one ring around its corners) — is fresh, so candidate
+//! lists, patches and forces are those of whole ghosts, bit for bit. A full exchange
+//! measures how far the dormant nodes had moved meanwhile and warns above ¼ M. Periodic
+//! images are always sent whole (their shift changes with the cell).
 
 use super::{Domain, Exchange, ExchangeBuffers, PendingExchange};
 use crate::error::MufeError;
-use crate::model::decomposition::{Decomposition, GhostRef};
-use crate::model::periodic::{CellKinematics, Image};
-use crate::model::Model;
+use crate::math::{norm, sub};
+use crate::model::decomposition::{Decomposition, GhostRef, GrainBound};
+use crate::model::periodic::{CellKinematics, Image, NO_IMAGE};
+use crate::model::{ContactModel, Model};
+use std::ops::Range;
 
-/// Values sent per surface node: x (3) and v (3).
+/// Values sent per surface node every step: x (3) and v (3).
 pub const VALUES_PER_NODE: usize = 6;
+
+/// Values sent per surface node in a full exchange: x, v and the keep flag.
+pub const VALUES_PER_NODE_FULL: usize = 7;
 
 /// Message tag of the forward halo.
 const FORWARD_TAG: i32 = 101;
+
+/// One grain (or image) in a send list: its nodes there and the zone whose nodes are kept.
+#[derive(Debug, Clone, Default)]
+pub struct SentGrain {
+    /// Range of the grain's nodes in the send list.
+    pub nodes: Range<usize>,
+    pub grain: usize,
+    pub image: Image,
+    /// Per node of the grain: how far outside a receiving grain's bounding sphere (beyond
+    /// ½ M) the node is still kept (m): see [`HaloPlan::new`].
+    pub cushion: Vec<f64>,
+    /// Spheres (centre, radius R_h + ½ M) of the receiving rank's grains near this one;
+    /// `None`: the whole surface is sent.
+    pub zone: Option<Vec<([f64; 3], f64)>>,
+}
+
+impl SentGrain {
+    /// Whether the `k`-th node of the grain, at `p` (image shift included), is sent every
+    /// step.
+    fn keeps(&self, k: usize, p: [f64; 3]) -> bool {
+        self.zone.as_ref().is_none_or(|spheres| {
+            spheres.iter().any(|(c, r)| {
+                let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() <= r + self.cushion[k]
+            })
+        })
+    }
+}
+
+/// Per flat surface node of `grain`: the longest facet edge within two rings of it (m, in
+/// the reference configuration).
+fn longest_edge_two_rings(cm: &ContactModel, x0: &[[f64; 3]], grain: usize) -> Vec<f64> {
+    let nodes = cm.surfaces[grain].nodes.clone();
+    let facets_of = |k: usize| {
+        let (a, b) = (cm.vertex_facet_offsets[k], cm.vertex_facet_offsets[k + 1]);
+        cm.vertex_facets[a as usize..b as usize].iter()
+    };
+    let facet_edge = |f: u32| {
+        let p = cm.facet[f as usize].map(|n| x0[n as usize]);
+        (0..3)
+            .map(|i| norm(sub(p[(i + 1) % 3], p[i])))
+            .fold(0.0, f64::max)
+    };
+    // longest edge of the facets around each node (one ring), then over its ring's nodes
+    let one_ring: Vec<f64> = nodes
+        .clone()
+        .map(|k| facets_of(k).map(|&f| facet_edge(f)).fold(0.0, f64::max))
+        .collect();
+    nodes
+        .clone()
+        .map(|k| {
+            facets_of(k)
+                .flat_map(|&f| cm.facet[f as usize])
+                .map(|n| cm.surface_index[n as usize] as usize)
+                .filter(|m| nodes.contains(m))
+                .map(|m| one_ring[m - nodes.start])
+                .fold(0.0, f64::max)
+        })
+        .collect()
+}
 
 /// Which model nodes go to / come from each neighbour rank (fixed between re-plans).
 #[derive(Debug, Clone, Default)]
@@ -26,6 +108,8 @@ pub struct HaloPlan {
     /// The periodic image each sent node goes to (parallel to `sends`): the sender adds
     /// the image's offset and velocity, so receivers copy.
     pub send_images: Vec<Vec<Image>>,
+    /// The grains of each send list, in order (parallel to `sends`).
+    pub sent_grains: Vec<Vec<SentGrain>>,
     /// (rank, model node ids of ghost surface nodes it owns), in the sender's order.
     pub receives: Vec<(usize, Vec<u32>)>,
 }
@@ -33,34 +117,62 @@ pub struct HaloPlan {
 impl HaloPlan {
     /// Maps a decomposition onto a model built with its owned and ghost grains. Both sides
     /// list (grain, image) ascending and each grain's surface nodes ascending, so the
-    /// sender's packing order is the receiver's unpacking order.
+    /// sender's packing order is the receiver's unpacking order. Every node is sent until
+    /// [`HaloPlan::aim`] gives the grains their contact zones.
+    ///
+    /// The cushion of a node: a facet with longest edge e has its box within 1.58 e of each
+    /// corner (the box of its smallest enclosing ball), and its curved patch reads one ring
+    /// (e) beyond its corners, so a node that a candidate facet depends on lies within
+    /// 2.6 e of that facet's box, e the longest edge within two rings of the node; the
+    /// facet's box lies within √3 (margin + ½ h) of a receiving node, h the largest mean
+    /// surface edge of the grains held here (the receiving grains among them).
     pub fn new(model: &Model, plan: &Decomposition) -> Self {
         let owned = &model.grains[..model.owned_grains];
         let ghosts = &model.grains[model.owned_grains..];
-        let surface_in = |grains: &[crate::model::GrainBlock], r: &GhostRef, image: bool| {
+        let find = |grains: &[crate::model::GrainBlock], r: &GhostRef, image: bool| {
             grains
                 .iter()
-                .find(|g| g.global_id as usize == r.grain && (!image || g.image == r.image))
-                .map(|g| g.surface.nodes.clone())
-                .unwrap_or_default()
+                .position(|g| g.global_id as usize == r.grain && (!image || g.image == r.image))
         };
-        let (mut sends, mut send_images) = (Vec::new(), Vec::new());
+        let cm = &model.contact;
+        // the largest query half-size of a receiving node: margin + ½ h of any held grain
+        let query = cm.margin + 0.5 * cm.surfaces.iter().map(|s| s.h_max).fold(0.0, f64::max);
+        let (mut sends, mut send_images, mut sent_grains) = (Vec::new(), Vec::new(), Vec::new());
         for (q, refs) in &plan.sends {
-            let (mut nodes, mut images) = (Vec::new(), Vec::new());
+            let (mut nodes, mut images, mut grains) = (Vec::new(), Vec::new(), Vec::new());
             for r in refs {
-                let surface = surface_in(owned, r, false);
+                let Some(mg) = find(owned, r, false) else {
+                    continue;
+                };
+                let surface = &owned[mg].surface.nodes;
+                let cushion = if mg < cm.surfaces.len() {
+                    (longest_edge_two_rings(cm, &model.x0, mg).iter())
+                        .map(|e| 2.6 * e + 3f64.sqrt() * query)
+                        .collect()
+                } else {
+                    vec![0.0; surface.len()]
+                };
+                grains.push(SentGrain {
+                    nodes: nodes.len()..nodes.len() + surface.len(),
+                    grain: r.grain,
+                    image: r.image,
+                    cushion,
+                    zone: None,
+                });
                 images.extend(std::iter::repeat_n(r.image, surface.len()));
-                nodes.extend(surface);
+                nodes.extend_from_slice(surface);
             }
             sends.push((*q, nodes));
             send_images.push(images);
+            sent_grains.push(grains);
         }
         let receives = (plan.receives.iter())
             .map(|(q, refs)| {
                 (
                     *q,
                     refs.iter()
-                        .flat_map(|r| surface_in(ghosts, r, true))
+                        .filter_map(|r| find(ghosts, r, true))
+                        .flat_map(|g| ghosts[g].surface.nodes.iter().copied())
                         .collect(),
                 )
             })
@@ -68,11 +180,34 @@ impl HaloPlan {
         Self {
             sends,
             send_images,
+            sent_grains,
             receives,
         }
     }
 
-    /// Bytes sent per step by this rank.
+    /// Gives every plain ghost sent its receiver's contact zone (module docs) from the
+    /// grains' bounding spheres `bounds` and owners `owner` (global, the same on every
+    /// rank) and the ghost margin `margin` (m). Images stay whole.
+    pub fn aim(&mut self, owner: &[u32], bounds: &[GrainBound], margin: f64) {
+        for ((q, _), grains) in self.sends.iter().zip(&mut self.sent_grains) {
+            for sent in grains.iter_mut() {
+                if sent.image != NO_IMAGE {
+                    sent.zone = None;
+                    continue;
+                }
+                let widest = sent.cushion.iter().cloned().fold(0.0, f64::max);
+                let b = bounds[sent.grain];
+                let spheres = (0..bounds.len())
+                    .filter(|&h| owner[h] as usize == *q && h != sent.grain)
+                    .filter(|&h| bounds[h].near(&b, 0.5 * margin + widest))
+                    .map(|h| (bounds[h].centre, bounds[h].radius + 0.5 * margin))
+                    .collect();
+                sent.zone = Some(spheres);
+            }
+        }
+    }
+
+    /// Bytes sent per step by this rank with whole ghost surfaces.
     pub fn bytes_per_step(&self) -> usize {
         self.sends
             .iter()
@@ -86,30 +221,81 @@ pub struct Halo<'d> {
     domain: &'d Domain,
     pub plan: HaloPlan,
     exchange: Exchange,
-    /// `(rank, values)` of each message sent and received, from the plan.
+    /// `(rank, values)` of each message of the exchange in flight or next.
     send_counts: Vec<(usize, usize)>,
     recv_counts: Vec<(usize, usize)>,
+    /// Positions in the send / receive lists of the nodes exchanged every step.
+    active_sends: Vec<Vec<u32>>,
+    active_receives: Vec<Vec<u32>>,
+    /// Per receive list: whether each node is active (parallel to `plan.receives`).
+    received_active: Vec<Vec<bool>>,
+    /// The next exchange sends every node (after a plan or a retarget).
+    full_next: bool,
+    full_in_flight: bool,
+    /// A full exchange has set the active lists once (dormant nodes hold real values).
+    trimmed_once: bool,
+    /// Largest distance a dormant node had moved when a full exchange refreshed it (m).
+    pub dormant_drift: f64,
+    /// Above this drift a contact may have been missed (¼ of the ghost margin, m).
+    drift_limit: f64,
+    warned: bool,
+    /// Values sent by this rank and exchanges made, for the mean bytes per step.
+    pub values_sent: u64,
+    pub exchanges: u64,
     /// The buffers between exchanges (inside `pending` while one is in flight).
     buffers: Option<ExchangeBuffers>,
     pending: Option<PendingExchange<'d>>,
 }
 
 impl<'d> Halo<'d> {
-    pub fn new(domain: &'d Domain, plan: HaloPlan) -> Self {
-        let counts = |list: &[(usize, Vec<u32>)]| -> Vec<(usize, usize)> {
-            list.iter()
-                .map(|(r, n)| (*r, n.len() * VALUES_PER_NODE))
-                .collect()
-        };
+    /// A halo whose first exchange is a full one. `margin`: the ghost margin (m), which
+    /// sets the drift warning.
+    pub fn new(domain: &'d Domain, plan: HaloPlan, margin: f64) -> Self {
+        let (ns, nr) = (plan.sends.len(), plan.receives.len());
         Self {
             domain,
-            send_counts: counts(&plan.sends),
-            recv_counts: counts(&plan.receives),
+            received_active: plan
+                .receives
+                .iter()
+                .map(|(_, n)| vec![false; n.len()])
+                .collect(),
             plan,
             exchange: Exchange::new(FORWARD_TAG),
+            send_counts: Vec::with_capacity(ns),
+            recv_counts: Vec::with_capacity(nr),
+            active_sends: vec![Vec::new(); ns],
+            active_receives: vec![Vec::new(); nr],
+            full_next: true,
+            full_in_flight: false,
+            trimmed_once: false,
+            dormant_drift: 0.0,
+            drift_limit: 0.25 * margin,
+            warned: false,
+            values_sent: 0,
+            exchanges: 0,
             buffers: Some(ExchangeBuffers::default()),
             pending: None,
         }
+    }
+
+    /// New contact zones from the grains' current `bounds` (see [`HaloPlan::aim`]); the
+    /// next exchange is a full one. All ranks must call at the same step.
+    pub fn retarget(&mut self, owner: &[u32], bounds: &[GrainBound], margin: f64) {
+        self.plan.aim(owner, bounds, margin);
+        self.full_next = true;
+    }
+
+    /// Keeps the traffic counters and the drift of the halo this one replaces.
+    pub fn carry_counters_from(&mut self, old: &Halo) {
+        self.values_sent += old.values_sent;
+        self.exchanges += old.exchanges;
+        self.dormant_drift = self.dormant_drift.max(old.dormant_drift);
+    }
+
+    /// Bytes this rank sends per step with the current active lists.
+    pub fn bytes_per_step(&self) -> usize {
+        let nodes: usize = self.active_sends.iter().map(Vec::len).sum();
+        nodes * VALUES_PER_NODE * 8
     }
 
     /// Posts the sends of the owned surface nodes' x and v and the receives of the ghosts'.
@@ -125,20 +311,54 @@ impl<'d> Halo<'d> {
         if self.plan.sends.is_empty() && self.plan.receives.is_empty() {
             return Ok(());
         }
+        let full = self.full_next;
         let mut buffers = self.buffers.take().unwrap_or_default();
         buffers.send.clear();
-        for ((_, nodes), images) in self.plan.sends.iter().zip(&self.plan.send_images) {
-            for (&n, &image) in nodes.iter().zip(images) {
-                let (dx, dv) = (cell.offset(image), cell.velocity(image));
-                let (p, u) = (x[n as usize], v[n as usize]);
-                buffers
-                    .send
-                    .extend_from_slice(&[0, 1, 2].map(|k| p[k] + dx[k]));
-                buffers
-                    .send
-                    .extend_from_slice(&[0, 1, 2].map(|k| u[k] + dv[k]));
+        self.send_counts.clear();
+        for (i, ((q, nodes), images)) in
+            (self.plan.sends.iter().zip(&self.plan.send_images)).enumerate()
+        {
+            let start = buffers.send.len();
+            let active = &mut self.active_sends[i];
+            let pack = |k: usize, send: &mut Vec<f64>| {
+                let (dx, dv) = (cell.offset(images[k]), cell.velocity(images[k]));
+                let (p, u) = (x[nodes[k] as usize], v[nodes[k] as usize]);
+                let p = [0, 1, 2].map(|j| p[j] + dx[j]);
+                send.extend_from_slice(&p);
+                send.extend_from_slice(&[0, 1, 2].map(|j| u[j] + dv[j]));
+                p
+            };
+            if full {
+                active.clear();
+                for sent in &self.plan.sent_grains[i] {
+                    for k in sent.nodes.clone() {
+                        let keep = sent.keeps(k - sent.nodes.start, pack(k, &mut buffers.send));
+                        buffers.send.push(if keep { 1.0 } else { 0.0 });
+                        if keep {
+                            active.push(k as u32);
+                        }
+                    }
+                }
+            } else {
+                for &k in active.iter() {
+                    pack(k as usize, &mut buffers.send);
+                }
             }
+            self.send_counts.push((*q, buffers.send.len() - start));
         }
+        self.recv_counts.clear();
+        for (i, (q, nodes)) in self.plan.receives.iter().enumerate() {
+            let values = if full {
+                nodes.len() * VALUES_PER_NODE_FULL
+            } else {
+                self.active_receives[i].len() * VALUES_PER_NODE
+            };
+            self.recv_counts.push((*q, values));
+        }
+        self.values_sent += buffers.send.len() as u64;
+        self.exchanges += 1;
+        self.full_in_flight = full;
+        self.full_next = false;
         self.pending = Some(self.exchange.begin_reusing(
             self.domain,
             buffers,
@@ -154,18 +374,67 @@ impl<'d> Halo<'d> {
             return Ok(());
         };
         let buffers = self.exchange.end_reusing(pending)?;
-        for ((rank, data), (_, nodes)) in buffers.received().zip(&self.plan.receives) {
-            if data.len() != nodes.len() * VALUES_PER_NODE {
+        let full = self.full_in_flight;
+        let per_node = if full {
+            VALUES_PER_NODE_FULL
+        } else {
+            VALUES_PER_NODE
+        };
+        for (i, ((rank, data), (_, nodes))) in
+            buffers.received().zip(&self.plan.receives).enumerate()
+        {
+            let expected = if full {
+                nodes.len()
+            } else {
+                self.active_receives[i].len()
+            };
+            if data.len() != expected * per_node {
                 return Err(MufeError::Run(format!(
                     "halo: rank {rank} sent {} values, expected {}",
                     data.len(),
-                    nodes.len() * VALUES_PER_NODE
+                    expected * per_node
                 )));
             }
-            for (k, &n) in nodes.iter().enumerate() {
-                let d = &data[k * VALUES_PER_NODE..(k + 1) * VALUES_PER_NODE];
-                x[n as usize] = [d[0], d[1], d[2]];
-                v[n as usize] = [d[3], d[4], d[5]];
+            if full {
+                let (active, flags) = (&mut self.active_receives[i], &mut self.received_active[i]);
+                active.clear();
+                for (k, d) in data.chunks_exact(per_node).enumerate() {
+                    let n = nodes[k] as usize;
+                    if self.trimmed_once && !flags[k] {
+                        let moved = [0, 1, 2].map(|j| d[j] - x[n][j]);
+                        let moved =
+                            (moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2])
+                                .sqrt();
+                        self.dormant_drift = self.dormant_drift.max(moved);
+                    }
+                    x[n] = [d[0], d[1], d[2]];
+                    v[n] = [d[3], d[4], d[5]];
+                    flags[k] = d[6] != 0.0;
+                    if flags[k] {
+                        active.push(k as u32);
+                    }
+                }
+            } else {
+                for (&k, d) in self.active_receives[i]
+                    .iter()
+                    .zip(data.chunks_exact(per_node))
+                {
+                    let n = nodes[k as usize] as usize;
+                    x[n] = [d[0], d[1], d[2]];
+                    v[n] = [d[3], d[4], d[5]];
+                }
+            }
+        }
+        if full {
+            self.trimmed_once = true;
+            if self.dormant_drift > self.drift_limit && !self.warned {
+                self.warned = true;
+                eprintln!(
+                    "rank {}: warning: ghost nodes outside the trimmed halo moved {:.3e} m between two balance checks (more than a quarter of the ghost margin, {:.3e} m); a contact may have been missed: lower parallel.check_interval or set parallel.trim_ghosts = false",
+                    self.domain.rank(),
+                    self.dormant_drift,
+                    self.drift_limit
+                );
             }
         }
         self.buffers = Some(buffers);
@@ -194,7 +463,6 @@ impl<'d> Halo<'d> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::periodic::NO_IMAGE;
 
     #[test]
     fn an_image_arrives_shifted_by_the_cell_and_moving_with_it() {
@@ -202,9 +470,14 @@ mod tests {
             let plan = HaloPlan {
                 sends: vec![(0, vec![0])],
                 send_images: vec![vec![[1, 0, -1]]],
+                sent_grains: vec![vec![SentGrain {
+                    nodes: 0..1,
+                    image: [1, 0, -1],
+                    ..Default::default()
+                }]],
                 receives: vec![(0, vec![1])],
             };
-            let mut halo = Halo::new(domain, plan);
+            let mut halo = Halo::new(domain, plan, 1.0);
             let cell = CellKinematics {
                 length: [2.0, 3.0, 4.0],
                 rate: [-0.5, 0.0, 0.25],
@@ -224,10 +497,14 @@ mod tests {
             let plan = HaloPlan {
                 sends: vec![(0, vec![0, 1])],
                 send_images: vec![vec![NO_IMAGE; 2]],
+                sent_grains: vec![vec![SentGrain {
+                    nodes: 0..2,
+                    ..Default::default()
+                }]],
                 receives: vec![(0, vec![2, 3])],
             };
             assert_eq!(plan.bytes_per_step(), 2 * VALUES_PER_NODE * 8);
-            let mut halo = Halo::new(domain, plan);
+            let mut halo = Halo::new(domain, plan, 1.0);
             let mut x = vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [0.0; 3], [0.0; 3]];
             let mut v = vec![[-1.0, -2.0, -3.0], [-4.0, -5.0, -6.0], [0.0; 3], [0.0; 3]];
             halo.exchange(&mut x, &mut v, &CellKinematics::default())
@@ -245,6 +522,71 @@ mod tests {
                 // the same allocation every step: nothing is allocated per step
                 assert_eq!(halo.send_buffer_identity().unwrap(), first);
             }
+        });
+    }
+
+    #[test]
+    fn a_trimmed_halo_sends_the_contact_zone_and_refreshes_the_rest_at_a_retarget() {
+        crate::domain::with_test_domain(|domain| {
+            // grain 0 (nodes 0–2) is mirrored into nodes 3–5 for grain 1, centred at
+            // x = 2.2 with radius 1: only node 0, at x = 1, lies within its contact zone
+            let plan = HaloPlan {
+                sends: vec![(0, vec![0, 1, 2])],
+                send_images: vec![vec![NO_IMAGE; 3]],
+                sent_grains: vec![vec![SentGrain {
+                    nodes: 0..3,
+                    grain: 0,
+                    cushion: vec![0.1; 3],
+                    ..Default::default()
+                }]],
+                receives: vec![(0, vec![3, 4, 5])],
+            };
+            let owner = [0, 0];
+            let bounds = [
+                GrainBound {
+                    centre: [0.0; 3],
+                    radius: 1.0,
+                },
+                GrainBound {
+                    centre: [2.2, 0.0, 0.0],
+                    radius: 1.0,
+                },
+            ];
+            let margin = 0.4;
+            let mut halo = Halo::new(domain, plan, margin);
+            halo.retarget(&owner, &bounds, margin);
+            let cell = CellKinematics::default();
+            let mut x = vec![
+                [1.0, 0.0, 0.0],
+                [-1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [9.0; 3],
+                [9.0; 3],
+                [9.0; 3],
+            ];
+            let mut v = vec![[0.0; 3]; 6];
+            // the full exchange copies every node
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(&x[3..], &x[..3]);
+            assert_eq!(halo.bytes_per_step(), VALUES_PER_NODE * 8);
+            // then only the node in the zone follows its owner
+            for n in 0..3 {
+                x[n][2] += 0.01;
+            }
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(x[3], x[0]);
+            assert_eq!((x[4], x[5]), ([-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]));
+            assert_eq!(halo.dormant_drift, 0.0);
+            // a retarget refreshes the dormant nodes and measures how far they had gone
+            halo.retarget(&owner, &bounds, margin);
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(&x[3..], &x[..3]);
+            assert!((halo.dormant_drift - 0.01).abs() < 1e-15);
+            // without a zone (images, or trimming off) every node is sent
+            halo.plan.sent_grains[0][0].zone = None;
+            halo.full_next = true;
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(halo.bytes_per_step(), 3 * VALUES_PER_NODE * 8);
         });
     }
 }

@@ -171,16 +171,29 @@ pub fn wrap_into_cell(domain: &Domain, solver: &mut Solver) -> bool {
     true
 }
 
+/// What a balance check decided.
+pub enum BalanceCheck {
+    /// Same owners and ghosts; every grain's current bounding sphere (global order), for
+    /// the halo's contact zones.
+    Unchanged(Vec<GrainBound>),
+    Rebalanced(Rebalanced),
+}
+
+/// Every grain's current bounding sphere (global order), the same on every rank. All
+/// ranks must call.
+pub fn current_bounds(domain: &Domain, solver: &Solver, n_grains: usize) -> Vec<GrainBound> {
+    gather_grain_status(domain, solver, n_grains).0
+}
+
 /// Re-partitions when the counted load imbalance exceeds the threshold, or re-plans the
-/// ghosts when some grain moved far from the last plan (see the module docs); `None` when
-/// nothing needs to change. The caller must have completed any halo exchange in flight.
-/// All ranks must call.
+/// ghosts when some grain moved far from the last plan (see the module docs). The caller
+/// must have completed any halo exchange in flight. All ranks must call.
 pub fn rebalance(
     domain: &Domain,
     loaded: &LoadedScene,
     global: &GlobalMesh,
     solver: &Solver,
-) -> Result<Option<Rebalanced>> {
+) -> Result<BalanceCheck> {
     let n = loaded.scene.grains.len();
     let (bounds, work) = gather_grain_status(domain, solver, n);
     let partition = &solver.state.partition;
@@ -207,7 +220,7 @@ pub fn rebalance(
     let moved = moved + cell_moved;
     let repartition = imbalance(&load) > loaded.scene.parallel.imbalance_threshold;
     if !repartition && moved <= 0.25 * ghost_margin(global) {
-        return Ok(None);
+        return Ok(BalanceCheck::Unchanged(bounds));
     }
     let old_owner = partition.owner.clone();
     let new_owner = if repartition {
@@ -235,7 +248,7 @@ pub fn rebalance(
         planned_bounds: bounds,
         planned_cell: cell_now,
     };
-    Ok(Some(Rebalanced {
+    Ok(BalanceCheck::Rebalanced(Rebalanced {
         solver,
         halo,
         migrated,

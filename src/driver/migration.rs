@@ -310,6 +310,6 @@ pub fn redistribute(
             "migration on rank {me}: received grains {installed:?}, expected {expected:?}"
         )));
     }
-    let halo = HaloPlan::new(&solver.model, &plan);
+    let halo = super::rank::halo_plan(loaded, global, &solver, &plan, new_owner, bounds);
     Ok((solver, plan, halo))
 }

@@ -29,10 +29,10 @@ pub mod triaxial_plot;
 use crate::domain::halo::Halo;
 use crate::domain::Domain;
 use crate::error::{MufeError, Result};
-use crate::model::global::GlobalMesh;
+use crate::model::global::{ghost_margin, GlobalMesh};
 use crate::scene::LoadedScene;
 use crate::solver::{Solver, Stage};
-use balance::{rebalance, Rebalanced};
+use balance::{rebalance, BalanceCheck, Rebalanced};
 use output::Output;
 use progress::Progress;
 use rank::{build_rank_solver, partition_grains, RankHooks};
@@ -95,6 +95,12 @@ pub struct RunSummary {
     pub max_kinetic_ratio: Vec<f64>,
     /// Checkpoints this run wrote.
     pub checkpoints: checkpoints::CheckpointStats,
+    /// Per rank: mean bytes the halo sent per step, and what whole ghost surfaces would
+    /// send (empty on one rank).
+    pub halo_bytes: Vec<(u64, u64)>,
+    /// Farthest a ghost node outside the trimmed halo had moved when refreshed (m, max
+    /// over ranks), and the limit of a quarter of the ghost margin.
+    pub dormant_drift: (f64, f64),
 }
 
 /// Runs a scene to its duration (or `max_steps`) and writes the results: serially, or
@@ -136,7 +142,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         global: &global,
         hooks: RankHooks {
             domain,
-            halo: Halo::new(domain, halo_plan),
+            halo: Halo::new(domain, halo_plan, ghost_margin(&global)),
         },
         solver,
         talk: domain.is_root() && !opts.quiet,
@@ -154,7 +160,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         if domain.size() > 1 {
             let per_rank: Vec<String> = halo_bytes.iter().map(u64::to_string).collect();
             println!(
-                "ranks: {} (METIS), rank 0 owns {} grains and mirrors {} ghosts; halo bytes sent per step by rank: {}",
+                "ranks: {} (METIS), rank 0 owns {} grains and mirrors {} ghosts; halo bytes per step by rank with whole ghost surfaces: {}",
                 domain.size(),
                 plan.owned.len(),
                 plan.ghosts.len(),
@@ -163,7 +169,15 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         }
     }
     if restarted {
-        // the ghosts' values in flight when the checkpoint was written
+        // the ghosts' values in flight when the checkpoint was written, the contact zones
+        // aimed where the grains are now (the plan's bounds are those of the last re-plan)
+        if loaded.scene.parallel.trim_ghosts && domain.size() > 1 {
+            let bounds = balance::current_bounds(domain, &run.solver, loaded.scene.grains.len());
+            let owner = &run.solver.state.partition.owner;
+            run.hooks
+                .halo
+                .retarget(owner, &bounds, ghost_margin(&global));
+        }
         let s = &run.solver.state;
         let cell = s.cell_kinematics(&run.solver.model);
         run.hooks.halo.begin(&s.x, &s.v, &cell)?;
@@ -395,18 +409,28 @@ impl Run<'_, '_> {
             println!("grains wrapped back into the periodic cell at step {step}");
         }
         match rebalance(domain, loaded, self.global, &self.solver)? {
-            None => {
+            BalanceCheck::Unchanged(bounds) => {
+                if loaded.scene.parallel.trim_ghosts {
+                    let owner = &self.solver.state.partition.owner;
+                    self.hooks
+                        .halo
+                        .retarget(owner, &bounds, ghost_margin(self.global));
+                }
                 let s = &self.solver.state;
                 let cell = s.cell_kinematics(&self.solver.model);
                 self.hooks.halo.begin(&s.x, &s.v, &cell)?;
             }
-            Some(Rebalanced {
+            BalanceCheck::Rebalanced(Rebalanced {
                 solver,
                 halo,
                 migrated,
             }) => {
                 self.solver = solver;
-                self.hooks.halo = Halo::new(domain, halo);
+                let old = std::mem::replace(
+                    &mut self.hooks.halo,
+                    Halo::new(domain, halo, ghost_margin(self.global)),
+                );
+                self.hooks.halo.carry_counters_from(&old);
                 // the new ghosts (images too: a package fills one copy) from their owners
                 let s = &self.solver.state;
                 let cell = s.cell_kinematics(&self.solver.model);
@@ -445,6 +469,14 @@ impl Run<'_, '_> {
             stats.rebuilds as f64,
         ];
         domain.sum_in_place(&mut now[..1]);
+        let halo = &self.hooks.halo;
+        let mean = (halo.values_sent * 8)
+            .checked_div(halo.exchanges)
+            .unwrap_or(0);
+        let means = domain.all_gather_u64(mean);
+        let wholes = domain.all_gather_u64(halo.plan.bytes_per_step() as u64);
+        let mut drift = [halo.dormant_drift];
+        domain.max_in_place(&mut drift);
         if let Some(e) = failure {
             return Err(e);
         }
@@ -470,6 +502,12 @@ impl Run<'_, '_> {
                 elements: self.global.total_elements(),
                 ..self.checkpoint_stats
             },
+            halo_bytes: if domain.size() > 1 {
+                means.into_iter().zip(wholes).collect()
+            } else {
+                Vec::new()
+            },
+            dormant_drift: (drift[0], 0.25 * ghost_margin(self.global)),
         })
     }
 }

@@ -83,8 +83,26 @@ pub fn build_rank_solver(
         planned_bounds: bounds.to_vec(),
         planned_cell: cell_length,
     };
-    let halo = HaloPlan::new(&solver.model, &plan);
+    let halo = halo_plan(loaded, global, &solver, &plan, owner, bounds);
     Ok((solver, plan, halo))
+}
+
+/// The halo plan of `plan` on this rank's `solver`, with every plain ghost aimed at its
+/// receiver's contact zone for the grain `bounds` unless the scene sends whole surfaces
+/// (`parallel.trim_ghosts = false`).
+pub fn halo_plan(
+    loaded: &LoadedScene,
+    global: &GlobalMesh,
+    solver: &Solver,
+    plan: &Decomposition,
+    owner: &[u32],
+    bounds: &[GrainBound],
+) -> HaloPlan {
+    let mut halo = HaloPlan::new(&solver.model, plan);
+    if loaded.scene.parallel.trim_ghosts {
+        halo.aim(owner, bounds, ghost_margin(global));
+    }
+    halo
 }
 
 /// The ghost plan of `rank` for the grain `bounds`, with the periodic cell (if any) at

@@ -274,6 +274,22 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
             100.0 * summary.contact_share
         );
     }
+    if !summary.halo_bytes.is_empty() {
+        let list = |f: fn(&(u64, u64)) -> u64| {
+            let v: Vec<String> = summary
+                .halo_bytes
+                .iter()
+                .map(|b| f(b).to_string())
+                .collect();
+            v.join(", ")
+        };
+        let (drift, limit) = summary.dormant_drift;
+        println!(
+            "halo: mean bytes sent per step by rank {} (whole ghost surfaces: {}); ghost nodes outside the trimmed halo moved at most {drift:.3e} m between refreshes (limit {limit:.3e} m)",
+            list(|b| b.0),
+            list(|b| b.1),
+        );
+    }
     println!("results: {}", summary.results.display());
 }
 

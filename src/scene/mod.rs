@@ -71,6 +71,11 @@ pub struct ParallelSpec {
     /// Steps between imbalance checks and ghost re-planning checks.
     #[serde(default = "default_check_interval")]
     pub check_interval: u64,
+    /// Send each ghost only the surface nodes within contact range of the receiving
+    /// rank's grains (refreshed whole at every check); false sends whole surfaces every
+    /// step. Results are the same bit for bit (`crate::domain::halo`).
+    #[serde(default = "default_trim_ghosts")]
+    pub trim_ghosts: bool,
 }
 
 impl Default for ParallelSpec {
@@ -78,6 +83,7 @@ impl Default for ParallelSpec {
         Self {
             imbalance_threshold: default_imbalance_threshold(),
             check_interval: default_check_interval(),
+            trim_ghosts: default_trim_ghosts(),
         }
     }
 }
@@ -88,6 +94,10 @@ fn default_imbalance_threshold() -> f64 {
 
 fn default_check_interval() -> u64 {
     500
+}
+
+fn default_trim_ghosts() -> bool {
+    true
 }
 
 /// Time integration settings.
