@@ -176,7 +176,7 @@ pub enum BalanceCheck {
     /// Same owners and ghosts; every grain's current bounding sphere (global order), for
     /// the halo's contact zones.
     Unchanged(Vec<GrainBound>),
-    Rebalanced(Rebalanced),
+    Rebalanced(Box<Rebalanced>),
 }
 
 /// Every grain's current bounding sphere (global order), the same on every rank. All
@@ -248,11 +248,11 @@ pub fn rebalance(
         planned_bounds: bounds,
         planned_cell: cell_now,
     };
-    Ok(BalanceCheck::Rebalanced(Rebalanced {
+    Ok(BalanceCheck::Rebalanced(Box::new(Rebalanced {
         solver,
         halo,
         migrated,
-    }))
+    })))
 }
 
 /// Gathers per-grain rows of the owned grains to rank 0 in global order (the grain bounds

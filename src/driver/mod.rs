@@ -420,11 +420,12 @@ impl Run<'_, '_> {
                 let cell = s.cell_kinematics(&self.solver.model);
                 self.hooks.halo.begin(&s.x, &s.v, &cell)?;
             }
-            BalanceCheck::Rebalanced(Rebalanced {
-                solver,
-                halo,
-                migrated,
-            }) => {
+            BalanceCheck::Rebalanced(rebalanced) => {
+                let Rebalanced {
+                    solver,
+                    halo,
+                    migrated,
+                } = *rebalanced;
                 self.solver = solver;
                 let old = std::mem::replace(
                     &mut self.hooks.halo,
