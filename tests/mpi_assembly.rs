@@ -314,11 +314,12 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         let read = |f: &hdf5::File| f.dataset(&path).unwrap().read_raw::<f64>().unwrap();
         assert!(read(&fa) == read(&fb), "{path} differs with a trimmed halo");
     }
-    // "halo: mean bytes sent per step by rank A, B (whole ghost surfaces: C, D); ... at most X m ... (limit Y m)"
+    // "halo: bytes sent per step by rank: mean A, B (…), contact zones now C, D, whole
+    // ghost surfaces E, F; … at most X m … (limit Y m)"
     let halo_line = |out: &std::process::Output| {
         String::from_utf8_lossy(&out.stdout)
             .lines()
-            .find(|l| l.starts_with("halo: mean bytes"))
+            .find(|l| l.starts_with("halo: bytes"))
             .expect("halo line")
             .to_string()
     };
@@ -329,18 +330,19 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
     };
     let t = numbers(&halo_line(&out_t));
     let w = numbers(&halo_line(&out_w));
-    assert!(t.len() >= 6 && w.len() >= 6, "{t:?} {w:?}");
+    assert!(t.len() == 8 && w.len() == 8, "{t:?} {w:?}");
     for r in 0..2 {
-        // whole surfaces send the plan's bytes (plus the 7th value of the first exchange)
-        assert!(w[r] >= w[2 + r], "rank {r}: {w:?}");
+        // whole surfaces: the plan's bytes every step (plus the flags of the first exchange)
+        assert!(w[r] >= w[4 + r] && w[2 + r] == w[4 + r], "rank {r}: {w:?}");
         assert!(
-            t[r] < 0.6 * t[2 + r],
+            t[r] < 0.6 * t[4 + r],
             "rank {r} sends {} of {} bytes",
             t[r],
-            t[2 + r]
+            t[4 + r]
         );
+        assert!(t[2 + r] < t[r], "rank {r}: {t:?}");
     }
-    let (drift, limit) = (t[4], t[5]);
+    let (drift, limit) = (t[6], t[7]);
     assert!(
         drift > 0.0 && drift < limit,
         "dormant nodes moved {drift} (limit {limit})"

@@ -95,9 +95,10 @@ pub struct RunSummary {
     pub max_kinetic_ratio: Vec<f64>,
     /// Checkpoints this run wrote.
     pub checkpoints: checkpoints::CheckpointStats,
-    /// Per rank: mean bytes the halo sent per step, and what whole ghost surfaces would
-    /// send (empty on one rank).
-    pub halo_bytes: Vec<(u64, u64)>,
+    /// Per rank: mean bytes the halo sent per step (full exchanges included), bytes per
+    /// step of the contact zones at the end, and what whole ghost surfaces would send
+    /// (empty on one rank).
+    pub halo_bytes: Vec<[u64; 3]>,
     /// Farthest a ghost node outside the trimmed halo had moved when refreshed (m, max
     /// over ranks), and the limit of a quarter of the ghost margin.
     pub dormant_drift: (f64, f64),
@@ -475,6 +476,7 @@ impl Run<'_, '_> {
             .checked_div(halo.exchanges)
             .unwrap_or(0);
         let means = domain.all_gather_u64(mean);
+        let zones = domain.all_gather_u64(halo.bytes_per_step() as u64);
         let wholes = domain.all_gather_u64(halo.plan.bytes_per_step() as u64);
         let mut drift = [halo.dormant_drift];
         domain.max_in_place(&mut drift);
@@ -504,7 +506,9 @@ impl Run<'_, '_> {
                 ..self.checkpoint_stats
             },
             halo_bytes: if domain.size() > 1 {
-                means.into_iter().zip(wholes).collect()
+                (0..domain.size())
+                    .map(|r| [means[r], zones[r], wholes[r]])
+                    .collect()
             } else {
                 Vec::new()
             },
