@@ -35,17 +35,27 @@ fn run(
     name: &str,
     extra: &[&str],
 ) -> (PathBuf, std::process::Output) {
+    run_scene(&scene(), STEPS, ranks, threads, name, extra)
+}
+
+fn run_scene(
+    scene: &Path,
+    steps: &str,
+    ranks: usize,
+    threads: usize,
+    name: &str,
+    extra: &[&str],
+) -> (PathBuf, std::process::Output) {
     let out = out_dir(name);
     let out_s = out.to_string_lossy().into_owned();
     let threads_s = threads.to_string();
-    let scene = scene();
     let mut args = vec![
         "run",
         scene.to_str().unwrap(),
         "--out",
         &out_s,
         "--max-steps",
-        STEPS,
+        steps,
         "--threads",
         &threads_s,
     ];
@@ -270,23 +280,11 @@ fn assert_last_frame_equal(a: &Path, b: &Path, label: &str) {
 fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/assembly_fine.toml");
     let go = |name: &str, trim: &str| {
-        let out = out_dir(name);
         let trim = format!("parallel.trim_ghosts={trim}");
-        let args = [
-            "run",
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--max-steps",
-            "1200",
-            "--set",
-            "parallel.check_interval=25",
-            "--set",
-            &trim,
-        ];
-        let o = mpi_launch::run_mufe(2, &args, Duration::from_secs(240));
+        let every = ["--set", "parallel.check_interval=25", "--set", &trim];
+        let (path, o) = run_scene(&scene, "1200", 2, 1, name, &every);
         mpi_launch::assert_success(&o);
-        (out.join("results.h5"), o)
+        (path, o)
     };
     let (trimmed, out_t) = go("trimmed", "true");
     let (whole, out_w) = go("whole", "false");
