@@ -957,6 +957,27 @@ pub fn scene_partition_grains(
     Ok(out)
 }
 
+/// The forward halo `mufe run` would send per step for the partition `owner` (the run's
+/// ghost margin, not the grain graph's): whole ghost surfaces against contact zones.
+fn print_contact_zone_halo(loaded: &LoadedScene, owner: &[u32]) -> Result<(), MufeError> {
+    let global = crate::model::GlobalMesh::build(loaded)?;
+    let nodes =
+        crate::model::global::halo_nodes_per_rank(&global, owner, loaded.scene.contact.margin);
+    let bytes = crate::domain::halo::VALUES_PER_NODE as u64 * 8;
+    let max = |i: usize| nodes.iter().map(|n| n[i] * bytes).max().unwrap_or(0);
+    let total = |i: usize| nodes.iter().map(|n| n[i] * bytes).sum::<u64>();
+    println!(
+        "forward halo of mufe run (x, v of ghost surface nodes; ghost margin {:.4e} m): whole surfaces {:.3} MB/step max per part ({:.3} MB all parts), contact zones {:.3} MB max ({:.3} MB all, {:.0} % of whole)",
+        crate::model::global::ghost_margin(&global),
+        max(0) as f64 / 1e6,
+        total(0) as f64 / 1e6,
+        max(1) as f64 / 1e6,
+        total(1) as f64 / 1e6,
+        100.0 * total(1) as f64 / total(0).max(1) as f64
+    );
+    Ok(())
+}
+
 fn partition_command(
     scene: &std::path::Path,
     set: &[String],
@@ -1043,6 +1064,9 @@ fn partition_command(
         cost.cost_per_surface_node
     );
     println!("{quality}");
+    if exact && crate::driver::rank::trims_ghosts(&loaded) {
+        print_contact_zone_halo(&loaded, &part)?;
+    }
     if let Some(path) = out {
         // Write beside the target and rename, so an existing file is never left half-written.
         let mut tmp = path.as_os_str().to_owned();

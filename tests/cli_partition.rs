@@ -167,3 +167,29 @@ fn bad_scene_is_one_line_error() {
         &["negative_radius.toml", "grains[0].shape.sphere.radius"],
     );
 }
+
+#[test]
+fn exact_partition_prints_the_contact_zone_halo_of_the_run() {
+    // 8 uniformly fine spheres meeting across the cut: the zones are a fraction of the
+    // ghosts' surfaces (`mufe run` sent 35 % on 2 ranks, tests/mpi_assembly.rs)
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/assembly_fine.toml");
+    let o = mufe(&[
+        "partition",
+        scene.to_str().unwrap(),
+        "--parts",
+        "2",
+        "--exact",
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let out = text(&o.stdout);
+    let line = out
+        .lines()
+        .find(|l| l.starts_with("forward halo of mufe run"))
+        .unwrap_or_else(|| panic!("no halo line in {out}"));
+    let share: f64 = line
+        .rsplit_once(", ")
+        .and_then(|(_, tail)| tail.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no share in {line}"));
+    assert!(share > 10.0 && share < 60.0, "{line}");
+}

@@ -25,10 +25,12 @@
 
 use super::{Domain, Exchange, ExchangeBuffers, PendingExchange};
 use crate::error::MufeError;
-use crate::math::{norm, sub};
-use crate::model::decomposition::{Decomposition, GhostRef, GrainBound};
+use crate::mesh::longest_edge_within_two_rings;
+use crate::model::decomposition::{
+    contact_zone, contact_zone_cushion, in_contact_zone, Decomposition, GhostRef, GrainBound,
+};
 use crate::model::periodic::{CellKinematics, Image, NO_IMAGE};
-use crate::model::{ContactModel, Model};
+use crate::model::Model;
 use std::ops::Range;
 
 /// Values sent per surface node every step: x (3) and v (3).
@@ -59,45 +61,8 @@ impl SentGrain {
     /// Whether the `k`-th node of the grain, at `p` (image shift included), is sent every
     /// step.
     fn keeps(&self, k: usize, p: [f64; 3]) -> bool {
-        self.zone.as_ref().is_none_or(|spheres| {
-            spheres.iter().any(|(c, r)| {
-                let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
-                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() <= r + self.cushion[k]
-            })
-        })
+        (self.zone.as_ref()).is_none_or(|zone| in_contact_zone(zone, p, self.cushion[k]))
     }
-}
-
-/// Per flat surface node of `grain`: the longest facet edge within two rings of it (m, in
-/// the reference configuration).
-fn longest_edge_two_rings(cm: &ContactModel, x0: &[[f64; 3]], grain: usize) -> Vec<f64> {
-    let nodes = cm.surfaces[grain].nodes.clone();
-    let facets_of = |k: usize| {
-        let (a, b) = (cm.vertex_facet_offsets[k], cm.vertex_facet_offsets[k + 1]);
-        cm.vertex_facets[a as usize..b as usize].iter()
-    };
-    let facet_edge = |f: u32| {
-        let p = cm.facet[f as usize].map(|n| x0[n as usize]);
-        (0..3)
-            .map(|i| norm(sub(p[(i + 1) % 3], p[i])))
-            .fold(0.0, f64::max)
-    };
-    // longest edge of the facets around each node (one ring), then over its ring's nodes
-    let one_ring: Vec<f64> = nodes
-        .clone()
-        .map(|k| facets_of(k).map(|&f| facet_edge(f)).fold(0.0, f64::max))
-        .collect();
-    nodes
-        .clone()
-        .map(|k| {
-            facets_of(k)
-                .flat_map(|&f| cm.facet[f as usize])
-                .map(|n| cm.surface_index[n as usize] as usize)
-                .filter(|m| nodes.contains(m))
-                .map(|m| one_ring[m - nodes.start])
-                .fold(0.0, f64::max)
-        })
-        .collect()
 }
 
 /// Which model nodes go to / come from each neighbour rank (fixed between re-plans).
@@ -120,11 +85,8 @@ impl HaloPlan {
     /// sender's packing order is the receiver's unpacking order. Every node is sent until
     /// [`HaloPlan::aim`] gives the grains their contact zones.
     ///
-    /// The cushion of a node: a facet with longest edge e has its box within 1.58 e of each
-    /// corner (the box of its smallest enclosing ball), and its curved patch reads one ring
-    /// (e) beyond its corners, so a node that a candidate facet depends on lies within
-    /// 2.6 e of that facet's box, e the longest edge within two rings of the node; the
-    /// facet's box lies within √3 (margin + ½ h) of a receiving node, h the largest mean
+    /// A node's cushion ([`contact_zone_cushion`]) takes the longest facet edge within two
+    /// rings of it, and as query half-size the broad-phase margin + ½ the largest mean
     /// surface edge of the grains held here (the receiving grains among them).
     pub fn new(model: &Model, plan: &Decomposition) -> Self {
         let owned = &model.grains[..model.owned_grains];
@@ -145,13 +107,10 @@ impl HaloPlan {
                     continue;
                 };
                 let surface = &owned[mg].surface.nodes;
-                let cushion = if mg < cm.surfaces.len() {
-                    (longest_edge_two_rings(cm, &model.x0, mg).iter())
-                        .map(|e| 2.6 * e + 3f64.sqrt() * query)
-                        .collect()
-                } else {
-                    vec![0.0; surface.len()]
-                };
+                let cushion = longest_edge_within_two_rings(&owned[mg].surface, &model.x0)
+                    .into_iter()
+                    .map(|e| contact_zone_cushion(e, query))
+                    .collect();
                 grains.push(SentGrain {
                     nodes: nodes.len()..nodes.len() + surface.len(),
                     grain: r.grain,
@@ -196,12 +155,7 @@ impl HaloPlan {
                     continue;
                 }
                 let widest = sent.cushion.iter().cloned().fold(0.0, f64::max);
-                let b = bounds[sent.grain];
-                let spheres = (0..bounds.len())
-                    .filter(|&h| owner[h] as usize == *q && h != sent.grain)
-                    .filter(|&h| bounds[h].near(&b, 0.5 * margin + widest))
-                    .map(|h| (bounds[h].centre, bounds[h].radius + 0.5 * margin))
-                    .collect();
+                let spheres = contact_zone(owner, bounds, margin, sent.grain, *q, widest);
                 sent.zone = Some(spheres);
             }
         }

@@ -87,6 +87,13 @@ pub fn build_rank_solver(
     Ok((solver, plan, halo))
 }
 
+/// Whether the halo sends ghosts their contact zones only: `parallel.trim_ghosts`, and no
+/// periodic cell (its Love–Weber branch vectors take a ghost's centre as the mean of all its
+/// surface nodes, so a periodic cell's ghosts travel whole).
+pub fn trims_ghosts(loaded: &LoadedScene) -> bool {
+    loaded.scene.parallel.trim_ghosts && PeriodicCell::of_scene(&loaded.scene).is_none()
+}
+
 /// The halo plan of `plan` on this rank's `solver`, with every plain ghost aimed at its
 /// receiver's contact zone for the grain `bounds` unless the scene sends whole surfaces
 /// (`parallel.trim_ghosts = false`).
@@ -99,7 +106,7 @@ pub fn halo_plan(
     bounds: &[GrainBound],
 ) -> HaloPlan {
     let mut halo = HaloPlan::new(&solver.model, plan);
-    if loaded.scene.parallel.trim_ghosts {
+    if trims_ghosts(loaded) {
         halo.aim(owner, bounds, ghost_margin(global));
     }
     halo

@@ -42,7 +42,10 @@ pub use quality::{quality, tet_dihedral_angles, tet_volume, validate, QualityRep
 pub use sphere::{
     fcc_contact_directions, mesh_sphere, GradedBand, LocalRefinement, SphereMeshSpec,
 };
-pub use surface::{extract_surface, facet_normals, surface_node_geometry, SurfaceNodeGeometry};
+pub use surface::{
+    extract_surface, facet_normals, longest_edge_within_two_rings, surface_node_geometry,
+    SurfaceNodeGeometry,
+};
 
 /// A linear tetrahedral (tet4) mesh of one grain. Every tet is positively oriented:
 /// `(x1−x0)·((x2−x0)×(x3−x0)) > 0`.

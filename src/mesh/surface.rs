@@ -52,6 +52,38 @@ fn area_vector(mesh: &TetMesh, f: &[u32; 3]) -> [f64; 3] {
     scale(cross(sub(b, a), sub(c, a)), 0.5)
 }
 
+/// Per surface node (in `surface.nodes` order): the longest facet edge within two rings
+/// of it (m), at node positions `x` (indexed by the surface's node ids). The reach of the
+/// facets a node's curved contact patch and its neighbours' depend on.
+pub fn longest_edge_within_two_rings(surface: &SurfaceMesh, x: &[[f64; 3]]) -> Vec<f64> {
+    let n = surface.nodes.len();
+    let local = |id: u32| surface.nodes.binary_search(&id).unwrap_or(0);
+    let longest = |f: &[u32; 3]| {
+        (0..3)
+            .map(|i| norm(sub(x[f[(i + 1) % 3] as usize], x[f[i] as usize])))
+            .fold(0.0, f64::max)
+    };
+    // longest edge of the facets around each node (one ring) …
+    let mut one_ring = vec![0.0f64; n];
+    for f in &surface.facets {
+        let e = longest(f);
+        for &id in f {
+            let k = local(id);
+            one_ring[k] = one_ring[k].max(e);
+        }
+    }
+    // … then over the corners of those facets (two rings)
+    let mut two_rings = one_ring.clone();
+    for f in &surface.facets {
+        let reach = f.iter().map(|&id| one_ring[local(id)]).fold(0.0, f64::max);
+        for &id in f {
+            let k = local(id);
+            two_rings[k] = two_rings[k].max(reach);
+        }
+    }
+    two_rings
+}
+
 /// Unit outward normal of every facet of `surface` (same order as `surface.facets`).
 /// A zero-area facet gets `[0, 0, 0]`.
 pub fn facet_normals(mesh: &TetMesh, surface: &SurfaceMesh) -> Vec<[f64; 3]> {

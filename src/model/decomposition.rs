@@ -171,6 +171,45 @@ impl Decomposition {
     }
 }
 
+/// How far beyond ½ ghost margin outside a receiving grain's bounding sphere a ghost's
+/// surface node is still sent every step (m), for a node whose facets within two rings
+/// have longest edge `longest_edge` and a receiving side whose broad-phase query boxes
+/// reach `query_half_size` (margin + ½ h) from its nodes: a facet's box lies within
+/// 1.58 e of each corner (the box of its smallest enclosing ball), a curved patch reads one
+/// ring beyond its corners, and a query box reaches √3 × its half-size. See
+/// `crate::domain::halo` for why this keeps the results of whole ghosts.
+pub fn contact_zone_cushion(longest_edge: f64, query_half_size: f64) -> f64 {
+    2.6 * longest_edge + 3f64.sqrt() * query_half_size
+}
+
+/// The contact zone of ghost `grain` on rank `receiver`: (centre, R + ½ `margin`) of the
+/// receiver's grains whose bounding spheres come within ½ `margin` + `widest_cushion` of
+/// the ghost's (`bounds`, `owner` global).
+pub fn contact_zone(
+    owner: &[u32],
+    bounds: &[GrainBound],
+    margin: f64,
+    grain: usize,
+    receiver: usize,
+    widest_cushion: f64,
+) -> Vec<([f64; 3], f64)> {
+    let b = bounds[grain];
+    (0..bounds.len())
+        .filter(|&h| owner[h] as usize == receiver && h != grain)
+        .filter(|&h| bounds[h].near(&b, 0.5 * margin + widest_cushion))
+        .map(|h| (bounds[h].centre, bounds[h].radius + 0.5 * margin))
+        .collect()
+}
+
+/// Whether a node at `p` with cushion `cushion` (m) lies in `zone`
+/// ([`contact_zone`], [`contact_zone_cushion`]).
+pub fn in_contact_zone(zone: &[([f64; 3], f64)], p: [f64; 3], cushion: f64) -> bool {
+    zone.iter().any(|(c, r)| {
+        let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() <= r + cushion
+    })
+}
+
 /// Load imbalance max/mean − 1 of per-rank costs.
 pub fn imbalance(costs: &[f64]) -> f64 {
     let mean = costs.iter().sum::<f64>() / costs.len().max(1) as f64;

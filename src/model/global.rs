@@ -3,7 +3,10 @@
 //! spheres. It sizes the partition, the results file and the ghost margin.
 
 use super::assemble::mesh_shape;
-use super::decomposition::{Decomposition, GhostRef, GrainBound, PlanCell};
+use super::decomposition::{
+    contact_zone, contact_zone_cushion, in_contact_zone, Decomposition, GhostRef, GrainBound,
+    PlanCell,
+};
 use super::periodic::PeriodicCell;
 use crate::error::InputError;
 use crate::mesh::{self, TetMesh};
@@ -83,6 +86,105 @@ impl GlobalMesh {
     pub fn total_elements(&self) -> usize {
         *self.element_offset.last().unwrap_or(&0)
     }
+}
+
+/// Surface nodes each rank's forward halo carries per step for the partition `owner`
+/// (plain ghosts, no periodic images): `[whole ghost surfaces, contact zones]` per rank,
+/// as `mufe run` sends them (`crate::domain::halo`: the zones around the grains at their
+/// starting positions). `contact_margin`: the scene's broad-phase margin (m; default half
+/// the smallest surface edge, as in the run).
+pub fn halo_nodes_per_rank(
+    global: &GlobalMesh,
+    owner: &[u32],
+    contact_margin: Option<f64>,
+) -> Vec<[u64; 2]> {
+    let margin = ghost_margin(global);
+    // per distinct mesh: its surface, each node's cushion length, its largest mean edge
+    // and its shortest edge
+    type Shape = (mesh::SurfaceMesh, Vec<f64>, [f64; 2]);
+    let mut shapes: BTreeMap<*const TetMesh, Shape> = BTreeMap::new();
+    for m in &global.meshes {
+        shapes.entry(Arc::as_ptr(m)).or_insert_with(|| {
+            let surface = mesh::extract_surface(m);
+            let longest = mesh::longest_edge_within_two_rings(&surface, &m.nodes);
+            let edges = surface_edge_lengths(&surface, &m.nodes);
+            (surface, longest, edges)
+        });
+    }
+    let h = shapes.values().map(|s| s.2[0]).fold(0.0, f64::max);
+    let min_edge = shapes
+        .values()
+        .map(|s| s.2[1])
+        .fold(f64::INFINITY, f64::min);
+    let broad_margin =
+        contact_margin.unwrap_or(super::contact_layout::DEFAULT_MARGIN_FRACTION * min_edge);
+    let query = broad_margin + 0.5 * h;
+    let ranks = owner.iter().map(|&r| r as usize + 1).max().unwrap_or(1);
+    (0..ranks)
+        .map(|r| {
+            let plan = Decomposition::plan(owner, &global.bounds, margin, r, None);
+            let mut counts = [0u64; 2];
+            for ghost in &plan.ghosts {
+                let g = ghost.grain;
+                let (surface, longest, _) = &shapes[&Arc::as_ptr(&global.meshes[g])];
+                let cushion: Vec<f64> = longest
+                    .iter()
+                    .map(|&e| contact_zone_cushion(e, query))
+                    .collect();
+                let widest = cushion.iter().cloned().fold(0.0, f64::max);
+                let zone = contact_zone(owner, &global.bounds, margin, g, r, widest);
+                let centre = global.bounds[g].centre;
+                let shift = mesh_centre(&global.meshes[g]);
+                counts[0] += surface.nodes.len() as u64;
+                for (k, &n) in surface.nodes.iter().enumerate() {
+                    let p = global.meshes[g].nodes[n as usize];
+                    let p = [0, 1, 2].map(|i| p[i] - shift[i] + centre[i]);
+                    if in_contact_zone(&zone, p, cushion[k]) {
+                        counts[1] += 1;
+                    }
+                }
+            }
+            counts
+        })
+        .collect()
+}
+
+/// Mean of a mesh's node positions: the shape origin's offset in its bounding sphere.
+fn mesh_centre(m: &TetMesh) -> [f64; 3] {
+    let n = m.nodes.len() as f64;
+    let mut c = [0.0; 3];
+    for p in &m.nodes {
+        for i in 0..3 {
+            c[i] += p[i] / n;
+        }
+    }
+    c
+}
+
+/// [largest mean length of the surface edges at a node, shortest surface edge] (m).
+fn surface_edge_lengths(surface: &mesh::SurfaceMesh, x: &[[f64; 3]]) -> [f64; 2] {
+    let mut shortest = f64::INFINITY;
+    let mut sum: BTreeMap<u32, (f64, u32)> = BTreeMap::new();
+    for f in &surface.facets {
+        for i in 0..3 {
+            let (a, b) = (f[i], f[(i + 1) % 3]);
+            let d = x[b as usize];
+            let e = x[a as usize];
+            let len =
+                ((d[0] - e[0]).powi(2) + (d[1] - e[1]).powi(2) + (d[2] - e[2]).powi(2)).sqrt();
+            shortest = shortest.min(len);
+            for n in [a, b] {
+                let s = sum.entry(n).or_insert((0.0, 0));
+                s.0 += len;
+                s.1 += 1;
+            }
+        }
+    }
+    let mean = sum
+        .values()
+        .map(|(s, c)| s / f64::from(*c))
+        .fold(0.0, f64::max);
+    [mean, shortest]
 }
 
 /// Margin (m) within which another rank's grain is mirrored as a ghost: generous compared

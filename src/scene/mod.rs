@@ -73,7 +73,8 @@ pub struct ParallelSpec {
     pub check_interval: u64,
     /// Send each ghost only the surface nodes within contact range of the receiving
     /// rank's grains (refreshed whole at every check); false sends whole surfaces every
-    /// step. Results are the same bit for bit (`crate::domain::halo`).
+    /// step. Results are the same bit for bit (`crate::domain::halo`). A periodic cell's
+    /// ghosts always travel whole.
     #[serde(default = "default_trim_ghosts")]
     pub trim_ghosts: bool,
 }
