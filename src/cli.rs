@@ -961,8 +961,7 @@ pub fn scene_partition_grains(
 /// ghost margin, not the grain graph's): whole ghost surfaces against contact zones.
 fn print_contact_zone_halo(loaded: &LoadedScene, owner: &[u32]) -> Result<(), MufeError> {
     let global = crate::model::GlobalMesh::build(loaded)?;
-    let nodes =
-        crate::model::global::halo_nodes_per_rank(&global, owner, loaded.scene.contact.margin);
+    let nodes = crate::model::global::halo_nodes_per_rank(&global, &loaded.scene, owner);
     let bytes = crate::domain::halo::VALUES_PER_NODE as u64 * 8;
     let max = |i: usize| nodes.iter().map(|n| n[i] * bytes).max().unwrap_or(0);
     let total = |i: usize| nodes.iter().map(|n| n[i] * bytes).sum::<u64>();

@@ -77,6 +77,9 @@ pub struct HaloPlan {
     pub sent_grains: Vec<Vec<SentGrain>>,
     /// (rank, model node ids of ghost surface nodes it owns), in the sender's order.
     pub receives: Vec<(usize, Vec<u32>)>,
+    /// Ghosts are sent their contact zones only ([`HaloPlan::aim`], [`Halo::retarget`]);
+    /// false: whole surfaces every step.
+    pub trims: bool,
 }
 
 impl HaloPlan {
@@ -141,13 +144,16 @@ impl HaloPlan {
             send_images,
             sent_grains,
             receives,
+            trims: false,
         }
     }
 
     /// Gives every plain ghost sent its receiver's contact zone (module docs) from the
     /// grains' bounding spheres `bounds` and owners `owner` (global, the same on every
-    /// rank) and the ghost margin `margin` (m). Images stay whole.
+    /// rank) and the ghost margin `margin` (m); from then on the plan trims. Images stay
+    /// whole.
     pub fn aim(&mut self, owner: &[u32], bounds: &[GrainBound], margin: f64) {
+        self.trims = true;
         for ((q, _), grains) in self.sends.iter().zip(&mut self.sent_grains) {
             for sent in grains.iter_mut() {
                 if sent.image != NO_IMAGE {
@@ -233,8 +239,12 @@ impl<'d> Halo<'d> {
     }
 
     /// New contact zones from the grains' current `bounds` (see [`HaloPlan::aim`]); the
-    /// next exchange is a full one. All ranks must call at the same step.
+    /// next exchange is a full one. Nothing for a plan that sends whole surfaces. All ranks
+    /// must call at the same step.
     pub fn retarget(&mut self, owner: &[u32], bounds: &[GrainBound], margin: f64) {
+        if !self.plan.trims {
+            return;
+        }
         self.plan.aim(owner, bounds, margin);
         self.full_next = true;
     }
@@ -430,6 +440,7 @@ mod tests {
                     ..Default::default()
                 }]],
                 receives: vec![(0, vec![1])],
+                trims: false,
             };
             let mut halo = Halo::new(domain, plan, 1.0);
             let cell = CellKinematics {
@@ -456,6 +467,7 @@ mod tests {
                     ..Default::default()
                 }]],
                 receives: vec![(0, vec![2, 3])],
+                trims: false,
             };
             assert_eq!(plan.bytes_per_step(), 2 * VALUES_PER_NODE * 8);
             let mut halo = Halo::new(domain, plan, 1.0);
@@ -494,6 +506,7 @@ mod tests {
                     ..Default::default()
                 }]],
                 receives: vec![(0, vec![3, 4, 5])],
+                trims: true,
             };
             let owner = [0, 0];
             let bounds = [

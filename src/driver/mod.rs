@@ -172,7 +172,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     if restarted {
         // the ghosts' values in flight when the checkpoint was written, the contact zones
         // aimed where the grains are now (the plan's bounds are those of the last re-plan)
-        if rank::trims_ghosts(loaded) && domain.size() > 1 {
+        if run.hooks.halo.plan.trims && domain.size() > 1 {
             let bounds = balance::current_bounds(domain, &run.solver, loaded.scene.grains.len());
             let owner = &run.solver.state.partition.owner;
             run.hooks
@@ -411,12 +411,8 @@ impl Run<'_, '_> {
         }
         match rebalance(domain, loaded, self.global, &self.solver)? {
             BalanceCheck::Unchanged(bounds) => {
-                if rank::trims_ghosts(loaded) {
-                    let owner = &self.solver.state.partition.owner;
-                    self.hooks
-                        .halo
-                        .retarget(owner, &bounds, ghost_margin(self.global));
-                }
+                let owner = &self.solver.state.partition.owner;
+                (self.hooks.halo).retarget(owner, &bounds, ghost_margin(self.global));
                 let s = &self.solver.state;
                 let cell = s.cell_kinematics(&self.solver.model);
                 self.hooks.halo.begin(&s.x, &s.v, &cell)?;

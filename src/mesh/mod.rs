@@ -43,8 +43,8 @@ pub use sphere::{
     fcc_contact_directions, mesh_sphere, GradedBand, LocalRefinement, SphereMeshSpec,
 };
 pub use surface::{
-    extract_surface, facet_normals, longest_edge_within_two_rings, surface_node_geometry,
-    SurfaceNodeGeometry,
+    extract_surface, facet_normals, longest_edge_within_two_rings, mean_edge_at_nodes,
+    surface_node_geometry, SurfaceNodeGeometry,
 };
 
 /// A linear tetrahedral (tet4) mesh of one grain. Every tet is positively oriented:

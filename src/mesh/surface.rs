@@ -52,6 +52,33 @@ fn area_vector(mesh: &TetMesh, f: &[u32; 3]) -> [f64; 3] {
     scale(cross(sub(b, a), sub(c, a)), 0.5)
 }
 
+/// Per surface node (in `surface.nodes` order): the mean length of its surface edges (m),
+/// and the shortest surface edge, at node positions `x` (indexed by the surface's node
+/// ids). Each edge is seen from both of its facets: counted twice at both ends, which
+/// leaves the mean unchanged. A node on no facet has 0.
+pub fn mean_edge_at_nodes(surface: &SurfaceMesh, x: &[[f64; 3]]) -> (Vec<f64>, f64) {
+    let n = surface.nodes.len();
+    let local = |id: u32| surface.nodes.binary_search(&id).unwrap_or(0);
+    let (mut sum, mut count, mut shortest) = (vec![0.0; n], vec![0u32; n], f64::INFINITY);
+    for f in &surface.facets {
+        for k in 0..3 {
+            let s = local(f[k]);
+            for other in [f[(k + 1) % 3], f[(k + 2) % 3]] {
+                let l = norm(sub(x[other as usize], x[f[k] as usize]));
+                sum[s] += l;
+                count[s] += 1;
+                shortest = shortest.min(l);
+            }
+        }
+    }
+    for (h, &c) in sum.iter_mut().zip(&count) {
+        if c > 0 {
+            *h /= f64::from(c);
+        }
+    }
+    (sum, shortest)
+}
+
 /// Per surface node (in `surface.nodes` order): the longest facet edge within two rings
 /// of it (m), at node positions `x` (indexed by the surface's node ids). The reach of the
 /// facets a node's curved contact patch and its neighbours' depend on.

@@ -131,30 +131,16 @@ impl ContactModel {
                 cm.node.push(n);
             }
             cm.node_area.resize(cm.node.len(), 0.0);
-            cm.node_h.resize(cm.node.len(), 0.0);
-            let mut edge_count = vec![0u32; g.surface.nodes.len()];
-            let mut min_edge = f64::INFINITY;
+            let (node_h, min_edge) = crate::mesh::mean_edge_at_nodes(&g.surface, x0);
+            cm.node_h.extend(node_h);
             for f in &g.surface.facets {
                 let p = f.map(|n| x0[n as usize]);
                 let area = 0.5 * norm(cross(sub(p[1], p[0]), sub(p[2], p[0])));
                 for k in 0..3 {
                     let s = cm.surface_index[f[k] as usize] as usize;
                     cm.node_area[s] += area / 3.0;
-                    // each edge is seen from both of its facets: counted twice at both
-                    // ends, which leaves the mean unchanged
-                    for other in [f[(k + 1) % 3], f[(k + 2) % 3]] {
-                        let l = norm(sub(x0[other as usize], p[k]));
-                        cm.node_h[s] += l;
-                        edge_count[s - n0] += 1;
-                        min_edge = min_edge.min(l);
-                    }
                 }
                 cm.facet.push(*f);
-            }
-            for (k, c) in edge_count.iter().enumerate() {
-                if *c > 0 {
-                    cm.node_h[n0 + k] /= *c as f64;
-                }
             }
             // facet adjacency by matching each directed edge (a, b) with (b, a)
             edges.clear();

@@ -10,7 +10,7 @@ use super::decomposition::{
 use super::periodic::PeriodicCell;
 use crate::error::InputError;
 use crate::mesh::{self, TetMesh};
-use crate::scene::LoadedScene;
+use crate::scene::{LoadedScene, Scene};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -91,13 +91,8 @@ impl GlobalMesh {
 /// Surface nodes each rank's forward halo carries per step for the partition `owner`
 /// (plain ghosts, no periodic images): `[whole ghost surfaces, contact zones]` per rank,
 /// as `mufe run` sends them (`crate::domain::halo`: the zones around the grains at their
-/// starting positions). `contact_margin`: the scene's broad-phase margin (m; default half
-/// the smallest surface edge, as in the run).
-pub fn halo_nodes_per_rank(
-    global: &GlobalMesh,
-    owner: &[u32],
-    contact_margin: Option<f64>,
-) -> Vec<[u64; 2]> {
+/// starting positions in `scene`, whose broad-phase margin is the run's).
+pub fn halo_nodes_per_rank(global: &GlobalMesh, scene: &Scene, owner: &[u32]) -> Vec<[u64; 2]> {
     let margin = ghost_margin(global);
     // per distinct mesh: its surface, each node's cushion length, its largest mean edge
     // and its shortest edge
@@ -107,8 +102,9 @@ pub fn halo_nodes_per_rank(
         shapes.entry(Arc::as_ptr(m)).or_insert_with(|| {
             let surface = mesh::extract_surface(m);
             let longest = mesh::longest_edge_within_two_rings(&surface, &m.nodes);
-            let edges = surface_edge_lengths(&surface, &m.nodes);
-            (surface, longest, edges)
+            let (mean_edge, shortest) = mesh::mean_edge_at_nodes(&surface, &m.nodes);
+            let widest_mean = mean_edge.iter().cloned().fold(0.0, f64::max);
+            (surface, longest, [widest_mean, shortest])
         });
     }
     let h = shapes.values().map(|s| s.2[0]).fold(0.0, f64::max);
@@ -117,7 +113,7 @@ pub fn halo_nodes_per_rank(
         .map(|s| s.2[1])
         .fold(f64::INFINITY, f64::min);
     let broad_margin =
-        contact_margin.unwrap_or(super::contact_layout::DEFAULT_MARGIN_FRACTION * min_edge);
+        (scene.contact.margin).unwrap_or(super::contact_layout::DEFAULT_MARGIN_FRACTION * min_edge);
     let query = broad_margin + 0.5 * h;
     let ranks = owner.iter().map(|&r| r as usize + 1).max().unwrap_or(1);
     (0..ranks)
@@ -133,12 +129,12 @@ pub fn halo_nodes_per_rank(
                     .collect();
                 let widest = cushion.iter().cloned().fold(0.0, f64::max);
                 let zone = contact_zone(owner, &global.bounds, margin, g, r, widest);
-                let centre = global.bounds[g].centre;
-                let shift = mesh_centre(&global.meshes[g]);
+                // placed as the run places it: mesh node + the grain's `centre`
+                let centre = scene.grains[g].centre;
                 counts[0] += surface.nodes.len() as u64;
                 for (k, &n) in surface.nodes.iter().enumerate() {
                     let p = global.meshes[g].nodes[n as usize];
-                    let p = [0, 1, 2].map(|i| p[i] - shift[i] + centre[i]);
+                    let p = [0, 1, 2].map(|i| p[i] + centre[i]);
                     if in_contact_zone(&zone, p, cushion[k]) {
                         counts[1] += 1;
                     }
@@ -147,44 +143,6 @@ pub fn halo_nodes_per_rank(
             counts
         })
         .collect()
-}
-
-/// Mean of a mesh's node positions: the shape origin's offset in its bounding sphere.
-fn mesh_centre(m: &TetMesh) -> [f64; 3] {
-    let n = m.nodes.len() as f64;
-    let mut c = [0.0; 3];
-    for p in &m.nodes {
-        for i in 0..3 {
-            c[i] += p[i] / n;
-        }
-    }
-    c
-}
-
-/// [largest mean length of the surface edges at a node, shortest surface edge] (m).
-fn surface_edge_lengths(surface: &mesh::SurfaceMesh, x: &[[f64; 3]]) -> [f64; 2] {
-    let mut shortest = f64::INFINITY;
-    let mut sum: BTreeMap<u32, (f64, u32)> = BTreeMap::new();
-    for f in &surface.facets {
-        for i in 0..3 {
-            let (a, b) = (f[i], f[(i + 1) % 3]);
-            let d = x[b as usize];
-            let e = x[a as usize];
-            let len =
-                ((d[0] - e[0]).powi(2) + (d[1] - e[1]).powi(2) + (d[2] - e[2]).powi(2)).sqrt();
-            shortest = shortest.min(len);
-            for n in [a, b] {
-                let s = sum.entry(n).or_insert((0.0, 0));
-                s.0 += len;
-                s.1 += 1;
-            }
-        }
-    }
-    let mean = sum
-        .values()
-        .map(|(s, c)| s / f64::from(*c))
-        .fold(0.0, f64::max);
-    [mean, shortest]
 }
 
 /// Margin (m) within which another rank's grain is mirrored as a ghost: generous compared
