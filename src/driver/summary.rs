@@ -135,6 +135,7 @@ fn print_summary(
             "mass scaling: {scaled}, added mass {added:.4e} kg ({:.3}% of {phys:.4e} kg)",
             100.0 * added / phys,
         );
+        print_heavy_scaling_damping_note(&loaded.scene, added / phys);
     }
     let cm = &m.contact;
     if cm.active() {
@@ -295,6 +296,36 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
 }
 
 /// One line per stage (its wall modes and end conditions) and per servo wall.
+/// Heavy mass scaling slows the cell's rigid modes by √(1 + added/physical mass), while
+/// mass-proportional damping acts on the scaled mass: the same α then damps those modes
+/// that much more than in the unscaled scene (an over-damped consolidation creeps).
+fn print_heavy_scaling_damping_note(scene: &crate::scene::Scene, added_fraction: f64) {
+    if let Some(note) = heavy_scaling_damping_note(scene, added_fraction) {
+        println!("{note}");
+    }
+}
+
+/// The note of [`print_heavy_scaling_damping_note`], when mass scaling at least doubles
+/// the grains' mass and some stage damps (docs/QUASI_STATIC.md).
+fn heavy_scaling_damping_note(scene: &crate::scene::Scene, added_fraction: f64) -> Option<String> {
+    let global = scene.simulation.damping;
+    let alpha = if scene.stages.is_empty() {
+        global
+    } else {
+        let per_stage = scene.stages.iter().map(|st| st.damping.unwrap_or(global));
+        per_stage.fold(0.0_f64, f64::max)
+    };
+    if added_fraction < 1.0 || alpha <= 0.0 {
+        return None;
+    }
+    let slowdown = (1.0 + added_fraction).sqrt();
+    Some(format!(
+        "note: mass damping {alpha:.3e} 1/s acts on the scaled mass ({:.1}× the grains'), whose rigid modes are {slowdown:.2}× slower: {:.3e} 1/s keeps the unscaled scene's damping ratio (docs/QUASI_STATIC.md)",
+        1.0 + added_fraction,
+        alpha / slowdown
+    ))
+}
+
 fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wall]) {
     for (i, st) in plan.stages.iter().enumerate() {
         if plan.staged {
@@ -390,4 +421,28 @@ pub fn describe_stage(r: &StageRecord) -> String {
         );
     }
     line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::heavy_scaling_damping_note;
+    use crate::scene::parse_scene;
+
+    const ENERGY_CELL: &str = include_str!("../../jobs/fcc/energy_plastic.toml");
+
+    #[test]
+    fn heavy_mass_scaling_suggests_the_damping_that_keeps_the_unscaled_ratio() {
+        let loaded = parse_scene("energy_plastic.toml", ENERGY_CELL, &[]).unwrap();
+        let alpha = loaded.scene.simulation.damping;
+        let added = 33.6;
+        let note = heavy_scaling_damping_note(&loaded.scene, added).expect("a note");
+        let suggested = format!("{:.3e} 1/s keeps", alpha / (1.0_f64 + added).sqrt());
+        assert!(note.contains(&suggested), "{note}");
+        // light scaling (the thornton_walls cell: 39 %) leaves the damping alone
+        assert!(heavy_scaling_damping_note(&loaded.scene, 0.39).is_none());
+        // no stage damps (the consolidation stage undamped too): nothing to say
+        let undamped = ["stages[0].damping=0.0".to_string()];
+        let loaded = parse_scene("energy_plastic.toml", ENERGY_CELL, &undamped).unwrap();
+        assert!(heavy_scaling_damping_note(&loaded.scene, added).is_none());
+    }
 }
