@@ -135,7 +135,9 @@ fn print_summary(
             "mass scaling: {scaled}, added mass {added:.4e} kg ({:.3}% of {phys:.4e} kg)",
             100.0 * added / phys,
         );
-        print_heavy_scaling_damping_note(&loaded.scene, added / phys);
+        if let Some(note) = heavy_scaling_damping_note(&loaded.scene, added / phys) {
+            println!("{note}");
+        }
     }
     let cm = &m.contact;
     if cm.active() {
@@ -295,18 +297,11 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
     println!("results: {}", summary.results.display());
 }
 
-/// One line per stage (its wall modes and end conditions) and per servo wall.
-/// Heavy mass scaling slows the cell's rigid modes by √(1 + added/physical mass), while
-/// mass-proportional damping acts on the scaled mass: the same α then damps those modes
-/// that much more than in the unscaled scene (an over-damped consolidation creeps).
-fn print_heavy_scaling_damping_note(scene: &crate::scene::Scene, added_fraction: f64) {
-    if let Some(note) = heavy_scaling_damping_note(scene, added_fraction) {
-        println!("{note}");
-    }
-}
-
-/// The note of [`print_heavy_scaling_damping_note`], when mass scaling at least doubles
-/// the grains' mass and some stage damps (docs/QUASI_STATIC.md).
+/// A note when mass scaling at least doubles the grains' mass and some stage damps
+/// (docs/QUASI_STATIC.md). Heavy mass scaling slows the cell's rigid modes by
+/// √(1 + added/physical mass), while mass-proportional damping acts on the scaled mass:
+/// the same α then damps those modes that much more than in the unscaled scene (an
+/// over-damped consolidation creeps).
 fn heavy_scaling_damping_note(scene: &crate::scene::Scene, added_fraction: f64) -> Option<String> {
     let global = scene.simulation.damping;
     let alpha = if scene.stages.is_empty() {
@@ -326,6 +321,7 @@ fn heavy_scaling_damping_note(scene: &crate::scene::Scene, added_fraction: f64) 
     ))
 }
 
+/// One line per stage (its wall modes and end conditions) and per servo wall.
 fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wall]) {
     for (i, st) in plan.stages.iter().enumerate() {
         if plan.staged {

@@ -94,7 +94,7 @@ impl GlobalMesh {
 /// starting positions in `scene`, whose broad-phase margin is the run's).
 pub fn halo_nodes_per_rank(global: &GlobalMesh, scene: &Scene, owner: &[u32]) -> Vec<[u64; 2]> {
     let margin = ghost_margin(global);
-    // per distinct mesh: its surface, each node's cushion length, its largest mean edge
+    // per distinct mesh: its surface, each node's longest edge within two rings, its largest mean edge
     // and its shortest edge
     type Shape = (mesh::SurfaceMesh, Vec<f64>, [f64; 2]);
     let mut shapes: BTreeMap<*const TetMesh, Shape> = BTreeMap::new();
@@ -115,6 +115,16 @@ pub fn halo_nodes_per_rank(global: &GlobalMesh, scene: &Scene, owner: &[u32]) ->
     let broad_margin =
         (scene.contact.margin).unwrap_or(super::contact_layout::DEFAULT_MARGIN_FRACTION * min_edge);
     let query = broad_margin + 0.5 * h;
+    // per distinct mesh: each surface node's cushion and the widest of them
+    let cushions: BTreeMap<*const TetMesh, (Vec<f64>, f64)> = (shapes.iter())
+        .map(|(&key, (_, longest, _))| {
+            let cushion: Vec<f64> = (longest.iter())
+                .map(|&e| contact_zone_cushion(e, query))
+                .collect();
+            let widest = cushion.iter().cloned().fold(0.0, f64::max);
+            (key, (cushion, widest))
+        })
+        .collect();
     let ranks = owner.iter().map(|&r| r as usize + 1).max().unwrap_or(1);
     (0..ranks)
         .map(|r| {
@@ -122,13 +132,9 @@ pub fn halo_nodes_per_rank(global: &GlobalMesh, scene: &Scene, owner: &[u32]) ->
             let mut counts = [0u64; 2];
             for ghost in &plan.ghosts {
                 let g = ghost.grain;
-                let (surface, longest, _) = &shapes[&Arc::as_ptr(&global.meshes[g])];
-                let cushion: Vec<f64> = longest
-                    .iter()
-                    .map(|&e| contact_zone_cushion(e, query))
-                    .collect();
-                let widest = cushion.iter().cloned().fold(0.0, f64::max);
-                let zone = contact_zone(owner, &global.bounds, margin, g, r, widest);
+                let key = Arc::as_ptr(&global.meshes[g]);
+                let (surface, (cushion, widest)) = (&shapes[&key].0, &cushions[&key]);
+                let zone = contact_zone(owner, &global.bounds, margin, g, r, *widest);
                 // placed as the run places it: mesh node + the grain's `centre`
                 let centre = scene.grains[g].centre;
                 counts[0] += surface.nodes.len() as u64;
