@@ -115,7 +115,7 @@ pub fn pair_partials(
     out.clear();
     let cm = &model.contact;
     let lists = &scratch.lists;
-    for (e, r) in lists.entries.iter().zip(&scratch.results) {
+    for (e, r) in scratch.evaluated_results() {
         if !r.active {
             continue;
         }

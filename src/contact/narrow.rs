@@ -20,9 +20,10 @@
 //! the tilt off the friction angle).
 
 use super::friction::{return_map, rotate_onto_plane, tangential};
-use super::patch::{smooth_vertex_normal, Patch};
+use super::patch::Patch;
+use super::vertex_normals::{facet_normal, triangle_normal, vertex_normals, VertexNormal};
 use super::{ContactKey, ContactModel, FrictionPoint, NONE};
-use crate::math::{add, cross, dot, norm, scale, sub};
+use crate::math::{add, dot, norm, scale, sub};
 
 /// Which part of a triangle a closest point lies on. Edge k joins corners k and (k+1)%3.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -102,18 +103,6 @@ pub fn closest_point_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64;
         [1.0 - v - w, v, w],
         Feature::Face,
     )
-}
-
-/// Unit normal of triangle (a, b, c) oriented by (b−a)×(c−a); zero for a degenerate one.
-#[inline]
-pub fn triangle_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
-    let n = cross(sub(b, a), sub(c, a));
-    let l = norm(n);
-    if l > 0.0 {
-        scale(n, 1.0 / l)
-    } else {
-        [0.0; 3]
-    }
 }
 
 /// Axis-aligned bounding box.
@@ -330,6 +319,15 @@ pub struct Entry {
     pub d0: f64,
 }
 
+impl Entry {
+    /// Whether the slave node can have reached the master surface when no node has moved
+    /// more than `moved` since the rebuild (each side closes the gap by at most `moved`).
+    #[inline]
+    pub fn may_touch(&self, moved: f64) -> bool {
+        self.d0 <= 2.0 * moved
+    }
+}
+
 /// Result of one entry at one step.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PointResult {
@@ -387,45 +385,25 @@ pub struct EvalContext<'a> {
 }
 
 /// Outward pseudo-normal of the master surface at a closest-point feature.
-fn pseudo_normal(cm: &ContactModel, x: &[[f64; 3]], facet: usize, feature: Feature) -> [f64; 3] {
-    let fnormal = |f: usize| {
-        let [a, b, c] = cm.facet[f].map(|n| x[n as usize]);
-        triangle_normal(a, b, c)
-    };
+fn pseudo_normal(
+    cm: &ContactModel,
+    x: &[[f64; 3]],
+    corners: &[VertexNormal; 3],
+    facet: usize,
+    feature: Feature,
+) -> [f64; 3] {
     match feature {
-        Feature::Face => fnormal(facet),
+        Feature::Face => facet_normal(cm, x, facet),
         Feature::Edge(k) => {
             let other = cm.facet_adjacent[facet][k as usize];
-            let n = fnormal(facet);
+            let n = facet_normal(cm, x, facet);
             if other == NONE {
                 n
             } else {
-                add(n, fnormal(other as usize))
+                add(n, facet_normal(cm, x, other as usize))
             }
         }
-        Feature::Vertex(k) => {
-            let vnode = cm.facet[facet][k as usize];
-            let s = cm.surface_index[vnode as usize] as usize;
-            let (o0, o1) = (
-                cm.vertex_facet_offsets[s] as usize,
-                cm.vertex_facet_offsets[s + 1] as usize,
-            );
-            let mut acc = [0.0; 3];
-            for &f in &cm.vertex_facets[o0..o1] {
-                let tri = cm.facet[f as usize];
-                let j = tri.iter().position(|&n| n == vnode).unwrap_or(0);
-                let p = x[tri[j] as usize];
-                let e1 = sub(x[tri[(j + 1) % 3] as usize], p);
-                let e2 = sub(x[tri[(j + 2) % 3] as usize], p);
-                let (l1, l2) = (norm(e1), norm(e2));
-                if l1 == 0.0 || l2 == 0.0 {
-                    continue;
-                }
-                let angle = (dot(e1, e2) / (l1 * l2)).clamp(-1.0, 1.0).acos();
-                acc = add(acc, scale(fnormal(f as usize), angle));
-            }
-            acc
-        }
+        Feature::Vertex(k) => corners[k as usize].pseudo,
     }
 }
 
@@ -458,11 +436,13 @@ pub fn locate(
         }
     }
     let (cl, facet) = best?;
-    let pn = pseudo_normal(cm, x, facet, cl.feature);
+    // The corners' normals serve both the pseudo-normal and the curved patch.
+    let corners = cm.facet[facet].map(|v| vertex_normals(cm, x, v));
+    let pn = pseudo_normal(cm, x, &corners, facet, cl.feature);
     let d = sub(xs, cl.point);
     let dist = cl.dist2.sqrt();
     let flat_inside = dot(d, pn) < 0.0 && dist > 0.0;
-    if let Some(on_patch) = locate_on_patch(cm, x, xs, facet, cl, flat_inside) {
+    if let Some(on_patch) = locate_on_patch(cm, x, &corners, xs, facet, cl, flat_inside) {
         return Some(on_patch);
     }
     if !flat_inside {
@@ -499,27 +479,6 @@ fn facet_patch(
     Patch::of_facet([a, b, c], triangle_normal(a, b, c), vertex_normal)
 }
 
-/// The unit normal at corner `k` of `facet` when that vertex is smooth, `None` when it is
-/// sharp (see `patch`): the same answer from every facet around the vertex.
-fn smooth_corner_normal(
-    cm: &ContactModel,
-    x: &[[f64; 3]],
-    facet: usize,
-    k: usize,
-) -> Option<[f64; 3]> {
-    let vnode = cm.facet[facet][k];
-    let s = cm.surface_index[vnode as usize] as usize;
-    let around = &cm.vertex_facets
-        [cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize];
-    smooth_vertex_normal(
-        pseudo_normal(cm, x, facet, Feature::Vertex(k as u8)),
-        around.iter().map(|&f| {
-            let [a, b, c] = cm.facet[f as usize].map(|n| x[n as usize]);
-            triangle_normal(a, b, c)
-        }),
-    )
-}
-
 /// `xs` against the curved patch of `facet` (and of its neighbour across the edge the
 /// closest patch point is clamped to), from the flat closest point `cl`. `None` when the
 /// facet stays flat (a crease). Far outside (beyond the patch's bulge) the flat distance
@@ -528,13 +487,13 @@ fn smooth_corner_normal(
 fn locate_on_patch(
     cm: &ContactModel,
     x: &[[f64; 3]],
+    corners: &[VertexNormal; 3],
     xs: [f64; 3],
     facet: usize,
     cl: Closest,
     flat_inside: bool,
 ) -> Option<Located> {
-    let vertex_normal = |f: usize, k: usize| smooth_corner_normal(cm, x, f, k);
-    let patch = facet_patch(cm, x, facet, |k| vertex_normal(facet, k))?;
+    let patch = facet_patch(cm, x, facet, |k| corners[k].smooth)?;
     let dist = cl.dist2.sqrt();
     let bulge = patch.bulge_bound();
     if !flat_inside && dist > 2.0 * bulge {
@@ -550,7 +509,15 @@ fn locate_on_patch(
         let other = cm.facet_adjacent[facet][k];
         if other != NONE {
             let o = other as usize;
-            if let Some(p) = facet_patch(cm, x, o, |k| vertex_normal(o, k)) {
+            // two of the neighbour's corners are this facet's
+            let smooth_at = |k: usize| {
+                let v = cm.facet[o][k];
+                match cm.facet[facet].iter().position(|&c| c == v) {
+                    Some(i) => corners[i].smooth,
+                    None => vertex_normals(cm, x, v).smooth,
+                }
+            };
+            if let Some(p) = facet_patch(cm, x, o, smooth_at) {
                 let [a, b, c] = cm.facet[o].map(|n| x[n as usize]);
                 let start = closest_point_on_triangle(xs, a, b, c).bary;
                 let candidate = p.closest(xs, start);
@@ -586,7 +553,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
         slave: s,
         ..Default::default()
     };
-    if entry.d0 > 2.0 * moved {
+    if !entry.may_touch(moved) {
         return r;
     }
     let xs = x[s as usize];
