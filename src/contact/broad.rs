@@ -14,8 +14,9 @@
 //! rebuild, hence a candidate. For walls, d_max + (wall motion along its normal) < margin/2
 //! keeps every node that can reach the plane within the next step in the list.
 //!
-//! The work per step is proportional to the cached (node, facet) candidates, i.e. to the
-//! surface nodes within contact range, not to grain pairs × facets.
+//! The work per step is one pass over the cached entries (which slave nodes can have
+//! reached their master since the rebuild: `Entry::may_touch`) and the narrow phase over
+//! those within reach, i.e. over the surface nodes near contact, not grain pairs × facets.
 
 use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
 use super::ContactModel;
