@@ -145,11 +145,12 @@ fn a_two_rank_checkpoint_restarts_on_one_and_three_ranks() {
             "/provenance records the restart: {note}"
         );
         // the continued file still matches docs/RESULTS.md
-        let check = std::process::Command::new("python3")
-            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/check_results_layout.py"))
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let check = std::process::Command::new(root.join("scripts/h5python"))
+            .arg(root.join("scripts/check_results_layout.py"))
             .arg(d.join("results.h5"))
             .output()
-            .expect("python3 runs");
+            .expect("scripts/h5python runs");
         assert!(
             check.status.success(),
             "{}{}",

@@ -4,8 +4,8 @@
 //! write was collective, the per-frame owners show the migration, and the frames hold the
 //! same values as a one-rank run's.
 //!
-//! How to run: `cargo test --release --test results_layout` (needs `mpirun` and python3
-//! with h5py).
+//! How to run: `cargo test --release --test results_layout` (needs `mpirun` and a python3
+//! with h5py, found by `scripts/h5python`).
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
@@ -54,7 +54,7 @@ fn run(ranks: usize, name: &str) -> (PathBuf, String) {
 /// Runs the layout checker; `Err(its output)` when it finds problems.
 fn check_layout(h5: &Path, doc: &Path) -> Result<String, String> {
     let script = Path::new(MANIFEST).join("scripts/check_results_layout.py");
-    let out = Command::new("python3")
+    let out = Command::new(Path::new(MANIFEST).join("scripts/h5python"))
         .arg(&script)
         .arg(h5)
         .arg("--doc")
@@ -62,7 +62,7 @@ fn check_layout(h5: &Path, doc: &Path) -> Result<String, String> {
         .arg("--expect")
         .arg(EXPECT)
         .output()
-        .expect("python3 runs");
+        .expect("scripts/h5python runs");
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
