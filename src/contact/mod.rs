@@ -390,7 +390,7 @@ pub fn evaluate_with(
         .zip(scratch.evaluated.par_chunks(ENTRY_CHUNK))
         .for_each(|(out, indices)| {
             for (r, &i) in out.iter_mut().zip(indices) {
-                *r = evaluate_entry(&ctx, &lists.entries[i as usize], moved);
+                *r = evaluate_entry(&ctx, &lists.entries[i as usize]);
             }
         });
 

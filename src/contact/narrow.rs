@@ -542,9 +542,9 @@ fn locate_on_patch(
 }
 
 /// Evaluates one slave node against its candidate facets (see module docs). Pure function
-/// of its inputs: safe to run in parallel, results independent of scheduling.
-/// `moved` bounds the displacement of every node since the rebuild (m).
-pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResult {
+/// of its inputs: safe to run in parallel, results independent of scheduling. Callers
+/// evaluate only the entries that [`Entry::may_touch`].
+pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
     let cm = ctx.cm;
     let x = ctx.x;
     let s_flat = entry.slave as usize;
@@ -553,9 +553,6 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry, moved: f64) -> PointResu
         slave: s,
         ..Default::default()
     };
-    if !entry.may_touch(moved) {
-        return r;
-    }
     let xs = x[s as usize];
     let cands = &ctx.candidates[entry.start as usize..entry.end as usize];
     let Some(loc) = locate(cm, x, xs, cands) else {
