@@ -524,6 +524,49 @@ impl StagePlan {
         }
     }
 
+    /// What the current stage waits for, for the progress line; `None` when it ends only
+    /// on its time or strain cap, which [`Self::stage_fraction`] tracks. A stage that
+    /// ends on a condition cannot know when it will be met: its fraction (and an ETA
+    /// from it) measures the cap only, and this says how far the condition is.
+    pub fn waiting_on(&self, p: &StageProgress, t: f64) -> Option<String> {
+        let until = &self.current(p).until;
+        if let Some(rule) = until.failure {
+            let m = self.measure(&p.wall_displacements, &p.wall_forces)?;
+            let strain = self.stage_axial_strain(p, &m);
+            return Some(match (p.failure, p.peak) {
+                (Some(f), _) => format!(
+                    "failed at axial strain {:.2e}, margin {:.0} % run",
+                    f.axial_strain,
+                    100.0 * ((strain - f.axial_strain) / rule.strain_margin).clamp(0.0, 1.0)
+                ),
+                (None, Some(pk)) => format!(
+                    "σ1/σ3 {:.3}, peak {:.3} at axial strain {:.2e}",
+                    m.ratio, pk.ratio, pk.axial_strain
+                ),
+                (None, None) => format!("σ1/σ3 {:.3}", m.ratio),
+            });
+        }
+        if let Some((tol, hold)) = until.stress_held {
+            return Some(match p.held_since {
+                Some(since) => format!(
+                    "servos within {:.0} % for {:.2e} of {:.2e} s",
+                    100.0 * tol,
+                    t - since,
+                    hold
+                ),
+                None => format!("servos not yet within {:.0} %", 100.0 * tol),
+            });
+        }
+        if let Some((w, force, hold)) = until.wall_force {
+            let now = p.wall_forces.get(w).copied().unwrap_or(0.0);
+            return Some(match p.force_since {
+                Some(since) => format!("wall force held {:.2e} of {:.2e} s", t - since, hold),
+                None => format!("wall force {now:.3e} of {force:.3e} N"),
+            });
+        }
+        None
+    }
+
     /// Nominal axial strain since the current stage began (compression positive).
     pub fn stage_axial_strain(&self, p: &StageProgress, m: &CellMeasure) -> f64 {
         1.0 - m.distance[self.axial] / p.distance_at_start[self.axial]
@@ -984,7 +1027,14 @@ until = {{ max_time = 1.0e-4 }}
         let mut p = plan.start();
         let mut kin: Vec<Option<ServoState>> = vec![Some(ServoState::default()); 6];
         let mut n = 0;
+        let (mut settling, mut holding) = (0, 0);
         while p.index == 0 && n < 100_000 {
+            // the progress line says whether the servo holds yet, and for how long
+            match plan.waiting_on(&p, n as f64 * dt).as_deref() {
+                Some("servos not yet within 1 %") => settling += 1,
+                Some(s) if s.starts_with("servos within 1 % for ") => holding += 1,
+                other => panic!("step {n}: {other:?}"),
+            }
             let s = kin[5].unwrap().displacement;
             let mut f = vec![0.0; 6];
             f[5] = control.stiffness * s;
@@ -1002,5 +1052,37 @@ until = {{ max_time = 1.0e-4 }}
         );
         assert_eq!(p.index, 1);
         assert!((p.started_at - r.end).abs() < 1e-15);
+        assert!(settling > 0 && holding > 0, "{settling} {holding}");
+        // the last stage ends on its time cap only: the ETA needs no condition
+        assert_eq!(plan.waiting_on(&p, r.end), None);
+    }
+
+    #[test]
+    fn the_progress_line_of_a_failure_stage_gives_the_ratio_the_peak_and_the_margin() {
+        let scene = cell_scene(&format!(
+            r#"
+[[stages]]
+name = "shear"
+walls = {{ top = {{ strain_rate = 10.0 }}, x_min = {SERVO}, x_max = {SERVO}, y_min = {SERVO}, y_max = {SERVO} }}
+until = {{ failure = {{ drop = 0.05, strain_margin = 0.002 }}, max_time = 1.0 }}
+"#
+        ));
+        let plan = StagePlan::build(&scene).expect("staged");
+        let mut p = plan.start();
+        // equal areas at the start: σ1/σ3 is the force ratio
+        p.wall_displacements = vec![[0.0; 3]; 6];
+        p.wall_forces = vec![1.0, 1.0, 1.0, 1.0, 2.5, 2.5];
+        let said = |p: &StageProgress| plan.waiting_on(p, 0.0).expect("a condition");
+        assert_eq!(said(&p), "σ1/σ3 2.500");
+        let point = |ratio, axial_strain| RatioPoint {
+            ratio,
+            time: 0.0,
+            axial_strain,
+        };
+        p.peak = Some(point(3.0, 4e-3));
+        assert_eq!(said(&p), "σ1/σ3 2.500, peak 3.000 at axial strain 4.00e-3");
+        // failure detected 1e-3 of strain ago: half the 2e-3 margin is run
+        p.failure = Some(point(2.85, -1e-3));
+        assert_eq!(said(&p), "failed at axial strain -1.00e-3, margin 50 % run");
     }
 }

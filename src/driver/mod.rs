@@ -339,9 +339,13 @@ impl Run<'_, '_> {
                         plan.stages.len(),
                         plan.stages[i].name
                     ));
-                    progress.update(plan.stage_fraction(&s.stages, s.time), n, s.time);
+                    let fraction = plan.stage_fraction(&s.stages, s.time);
+                    progress.update(fraction, n, s.time, || plan.waiting_on(&s.stages, s.time));
                 }
-                None => progress.update(n as f64 / last_step as f64, n, self.solver.state.time),
+                None => {
+                    let fraction = n as f64 / last_step as f64;
+                    progress.update(fraction, n, self.solver.state.time, || None)
+                }
             }
             // a periodic cell re-plans its images (and wraps grains) on one rank too
             let replans = self.domain.size() > 1 || self.solver.model.periodic.is_some();

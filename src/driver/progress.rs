@@ -31,7 +31,16 @@ impl Progress {
     }
 
     /// Reports that `fraction` (0..1) of the run is done at simulated time `time` (s).
-    pub fn update(&mut self, fraction: f64, step: u64, time: f64) {
+    /// When `waiting_on` gives a condition (a stage that ends on one, not on its cap), the
+    /// time left is shown as the cap's ("cap in"), followed by how far the condition is;
+    /// it is called only when a line is printed.
+    pub fn update(
+        &mut self,
+        fraction: f64,
+        step: u64,
+        time: f64,
+        waiting_on: impl FnOnce() -> Option<String>,
+    ) {
         if !self.enabled {
             return;
         }
@@ -41,15 +50,25 @@ impl Progress {
         if self.start_fraction.is_nan() {
             self.start_fraction = fraction;
         }
-        let eta = remaining_time(elapsed, self.start_fraction, fraction);
+        let due = if self.terminal {
+            since >= Duration::from_millis(200)
+        } else {
+            fraction - self.last_fraction >= 0.1 || since >= Duration::from_secs(30)
+        };
+        if !due {
+            return;
+        }
+        let eta = format_secs(remaining_time(elapsed, self.start_fraction, fraction));
+        let left = match waiting_on() {
+            Some(condition) => format!("cap in {eta}  {condition}"),
+            None => format!("ETA {eta}"),
+        };
         if self.terminal {
-            if since < Duration::from_millis(200) {
-                return;
-            }
             let width = 30;
             let filled = ((fraction * width as f64) as usize).min(width);
+            // \x1b[K clears what a longer previous line left to the right
             print!(
-                "\r{} [{}{}] {:5.1}%  t = {:.4e} s  step {}  elapsed {}  ETA {}   ",
+                "\r{} [{}{}] {:5.1}%  t = {:.4e} s  step {}  elapsed {}  {}\x1b[K",
                 self.label,
                 "#".repeat(filled),
                 "-".repeat(width - filled),
@@ -57,23 +76,22 @@ impl Progress {
                 time,
                 step,
                 format_secs(elapsed),
-                format_secs(eta)
+                left
             );
             let _ = std::io::stdout().flush();
-            self.last = now;
-        } else if fraction - self.last_fraction >= 0.1 || since >= Duration::from_secs(30) {
+        } else {
             println!(
-                "{}: {:5.1}% t = {:.4e} s step {} elapsed {} ETA {}",
+                "{}: {:5.1}% t = {:.4e} s step {} elapsed {} {}",
                 self.label,
                 100.0 * fraction,
                 time,
                 step,
                 format_secs(elapsed),
-                format_secs(eta)
+                left
             );
-            self.last = now;
             self.last_fraction = fraction;
         }
+        self.last = now;
     }
 
     /// Renames the bar (e.g. at a new stage); the ETA restarts from there.
