@@ -943,8 +943,9 @@ until = {{ max_time = 1.0 }}
         assert_eq!(ratio(0.0), 0.0);
     }
 
-    #[test]
-    fn failure_is_detected_after_the_peak_and_the_stage_runs_on_for_the_margin() {
+    /// One shearing stage: the top wall at a strain rate, the lateral walls servo-held,
+    /// ended by a 5 % drop below the peak and 2e-3 more strain.
+    fn failure_stage_plan() -> StagePlan {
         let scene = cell_scene(&format!(
             r#"
 [[stages]]
@@ -953,7 +954,12 @@ walls = {{ top = {{ strain_rate = 10.0 }}, x_min = {SERVO}, x_max = {SERVO}, y_m
 until = {{ failure = {{ drop = 0.05, strain_margin = 0.002 }}, max_time = 1.0 }}
 "#
         ));
-        let plan = StagePlan::build(&scene).expect("staged");
+        StagePlan::build(&scene).expect("staged")
+    }
+
+    #[test]
+    fn failure_is_detected_after_the_peak_and_the_stage_runs_on_for_the_margin() {
+        let plan = failure_stage_plan();
         // σ_axial/σ_lateral (forces on equal areas at the start) rises to 3 at ε = 0.004
         // then falls linearly; the lateral walls carry 1 N
         let curve = |eps: f64| {
@@ -1059,15 +1065,7 @@ until = {{ max_time = 1.0e-4 }}
 
     #[test]
     fn the_progress_line_of_a_failure_stage_gives_the_ratio_the_peak_and_the_margin() {
-        let scene = cell_scene(&format!(
-            r#"
-[[stages]]
-name = "shear"
-walls = {{ top = {{ strain_rate = 10.0 }}, x_min = {SERVO}, x_max = {SERVO}, y_min = {SERVO}, y_max = {SERVO} }}
-until = {{ failure = {{ drop = 0.05, strain_margin = 0.002 }}, max_time = 1.0 }}
-"#
-        ));
-        let plan = StagePlan::build(&scene).expect("staged");
+        let plan = failure_stage_plan();
         let mut p = plan.start();
         // equal areas at the start: σ1/σ3 is the force ratio
         p.wall_displacements = vec![[0.0; 3]; 6];
