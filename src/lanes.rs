@@ -1,15 +1,15 @@
-//! f64 arithmetic on one element or on four elements at once.
+//! f64 arithmetic on one element or on four or eight elements at once.
 //!
 //! The element laws are written once, generic over [`Lanes`]: with `f64` they evaluate one
-//! element, with [`F64x4`] four elements side by side in one AVX register per quantity,
-//! each lane holding one element's value. The lane operations are plain IEEE arithmetic
+//! element, with [`F64x4`] four elements side by side in one AVX register per quantity and
+//! with [`F64x8`] eight in one AVX-512 register, each lane holding one element's value. The lane operations are plain IEEE arithmetic
 //! (no fused multiply–add, no reassociation), so every lane computes bit for bit what the
 //! `f64` code computes for that element: the vector kernel changes the speed, never the
 //! result.
 
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
 
-/// A value per lane: `f64` (one lane) or [`F64x4`] (four).
+/// A value per lane: `f64` (one lane), [`F64x4`] (four) or [`F64x8`] (eight).
 pub trait Lanes:
     Copy
     + Add<Output = Self>
@@ -18,14 +18,16 @@ pub trait Lanes:
     + Div<Output = Self>
     + Neg<Output = Self>
 {
-    /// Number of lanes (1 or 4).
+    /// Number of lanes (1, 4 or 8).
     const WIDTH: usize;
+    /// One value per lane, `[f64; WIDTH]`.
+    type Array: Copy + Default + IndexMut<usize, Output = f64>;
     /// The same constant in every lane.
     fn splat(v: f64) -> Self;
-    /// Lanes from the first of four values (one lane: the first).
-    fn from_array(v: [f64; 4]) -> Self;
-    /// The lanes as four values (one lane: the rest zero).
-    fn to_array(self) -> [f64; 4];
+    /// Lanes from one value per lane.
+    fn from_array(v: Self::Array) -> Self;
+    /// The lanes as one value per lane.
+    fn to_array(self) -> Self::Array;
     /// Correctly rounded square root, per lane.
     fn sqrt(self) -> Self;
     /// Per lane: `then` where `self > 0`, else `otherwise` (NaN is not > 0).
@@ -34,17 +36,18 @@ pub trait Lanes:
 
 impl Lanes for f64 {
     const WIDTH: usize = 1;
+    type Array = [f64; 1];
     #[inline(always)]
     fn splat(v: f64) -> Self {
         v
     }
     #[inline(always)]
-    fn from_array(v: [f64; 4]) -> Self {
+    fn from_array(v: [f64; 1]) -> Self {
         v[0]
     }
     #[inline(always)]
-    fn to_array(self) -> [f64; 4] {
-        [self, 0.0, 0.0, 0.0]
+    fn to_array(self) -> [f64; 1] {
+        [self]
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -72,8 +75,20 @@ pub fn build<T: Copy, const N: usize>(zero: T, mut f: impl FnMut(usize) -> T) ->
     out
 }
 
+/// One value per lane from `value(lane)`: how the kernel gathers element data into lanes.
+#[inline(always)]
+pub fn gather<T: Lanes>(mut value: impl FnMut(usize) -> f64) -> T {
+    let mut v = T::Array::default();
+    for l in 0..T::WIDTH {
+        v[l] = value(l);
+    }
+    T::from_array(v)
+}
+
 #[cfg(target_arch = "x86_64")]
 pub use avx::F64x4;
+#[cfg(target_arch = "x86_64")]
+pub use avx512::F64x8;
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
@@ -93,6 +108,7 @@ mod avx {
 
     impl Lanes for F64x4 {
         const WIDTH: usize = 4;
+        type Array = [f64; 4];
         #[inline(always)]
         fn splat(v: f64) -> Self {
             // SAFETY: see the type's documentation (AVX is present where this runs)
@@ -155,31 +171,130 @@ mod avx {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::Lanes;
+    use std::arch::x86_64::*;
+    use std::ops::{Add, Div, Mul, Neg, Sub};
+
+    /// Eight f64 lanes in one AVX-512 register.
+    ///
+    /// Every operation executes an AVX-512F instruction: use this type only in code that
+    /// runs after the CPU has been found to support AVX-512F (`solver::forces::KernelPath`),
+    /// and compiled with that feature enabled, so that the operations inline to single
+    /// instructions.
+    #[derive(Clone, Copy, Debug)]
+    #[repr(transparent)]
+    pub struct F64x8(__m512d);
+
+    impl Lanes for F64x8 {
+        const WIDTH: usize = 8;
+        type Array = [f64; 8];
+        #[inline(always)]
+        fn splat(v: f64) -> Self {
+            // SAFETY: see the type's documentation (AVX-512F is present where this runs)
+            Self(unsafe { _mm512_set1_pd(v) })
+        }
+        #[inline(always)]
+        fn from_array(v: [f64; 8]) -> Self {
+            // from registers, not through memory (store forwarding, as for F64x4)
+            // SAFETY: as `splat`
+            Self(unsafe { _mm512_set_pd(v[7], v[6], v[5], v[4], v[3], v[2], v[1], v[0]) })
+        }
+        #[inline(always)]
+        fn to_array(self) -> [f64; 8] {
+            let mut v = [0.0; 8];
+            // SAFETY: as `splat`; the store writes exactly the eight values of `v`
+            unsafe { _mm512_storeu_pd(v.as_mut_ptr(), self.0) };
+            v
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            // SAFETY: see the type's documentation
+            Self(unsafe { _mm512_sqrt_pd(self.0) })
+        }
+        #[inline(always)]
+        fn where_positive(self, then: Self, otherwise: Self) -> Self {
+            // SAFETY: see the type's documentation
+            unsafe {
+                let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(self.0, _mm512_setzero_pd());
+                Self(_mm512_mask_blend_pd(positive, otherwise.0, then.0))
+            }
+        }
+    }
+
+    macro_rules! lane_wise {
+        ($trait:ident, $method:ident, $intrinsic:ident) => {
+            impl $trait for F64x8 {
+                type Output = Self;
+                #[inline(always)]
+                fn $method(self, o: Self) -> Self {
+                    // SAFETY: see the type's documentation
+                    Self(unsafe { $intrinsic(self.0, o.0) })
+                }
+            }
+        };
+    }
+    lane_wise!(Add, add, _mm512_add_pd);
+    lane_wise!(Sub, sub, _mm512_sub_pd);
+    lane_wise!(Mul, mul, _mm512_mul_pd);
+    lane_wise!(Div, div, _mm512_div_pd);
+
+    impl Neg for F64x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn neg(self) -> Self {
+            // flipping the sign bit is exactly IEEE negation, as for f64 (an integer xor:
+            // the f64 xor of AVX-512 needs the DQ extension)
+            // SAFETY: see the type's documentation
+            unsafe {
+                let sign = _mm512_set1_epi64(i64::MIN);
+                Self(_mm512_castsi512_pd(_mm512_xor_si512(
+                    _mm512_castpd_si512(self.0),
+                    sign,
+                )))
+            }
+        }
+    }
+}
+
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
 
+    /// Each lane of `T` computes bit for bit what `f64` computes.
+    fn lanes_compute_what_scalars_compute<T: Lanes>() {
+        let xs = [1.0, -2.5, 3.0e-7, 1.0 / 3.0, 5.5e3, -0.0, 7.25, 1e-300];
+        let ys = [0.1, 7.0, -1.0e9, 2.0 / 3.0, -3.0, 2.0, 7.25, 3.0];
+        let (a, b): (T, T) = (gather(|l| xs[l]), gather(|l| ys[l]));
+        let r = ((a * b + a - b) * -a / b).sqrt().to_array();
+        let chosen = (a - b).where_positive(a, b).to_array();
+        let nan = T::splat(f64::NAN).where_positive(a, b).to_array();
+        let negated_zero = (-T::splat(0.0)).to_array();
+        for l in 0..T::WIDTH {
+            let (x, y) = (xs[l], ys[l]);
+            assert_eq!(r[l].to_bits(), ((x * y + x - y) * -x / y).sqrt().to_bits());
+            assert_eq!(chosen[l], (x - y).where_positive(x, y));
+            assert_eq!(nan[l], y, "NaN is not positive");
+            assert_eq!(negated_zero[l].to_bits(), (-0.0f64).to_bits());
+            assert_eq!(T::splat(2.0).to_array()[l], 2.0);
+        }
+    }
+
     #[test]
-    fn lanes_compute_what_scalars_compute() {
+    fn avx2_lanes_compute_what_scalars_compute() {
         if !std::arch::is_x86_feature_detected!("avx2") {
             panic!("this test needs an AVX2 CPU: the kernel's fast path could not be checked");
         }
-        let x = [1.0, -2.5, 3.0e-7, 1.0 / 3.0];
-        let y = [0.1, 7.0, -1.0e9, 2.0 / 3.0];
-        let (a, b) = (F64x4::from_array(x), F64x4::from_array(y));
-        let r = ((a * b + a - b) * -a / b).sqrt().to_array();
-        let chosen = (a - b).where_positive(a, b).to_array();
-        for l in 0..4 {
-            let (x, y) = (x[l], y[l]);
-            assert_eq!(r[l].to_bits(), ((x * y + x - y) * -x / y).sqrt().to_bits());
-            assert_eq!(chosen[l], (x - y).where_positive(x, y));
+        lanes_compute_what_scalars_compute::<F64x4>();
+    }
+
+    #[test]
+    fn avx512_lanes_compute_what_scalars_compute() {
+        if !std::arch::is_x86_feature_detected!("avx512f") {
+            println!("no AVX-512F on this CPU: the eight-lane path is never taken here");
+            return;
         }
-        let nan = F64x4::splat(f64::NAN).where_positive(a, b).to_array();
-        assert_eq!(nan, y, "NaN is not positive");
-        assert_eq!(F64x4::splat(2.0).to_array(), [2.0; 4]);
-        assert_eq!(
-            (-F64x4::splat(0.0)).to_array()[0].to_bits(),
-            (-0.0f64).to_bits()
-        );
+        lanes_compute_what_scalars_compute::<F64x8>();
     }
 }

@@ -6,7 +6,7 @@
 //! that could drift. Dm⁻¹ and the reference volume are the only per-element data the force
 //! kernel needs (80 bytes), plus the plastic state of elements of plastic materials.
 
-use crate::lanes::{build, Lanes};
+use crate::lanes::{build, gather, Lanes};
 use crate::material::elastic::{
     biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym,
 };
@@ -141,128 +141,121 @@ pub fn tet_forces_elastic<L: HyperelasticLaw>(
     )
 }
 
-/// Nodal forces, energies and det F of the four elements `tets` (node ids into the
-/// positions `x`) of an elastic law, one per lane of `T` ([`tet_forces_elastic`] in each
-/// lane, bitwise equal to it).
-#[inline(always)]
-pub fn tet_forces_elastic_x4<L: HyperelasticLaw, T: Lanes>(
-    x: &[[f64; 3]],
-    tets: &[[u32; 4]; 4],
-    references: &[TetReference; 4],
-    law: &L,
-) -> ([[[f64; 3]; 4]; 4], [f64; 4], [f64; 4]) {
-    let (f, d, v) = deformation_lanes::<T>(x, tets, references);
-    let (p, w) = law.first_piola_and_energy_lanes(&f);
-    let nodal = lanes_of_nodal_forces(&nodal_forces(&p, &d, v));
-    (nodal, (v * w).to_array(), det3(&f).to_array())
+/// What an element evaluation over lanes gives, one element per lane of `T`.
+#[derive(Debug, Clone, Copy)]
+pub struct ElementLanes<T> {
+    /// Forces on the four nodes (N), `nodal[a][i]`.
+    pub nodal: [[T; 3]; 4],
+    /// V0·W (J).
+    pub strain_energy: T,
+    /// V0·plastic work (J); zero for an elastic law.
+    pub plastic_work: T,
+    /// det F (–).
+    pub jacobian: T,
 }
 
-/// [`tet_forces`] of four elements of a J2 material, one per lane of `T`, from their
-/// committed plastic states `old` (bitwise equal to [`tet_forces`] in each lane).
-/// Returns the nodal forces, V0·ψ, V0·plastic work, det F and the states after the step.
+/// [`tet_forces_elastic`] of `T::WIDTH` elements, one per lane of `T` and bitwise equal to
+/// it in each: `tets` (node ids into the positions `x`) and `references` hold (at least)
+/// one entry per lane.
 #[inline(always)]
-pub fn tet_forces_plastic_x4<T: Lanes>(
+pub fn tet_forces_elastic_lanes<L: HyperelasticLaw, T: Lanes>(
     x: &[[f64; 3]],
-    tets: &[[u32; 4]; 4],
-    references: &[TetReference; 4],
-    j2: &J2,
-    old: [&PlasticPoint; 4],
-) -> PlasticForcesX4 {
+    tets: &[[u32; 4]],
+    references: &[TetReference],
+    law: &L,
+) -> ElementLanes<T> {
     let (f, d, v) = deformation_lanes::<T>(x, tets, references);
-    let e = green_lagrange_sym(&f);
-    let eps = biot_strain_from_green(&e);
-    let old_strain: [T; 6] = build(T::splat(0.0), |k| {
-        T::from_array([
-            old[0].strain[k],
-            old[1].strain[k],
-            old[2].strain[k],
-            old[3].strain[k],
-        ])
-    });
-    let old_equivalent = T::from_array([
-        old[0].equivalent,
-        old[1].equivalent,
-        old[2].equivalent,
-        old[3].equivalent,
-    ]);
-    let r = j2.return_map_lanes(&eps, &old_strain, old_equivalent);
-    let p = first_piola_from_biot_stress(&f, &e, &r.stress);
-    let nodal = lanes_of_nodal_forces(&nodal_forces(&p, &d, v));
-    let strain: [[f64; 4]; 6] = build([0.0; 4], |k| r.strain[k].to_array());
-    let equivalent = r.equivalent.to_array();
-    PlasticForcesX4 {
-        nodal,
-        strain_energy: (v * r.stored_energy).to_array(),
-        plastic_work: (v * r.dissipation).to_array(),
-        jacobian: det3(&f).to_array(),
-        points: build(PlasticPoint::default(), |l| PlasticPoint {
-            strain: build(0.0, |k| strain[k][l]),
-            equivalent: equivalent[l],
-        }),
+    let (p, w) = law.first_piola_and_energy_lanes(&f);
+    ElementLanes {
+        nodal: nodal_forces(&p, &d, v),
+        strain_energy: v * w,
+        plastic_work: T::splat(0.0),
+        jacobian: det3(&f),
     }
 }
 
-/// What [`tet_forces_plastic_x4`] gives for its four elements.
-#[derive(Debug, Clone, Copy)]
-pub struct PlasticForcesX4 {
-    pub nodal: [[[f64; 3]; 4]; 4],
-    pub strain_energy: [f64; 4],
-    pub plastic_work: [f64; 4],
-    pub jacobian: [f64; 4],
-    pub points: [PlasticPoint; 4],
+/// [`tet_forces`] of `T::WIDTH` elements of a J2 material, one per lane of `T` (bitwise
+/// equal to [`tet_forces`] in each), from their committed plastic states `old` (one per
+/// lane). Returns the forces and energies and the states after the step.
+#[inline(always)]
+pub fn tet_forces_plastic_lanes<T: Lanes>(
+    x: &[[f64; 3]],
+    tets: &[[u32; 4]],
+    references: &[TetReference],
+    j2: &J2,
+    old: &[PlasticPoint],
+) -> (ElementLanes<T>, PlasticLanes<T>) {
+    let (f, d, v) = deformation_lanes::<T>(x, tets, references);
+    let e = green_lagrange_sym(&f);
+    let eps = biot_strain_from_green(&e);
+    let old_strain: [T; 6] = build(T::splat(0.0), |k| gather(|l| old[l].strain[k]));
+    let old_equivalent = gather(|l| old[l].equivalent);
+    let r = j2.return_map_lanes(&eps, &old_strain, old_equivalent);
+    let p = first_piola_from_biot_stress(&f, &e, &r.stress);
+    let forces = ElementLanes {
+        nodal: nodal_forces(&p, &d, v),
+        strain_energy: v * r.stored_energy,
+        plastic_work: v * r.dissipation,
+        jacobian: det3(&f),
+    };
+    let state = PlasticLanes {
+        strain: r.strain,
+        equivalent: r.equivalent,
+    };
+    (forces, state)
 }
 
-/// F = Ds·Dm⁻¹, Dm⁻¹ and V0 of four elements, one per lane, filled straight from `x` and
-/// `references`: no per-element copy in between, which the vector loads would stall on.
+/// Plastic states after a step, one element per lane.
+#[derive(Debug, Clone, Copy)]
+pub struct PlasticLanes<T> {
+    /// Plastic strain (Sym order).
+    pub strain: [T; 6],
+    /// Equivalent plastic strain (–).
+    pub equivalent: T,
+}
+
+impl<T: Lanes> PlasticLanes<T> {
+    /// The state of lane `l`, given the lanes as arrays ([`Self::to_arrays`]).
+    #[inline(always)]
+    pub fn point(arrays: &([T::Array; 6], T::Array), l: usize) -> PlasticPoint {
+        PlasticPoint {
+            strain: build(0.0, |k| arrays.0[k][l]),
+            equivalent: arrays.1[l],
+        }
+    }
+
+    /// The lanes as one array per quantity.
+    #[inline(always)]
+    pub fn to_arrays(&self) -> ([T::Array; 6], T::Array) {
+        (
+            build(T::Array::default(), |k| self.strain[k].to_array()),
+            self.equivalent.to_array(),
+        )
+    }
+}
+
+/// F = Ds·Dm⁻¹, Dm⁻¹ and V0 of `T::WIDTH` elements, one per lane, filled straight from `x`
+/// and `references`: no per-element copy in between, which the vector loads would stall on.
 #[inline(always)]
 fn deformation_lanes<T: Lanes>(
     x: &[[f64; 3]],
-    tets: &[[u32; 4]; 4],
-    references: &[TetReference; 4],
+    tets: &[[u32; 4]],
+    references: &[TetReference],
 ) -> ([T; 9], [T; 9], T) {
-    // plain loops, no closures: every step must inline into the AVX2 caller
+    let (tets, references) = (&tets[..T::WIDTH], &references[..T::WIDTH]);
+    // plain loops: every step must inline into the vector caller
     let mut xl = [[T::splat(0.0); 3]; 4];
     for a in 0..4 {
         for i in 0..3 {
-            xl[a][i] = T::from_array([
-                x[tets[0][a] as usize][i],
-                x[tets[1][a] as usize][i],
-                x[tets[2][a] as usize][i],
-                x[tets[3][a] as usize][i],
-            ]);
+            xl[a][i] = gather(|l| x[tets[l][a] as usize][i]);
         }
     }
     let mut d = [T::splat(0.0); 9];
     for k in 0..9 {
-        d[k] = T::from_array([
-            references[0].dm_inv[k],
-            references[1].dm_inv[k],
-            references[2].dm_inv[k],
-            references[3].dm_inv[k],
-        ]);
+        d[k] = gather(|l| references[l].dm_inv[k]);
     }
-    let v = T::from_array([
-        references[0].volume,
-        references[1].volume,
-        references[2].volume,
-        references[3].volume,
-    ]);
+    let v = gather(|l| references[l].volume);
     (crate::math::mat_mul(&edge_matrix(&xl), &d), d, v)
-}
-
-/// Nodal forces of four lanes as one `[[f64; 3]; 4]` per element.
-#[inline(always)]
-fn lanes_of_nodal_forces<T: Lanes>(nodal: &[[T; 3]; 4]) -> [[[f64; 3]; 4]; 4] {
-    let mut out = [[[0.0; 3]; 4]; 4];
-    for a in 0..4 {
-        for i in 0..3 {
-            let c = nodal[a][i].to_array();
-            for l in 0..4 {
-                out[l][a][i] = c[l];
-            }
-        }
-    }
-    out
 }
 
 /// f_{1,2,3} = columns of H = −V0 P Dm⁻ᵀ, f_0 = −(f_1 + f_2 + f_3) (N).

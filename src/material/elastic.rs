@@ -19,17 +19,20 @@ pub trait HyperelasticLaw: Copy + Send + Sync {
     /// [`Self::first_piola_and_energy`]. The default evaluates the lanes one by one.
     #[inline(always)]
     fn first_piola_and_energy_lanes<T: Lanes>(&self, f: &[T; 9]) -> ([T; 9], T) {
-        let f = f.map(T::to_array);
-        let mut p = [[0.0; 4]; 9];
-        let mut w = [0.0; 4];
-        for l in 0..4 {
-            let (pl, wl) = self.first_piola_and_energy(&f.map(|v| v[l]));
+        let f: [T::Array; 9] = build(T::Array::default(), |k| f[k].to_array());
+        let mut p = [T::Array::default(); 9];
+        let mut w = T::Array::default();
+        for l in 0..T::WIDTH {
+            let (pl, wl) = self.first_piola_and_energy(&build(0.0, |k| f[k][l]));
             for (out, v) in p.iter_mut().zip(pl) {
                 out[l] = v;
             }
             w[l] = wl;
         }
-        (p.map(T::from_array), T::from_array(w))
+        (
+            build(T::splat(0.0), |k| T::from_array(p[k])),
+            T::from_array(w),
+        )
     }
 }
 

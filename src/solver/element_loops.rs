@@ -1,22 +1,22 @@
 //! The element loops of one force pass: one loop compiled per law (no per-element
-//! dispatch), each in a portable build and an AVX2 build that evaluates four elements per
-//! pass in f64 lanes (`crate::lanes`). Both builds give bitwise identical results: the
-//! lanes are plain IEEE arithmetic, and forces are added element by element in element
-//! order.
+//! dispatch), each in a portable build, an AVX2 build that evaluates four elements per
+//! pass in f64 lanes (`crate::lanes`) and an AVX-512 build that evaluates eight. All give
+//! bitwise identical results: the lanes are plain IEEE arithmetic, and forces are added
+//! element by element in element order.
 //!
-//! Everything here runs inside the AVX2 function must inline into it, or each lane
+//! Everything that runs inside a vector function must inline into it, or each lane
 //! operation becomes a call (the kernel then runs at a fifth of its speed): no
 //! `std::array::from_fn`, no `map` on arrays, plain loops. `tests/element_kernel.rs`
 //! guards the speed-up.
 
 use super::element_schedule::ElementChunk;
 use crate::element::{
-    tet_forces, tet_forces_elastic, tet_forces_elastic_x4, tet_forces_plastic_x4, ElementForces,
-    TetReference,
+    tet_forces, tet_forces_elastic, tet_forces_elastic_lanes, tet_forces_plastic_lanes,
+    ElementForces, ElementLanes, PlasticLanes,
 };
+use crate::lanes::{build, Lanes};
 #[cfg(target_arch = "x86_64")]
-use crate::lanes::F64x4;
-use crate::lanes::Lanes;
+use crate::lanes::{F64x4, F64x8};
 use crate::material::{
     CorotationalLinear, ElasticLawKind, HyperelasticLaw, MaterialLaw, PlasticPoint,
     SecondOrderBiot, StVenantKirchhoff, J2,
@@ -28,27 +28,51 @@ use crate::model::Model;
 /// integration is exploding.
 pub const MAX_PLASTIC_INCREMENT: f64 = 0.05;
 
-/// The compiled element loop a run uses. Both give bitwise identical forces (lane-wise
-/// IEEE arithmetic in the same order); AVX2 does four lanes per instruction.
+/// The compiled element loop a run uses. All give bitwise identical forces (lane-wise
+/// IEEE arithmetic in the same order); AVX2 does four lanes per instruction, AVX-512
+/// eight.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum KernelPath {
     #[default]
     Portable,
     Avx2,
+    Avx512,
 }
 
 impl KernelPath {
-    /// AVX2 where the CPU has it, unless `MUFE_KERNEL=portable` asks for the portable loop
-    /// (to compare the two on one machine).
+    /// The widest path the CPU supports, unless `MUFE_KERNEL` names a narrower one
+    /// (`portable`, `avx2`), to compare them on one machine.
     pub fn detect() -> Self {
-        if std::env::var("MUFE_KERNEL").is_ok_and(|v| v == "portable") {
+        let asked = std::env::var("MUFE_KERNEL").ok();
+        if asked.as_deref() == Some("portable") {
             return Self::Portable;
         }
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Self::Avx2;
+        {
+            if asked.as_deref() != Some("avx2") && Self::Avx512.is_supported() {
+                return Self::Avx512;
+            }
+            if Self::Avx2.is_supported() {
+                return Self::Avx2;
+            }
         }
         Self::Portable
+    }
+
+    /// Whether this CPU can run the path.
+    pub fn is_supported(self) -> bool {
+        match self {
+            Self::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => {
+                std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx2")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
     }
 
     /// The name recorded in the results' provenance.
@@ -56,6 +80,7 @@ impl KernelPath {
         match self {
             Self::Portable => "portable",
             Self::Avx2 => "avx2",
+            Self::Avx512 => "avx512",
         }
     }
 }
@@ -110,6 +135,16 @@ impl<T> Disjoint<T> {
             ptr: slice.as_mut_ptr(),
             len: slice.len(),
         }
+    }
+
+    /// Entries `first..first + len`, read only.
+    ///
+    /// # Safety
+    /// No other task may write them while the returned slice lives.
+    #[inline(always)]
+    unsafe fn slice(&self, first: usize, len: usize) -> &[T] {
+        debug_assert!(first + len <= self.len);
+        std::slice::from_raw_parts(self.ptr.add(first), len)
     }
 
     /// # Safety
@@ -190,6 +225,8 @@ pub(super) unsafe fn evaluate_chunk(
         (Some(j2), Some(first_slot), _) => match path {
             #[cfg(target_arch = "x86_64")]
             KernelPath::Avx2 => evaluate_plastic_chunk_avx2(pass, chunk, law, &j2, first_slot),
+            #[cfg(target_arch = "x86_64")]
+            KernelPath::Avx512 => evaluate_plastic_chunk_avx512(pass, chunk, law, &j2, first_slot),
             _ => evaluate_plastic_chunk::<f64>(pass, chunk, law, &j2, first_slot),
         },
         (_, _, ElasticLawKind::Biot) => {
@@ -214,17 +251,20 @@ fn element_positions(x: &[[f64; 3]], t: &[u32; 4]) -> [[f64; 3]; 4] {
     ]
 }
 
-/// Elements `4q..4q + 4` of a chunk's connectivity and reference data.
+/// The forces of lane `l` of an evaluation over lanes, given its nodal forces as arrays.
 #[inline(always)]
-fn quad<'a>(
-    tets: &'a [[u32; 4]],
-    references: &'a [TetReference],
-    q: usize,
-) -> Option<(&'a [[u32; 4]; 4], &'a [TetReference; 4])> {
-    Some((
-        tets.get(4 * q..)?.first_chunk::<4>()?,
-        references.get(4 * q..)?.first_chunk::<4>()?,
-    ))
+fn nodal_of_lane<T: Lanes>(nodal: &[[T::Array; 3]; 4], l: usize) -> [[f64; 3]; 4] {
+    build([0.0; 3], |a| {
+        [nodal[a][0][l], nodal[a][1][l], nodal[a][2][l]]
+    })
+}
+
+/// The nodal forces of an evaluation over lanes as one array per component.
+#[inline(always)]
+fn nodal_arrays<T: Lanes>(forces: &ElementLanes<T>) -> [[T::Array; 3]; 4] {
+    build([T::Array::default(); 3], |a| {
+        build(T::Array::default(), |i| forces.nodal[a][i].to_array())
+    })
 }
 
 /// # Safety
@@ -240,11 +280,11 @@ unsafe fn add_nodal_forces(force: &Disjoint<[f64; 3]>, t: &[u32; 4], nodal: &[[f
 }
 
 /// The element loop of an elastic law: with lanes `T` wider than one (and a law that
-/// vectorises) four elements per pass ([`tet_forces_elastic_x4`]), the last few one by
-/// one.
+/// vectorises) `T::WIDTH` elements per pass ([`tet_forces_elastic_lanes`]), the last few
+/// one by one.
 ///
 /// # Safety
-/// As [`evaluate_chunk`]; with `T` = [`F64x4`] the CPU must support AVX2.
+/// As [`evaluate_chunk`]; the CPU must support the instructions of `T`.
 #[inline(always)]
 unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     pass: &Pass,
@@ -259,21 +299,28 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
         add_nodal_forces(&pass.force, &tets[k], nodal);
         tally.record(k, strain_energy, 0.0, jacobian, 0.0);
     };
-    let quads = if L::VECTORISES && T::WIDTH == 4 {
-        tets.len() / 4
+    let width = T::WIDTH;
+    let groups = if L::VECTORISES && width > 1 {
+        tets.len() / width
     } else {
         0
     };
-    for q in 0..quads {
-        let Some((t, r)) = quad(tets, references, q) else {
-            break;
-        };
-        let (nodal, energy, jacobian) = tet_forces_elastic_x4::<L, T>(pass.x, t, r, law);
-        for l in 0..4 {
-            record(4 * q + l, &nodal[l], energy[l], jacobian[l]);
+    for g in 0..groups {
+        let first = g * width;
+        let out =
+            tet_forces_elastic_lanes::<L, T>(pass.x, &tets[first..], &references[first..], law);
+        let nodal = nodal_arrays(&out);
+        let (energy, jacobian) = (out.strain_energy.to_array(), out.jacobian.to_array());
+        for l in 0..width {
+            record(
+                first + l,
+                &nodal_of_lane::<T>(&nodal, l),
+                energy[l],
+                jacobian[l],
+            );
         }
     }
-    for k in 4 * quads..tets.len() {
+    for k in groups * width..tets.len() {
         let (nodal, energy, jacobian) =
             tet_forces_elastic(&element_positions(pass.x, &tets[k]), &references[k], law);
         record(k, &nodal, energy, jacobian);
@@ -281,12 +328,12 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     tally.result
 }
 
-/// The element loop of a J2 material: four elements per pass with lanes `T` wider than
-/// one ([`tet_forces_plastic_x4`]), the rest one by one. A state is written back only
-/// where the step changed it.
+/// The element loop of a J2 material: `T::WIDTH` elements per pass with lanes `T` wider
+/// than one ([`tet_forces_plastic_lanes`]), the rest one by one. A state is written back
+/// only where the step changed it.
 ///
 /// # Safety
-/// As [`evaluate_chunk`]; with `T` = [`F64x4`] the CPU must support AVX2.
+/// As [`evaluate_chunk`]; the CPU must support the instructions of `T`.
 #[inline(always)]
 unsafe fn evaluate_plastic_chunk<T: Lanes>(
     pass: &Pass,
@@ -314,25 +361,30 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
         let (energy, work, jacobian) = (forces.strain_energy, forces.plastic_work, forces.jacobian);
         tally.record(k, energy, work, jacobian, plastic_increment);
     };
-    let quads = if T::WIDTH == 4 { tets.len() / 4 } else { 0 };
-    for q in 0..quads {
-        let Some((t, r)) = quad(tets, references, q) else {
-            break;
-        };
-        let at = |l: usize| &*pass.plastic.get(first_slot + 4 * q + l);
-        let out = tet_forces_plastic_x4::<T>(pass.x, t, r, j2, [at(0), at(1), at(2), at(3)]);
-        for l in 0..4 {
+    let width = T::WIDTH;
+    let groups = if width > 1 { tets.len() / width } else { 0 };
+    for g in 0..groups {
+        let first = g * width;
+        let old = pass.plastic.slice(first_slot + first, width);
+        let (out, state) =
+            tet_forces_plastic_lanes::<T>(pass.x, &tets[first..], &references[first..], j2, old);
+        let nodal = nodal_arrays(&out);
+        let states = state.to_arrays();
+        let strain_energy = out.strain_energy.to_array();
+        let plastic_work = out.plastic_work.to_array();
+        let jacobian = out.jacobian.to_array();
+        for l in 0..width {
             let forces = ElementForces {
-                nodal: out.nodal[l],
-                strain_energy: out.strain_energy[l],
-                plastic_work: out.plastic_work[l],
-                jacobian: out.jacobian[l],
-                point: Some(out.points[l]),
+                nodal: nodal_of_lane::<T>(&nodal, l),
+                strain_energy: strain_energy[l],
+                plastic_work: plastic_work[l],
+                jacobian: jacobian[l],
+                point: Some(PlasticLanes::<T>::point(&states, l)),
             };
-            record(4 * q + l, forces);
+            record(first + l, forces);
         }
     }
-    for k in 4 * quads..tets.len() {
+    for k in groups * width..tets.len() {
         let point = *pass.plastic.get(first_slot + k);
         let xe = element_positions(pass.x, &tets[k]);
         record(k, tet_forces(&xe, &references[k], law, Some(&point)));
@@ -370,6 +422,36 @@ unsafe fn evaluate_plastic_chunk_avx2(
     evaluate_plastic_chunk::<F64x4>(pass, chunk, law, j2, first_slot)
 }
 
+/// [`evaluate_elastic_chunk`] compiled for AVX-512, eight elements per instruction.
+///
+/// # Safety
+/// As [`evaluate_chunk`], and the CPU must support AVX-512F ([`KernelPath::detect`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f")]
+unsafe fn evaluate_elastic_chunk_avx512<L: HyperelasticLaw>(
+    pass: &Pass,
+    chunk: &ElementChunk,
+    law: &L,
+) -> ChunkResult {
+    evaluate_elastic_chunk::<L, F64x8>(pass, chunk, law)
+}
+
+/// [`evaluate_plastic_chunk`] compiled for AVX-512, eight elements per instruction.
+///
+/// # Safety
+/// As [`evaluate_chunk`], and the CPU must support AVX-512F ([`KernelPath::detect`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f")]
+unsafe fn evaluate_plastic_chunk_avx512(
+    pass: &Pass,
+    chunk: &ElementChunk,
+    law: &MaterialLaw,
+    j2: &J2,
+    first_slot: usize,
+) -> ChunkResult {
+    evaluate_plastic_chunk::<F64x8>(pass, chunk, law, j2, first_slot)
+}
+
 /// # Safety
 /// As [`evaluate_chunk`].
 unsafe fn evaluate_elastic_chunk_on<L: HyperelasticLaw>(
@@ -381,6 +463,8 @@ unsafe fn evaluate_elastic_chunk_on<L: HyperelasticLaw>(
     match path {
         #[cfg(target_arch = "x86_64")]
         KernelPath::Avx2 => evaluate_elastic_chunk_avx2(pass, chunk, law),
+        #[cfg(target_arch = "x86_64")]
+        KernelPath::Avx512 => evaluate_elastic_chunk_avx512(pass, chunk, law),
         _ => evaluate_elastic_chunk::<L, f64>(pass, chunk, law),
     }
 }
