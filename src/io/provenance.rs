@@ -20,8 +20,8 @@ pub struct Provenance {
     pub command_line: String,
     /// Host of rank 0.
     pub hostname: String,
-    /// The compiled element loop the run uses (`portable` or `avx2`; they give bitwise
-    /// identical forces).
+    /// The compiled element loop the run uses (`portable`, `avx2` or `avx512`; they give
+    /// bitwise identical forces).
     pub kernel: String,
 }
 

@@ -151,7 +151,7 @@ impl<T> Disjoint<T> {
     /// No other task may access entry `i` while the returned reference lives.
     #[inline(always)]
     #[allow(clippy::mut_from_ref)]
-    unsafe fn get(&self, i: usize) -> &mut T {
+    pub(super) unsafe fn get(&self, i: usize) -> &mut T {
         debug_assert!(i < self.len);
         &mut *self.ptr.add(i)
     }

@@ -11,6 +11,13 @@
 //! Chunks never span two grains and are cut and coloured from each grain's own elements,
 //! so a grain's summation order does not depend on which other grains share its rank:
 //! 1, 2 and 3 ranks give the same forces too.
+//!
+//! Grains share no node, so a grain small enough to stay in a core's cache runs whole as
+//! one task, its chunks colour after colour: its positions and forces are then fetched
+//! once per pass, not once per colour (a colour-by-colour sweep over a rank of a thousand
+//! grains had evicted them between colours). Its nodes receive their forces in the same
+//! order as in the colour-by-colour sweep, so the results are the same to the bit. Larger
+//! grains are swept colour by colour, chunks of one colour in parallel.
 
 use crate::model::{Model, NONE};
 use std::ops::Range;
@@ -19,6 +26,11 @@ use std::ops::Range;
 /// from the thread count, so that results are reproducible. Small enough that a sphere of
 /// 10⁵ elements gives each colour enough chunks to balance two threads.
 pub const ELEMENT_CHUNK: usize = 512;
+
+/// Grains of at most this many elements run whole as one task (about 1 MB of element and
+/// node data: a core's L2). Fixed, not derived from the machine, so that the schedule,
+/// which decides no summation order anyway, is reproducible.
+pub const WHOLE_GRAIN_ELEMENTS: usize = 8192;
 
 /// Colours a node can remember with one bit each; a chunk that finds them all taken gets
 /// a colour of its own (always safe: it then runs alone).
@@ -42,6 +54,52 @@ pub struct ElementSchedule {
     pub chunks: Vec<ElementChunk>,
     /// `chunks[colours[c]]` are the chunks of colour c: they share no node.
     pub colours: Vec<Range<usize>>,
+    /// The tasks of a force pass: first each small grain whole, then the chunks of the
+    /// large grains colour by colour. Entries are indices into `chunks`.
+    pub tasks: ScheduleTasks,
+}
+
+/// How the chunks of a [`ElementSchedule`] are run: small grains whole, one task each
+/// (their chunks in colour order), then large grains colour by colour.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ScheduleTasks {
+    /// `whole_chunks[whole_grains[g]]`: the chunks of small grain g, in colour order.
+    pub whole_grains: Vec<Range<usize>>,
+    pub whole_chunks: Vec<usize>,
+    /// `large_chunks[large_colours[c]]`: the chunks of large grains of one colour.
+    pub large_colours: Vec<Range<usize>>,
+    pub large_chunks: Vec<usize>,
+}
+
+impl ScheduleTasks {
+    /// Splits the colour-ordered `chunks` between whole-grain tasks and colour sweeps.
+    fn new(model: &Model, chunks: &[ElementChunk], colours: &[Range<usize>]) -> Self {
+        let grain_of = |k: usize| model.grain_of_element(chunks[k].elements.start);
+        let is_small = |g: usize| model.grains[g].elements.len() <= WHOLE_GRAIN_ELEMENTS;
+        let mut tasks = Self::default();
+        // a grain's chunks, taken in schedule order, are in colour order
+        let mut of_grain: Vec<Vec<usize>> = vec![Vec::new(); model.owned_grains];
+        for k in 0..chunks.len() {
+            if is_small(grain_of(k)) {
+                of_grain[grain_of(k)].push(k);
+            }
+        }
+        for ks in of_grain.iter().filter(|ks| !ks.is_empty()) {
+            let start = tasks.whole_chunks.len();
+            tasks.whole_chunks.extend(ks);
+            tasks.whole_grains.push(start..tasks.whole_chunks.len());
+        }
+        for colour in colours {
+            let start = tasks.large_chunks.len();
+            tasks
+                .large_chunks
+                .extend(colour.clone().filter(|&k| !is_small(grain_of(k))));
+            if tasks.large_chunks.len() > start {
+                tasks.large_colours.push(start..tasks.large_chunks.len());
+            }
+        }
+        tasks
+    }
 }
 
 impl ElementSchedule {
@@ -89,9 +147,12 @@ impl ElementSchedule {
                 _ => colours.push(k..k + 1),
             }
         }
+        let chunks: Vec<ElementChunk> = coloured.into_iter().map(|(_, chunk)| chunk).collect();
+        let tasks = ScheduleTasks::new(model, &chunks, &colours);
         Self {
-            chunks: coloured.into_iter().map(|(_, chunk)| chunk).collect(),
+            chunks,
             colours,
+            tasks,
         }
     }
 }
@@ -146,6 +207,49 @@ shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
         }
         assert!(seen.iter().all(|&s| s == 1));
         assert!(schedule.colours.len() > 1);
+    }
+
+    #[test]
+    fn every_chunk_is_one_task_and_a_whole_grain_runs_its_chunks_in_colour_order() {
+        let model = two_sphere_model();
+        let schedule = ElementSchedule::new(&model);
+        let tasks = &schedule.tasks;
+        assert!(
+            !tasks.whole_grains.is_empty(),
+            "the small sphere runs whole"
+        );
+        assert!(
+            !tasks.large_colours.is_empty(),
+            "the large sphere is swept by colour"
+        );
+        let mut seen = vec![0u8; schedule.chunks.len()];
+        for &k in tasks.whole_chunks.iter().chain(&tasks.large_chunks) {
+            seen[k] += 1;
+        }
+        assert!(seen.iter().all(|&s| s == 1));
+        let colour_of = |k: usize| schedule.colours.iter().position(|c| c.contains(&k));
+        for g in &tasks.whole_grains {
+            let ks = &tasks.whole_chunks[g.clone()];
+            let grain = model.grain_of_element(schedule.chunks[ks[0]].elements.start);
+            assert!(model.grains[grain].elements.len() <= WHOLE_GRAIN_ELEMENTS);
+            // chunks of one grain and one colour share no node: their order is free
+            for w in ks.windows(2) {
+                assert!(
+                    colour_of(w[0]) <= colour_of(w[1]),
+                    "colour order within a grain"
+                );
+            }
+            let all_of_grain = (0..schedule.chunks.len())
+                .filter(|&k| model.grain_of_element(schedule.chunks[k].elements.start) == grain)
+                .count();
+            assert_eq!(ks.len(), all_of_grain);
+        }
+        for c in &tasks.large_colours {
+            let colour = colour_of(tasks.large_chunks[c.start]);
+            assert!(tasks.large_chunks[c.clone()]
+                .iter()
+                .all(|&k| colour_of(k) == colour));
+        }
     }
 
     #[test]

@@ -70,17 +70,24 @@ pub fn compute_internal_forces_into(
         plastic: Disjoint::new(plastic),
     };
     let schedule = &scratch.schedule;
+    let tasks = &schedule.tasks;
     let path = scratch.path;
-    for colour in &schedule.colours {
-        schedule.chunks[colour.clone()]
+    let results = Disjoint::new(&mut scratch.chunk_results);
+    let run = |k: usize| {
+        // SAFETY: every chunk is one task's (`ScheduleTasks`); tasks that run at the same
+        // time share no node and own disjoint element (hence plastic slot) ranges: whole
+        // grains share nothing with each other or with the large grains, and chunks of
+        // one colour of the large grains share no node; colours run one after another
+        unsafe { *results.get(k) = evaluate_chunk(path, &pass, &schedule.chunks[k]) };
+    };
+    tasks
+        .whole_grains
+        .par_iter()
+        .for_each(|g| tasks.whole_chunks[g.clone()].iter().for_each(|&k| run(k)));
+    for colour in &tasks.large_colours {
+        tasks.large_chunks[colour.clone()]
             .par_iter()
-            .zip(scratch.chunk_results[colour.clone()].par_iter_mut())
-            .for_each(|(chunk, result)| {
-                // SAFETY: chunks of one colour share no node and own disjoint element
-                // (hence plastic slot) ranges (`ElementSchedule`), and colours run one
-                // after another, so no two threads touch the same entry.
-                *result = unsafe { evaluate_chunk(path, &pass, chunk) };
-            });
+            .for_each(|&k| run(k));
     }
 
     let mut strain_energy = 0.0;
