@@ -22,7 +22,8 @@ use rayon::prelude::*;
 use std::time::Instant;
 
 const RADIUS: f64 = 1.1e-3;
-/// Seeding of the bandwidth-bound mesh (≥ 10⁵ tets, far beyond the caches).
+/// Seeding of the large mesh (≥ 10⁵ tets, ≈ 16 MB: beyond L2, but inside a 32 MiB L3;
+/// docs/BENCHMARKS.md, session 21, has the same kernel on a mesh that only DRAM holds).
 const SEEDING: f64 = 7.0e-5;
 /// Seeding of the in-cache mesh (a few thousand tets, < 1 MiB of model data).
 const SEEDING_IN_CACHE: f64 = 2.6e-4;

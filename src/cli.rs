@@ -346,6 +346,7 @@ pub fn clap_error(e: &clap::Error) -> InputError {
 }
 
 fn load(scene: &std::path::Path, set: &[String]) -> Result<LoadedScene, InputError> {
+    crate::solver::forces::KernelPath::check_requested()?;
     load_scene(scene, set)
 }
 

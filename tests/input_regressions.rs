@@ -757,3 +757,19 @@ fn bad_servo_walls_are_refused() {
         refused(&check_set(scene, set), 5, &[field, needle]);
     }
 }
+
+#[test]
+fn an_unknown_or_unavailable_element_kernel_is_refused() {
+    let args = ["check", &root("jobs/examples/free_vibration.toml")];
+    let o = mufe_env(&args, &[("MUFE_KERNEL", "avx513")]);
+    let line = refused(&o, 5, &["<environment>", "MUFE_KERNEL", "'avx513'"]);
+    assert!(line.contains("portable, avx2 or avx512"), "{line}");
+    // a narrower path the CPU has runs
+    let (o, _) = mufe_env(&args, &[("MUFE_KERNEL", "portable")]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // and a path the CPU lacks is named as such
+    if !mufe::solver::forces::KernelPath::Avx512.is_supported() {
+        let o = mufe_env(&args, &[("MUFE_KERNEL", "avx512")]);
+        refused(&o, 5, &["MUFE_KERNEL", "cannot run the avx512 kernel"]);
+    }
+}

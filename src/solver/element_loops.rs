@@ -14,6 +14,7 @@ use crate::element::{
     tet_forces, tet_forces_elastic, tet_forces_elastic_lanes, tet_forces_plastic_lanes,
     ElementForces, ElementLanes, PlasticLanes,
 };
+use crate::error::InputError;
 use crate::lanes::{build, Lanes};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::{F64x4, F64x8};
@@ -57,6 +58,36 @@ impl KernelPath {
             }
         }
         Self::Portable
+    }
+
+    /// Checks `MUFE_KERNEL`: unset, or the name of a path this CPU can run (the command
+    /// line checks it before a run, so that a typo or a path this CPU lacks is an error,
+    /// not a silent fallback).
+    pub fn check_requested() -> Result<(), InputError> {
+        let Ok(asked) = std::env::var("MUFE_KERNEL") else {
+            return Ok(());
+        };
+        let all = [Self::Portable, Self::Avx2, Self::Avx512];
+        let wrong = |message: String| InputError::new("<environment>", "MUFE_KERNEL", message);
+        let Some(path) = all.into_iter().find(|p| p.name() == asked.trim()) else {
+            return Err(wrong(format!(
+                "'{}' is not an element kernel (portable, avx2 or avx512)",
+                crate::error::echo(&asked)
+            )));
+        };
+        if !path.is_supported() {
+            let here: Vec<&str> = all
+                .iter()
+                .filter(|p| p.is_supported())
+                .map(|p| p.name())
+                .collect();
+            return Err(wrong(format!(
+                "this CPU cannot run the {} kernel (it can run: {})",
+                path.name(),
+                here.join(", ")
+            )));
+        }
+        Ok(())
     }
 
     /// Whether this CPU can run the path.
