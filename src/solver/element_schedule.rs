@@ -12,12 +12,14 @@
 //! so a grain's summation order does not depend on which other grains share its rank:
 //! 1, 2 and 3 ranks give the same forces too.
 //!
-//! Grains share no node, so a grain small enough to stay in a core's cache runs whole as
+//! Grains share no node, so a grain whose node data stays in a core's cache runs whole as
 //! one task, its chunks colour after colour: its positions and forces are then fetched
 //! once per pass, not once per colour (a colour-by-colour sweep over a rank of a thousand
 //! grains had evicted them between colours). Its nodes receive their forces in the same
-//! order as in the colour-by-colour sweep, so the results are the same to the bit. Larger
-//! grains are swept colour by colour, chunks of one colour in parallel.
+//! order as in the colour-by-colour sweep, so the results are the same to the bit, and
+//! which grains run whole may depend on the thread count. Larger grains, and every grain
+//! of a rank with too few grains to keep the threads busy, are swept colour by colour,
+//! chunks of one colour in parallel.
 
 use crate::model::{Model, NONE};
 use std::ops::Range;
@@ -27,10 +29,14 @@ use std::ops::Range;
 /// 10⁵ elements gives each colour enough chunks to balance two threads.
 pub const ELEMENT_CHUNK: usize = 512;
 
-/// Grains of at most this many elements run whole as one task (about 1 MB of element and
-/// node data: a core's L2). Fixed, not derived from the machine, so that the schedule,
-/// which decides no summation order anyway, is reproducible.
-pub const WHOLE_GRAIN_ELEMENTS: usize = 8192;
+/// Grains of at most this many elements may run whole as one task: about 12 000 nodes,
+/// whose positions and forces (48 B each, ≈ 0.5 MB) stay in a core's L2 across the
+/// grain's colours.
+pub const WHOLE_GRAIN_ELEMENTS: usize = 65_536;
+
+/// A grain runs whole only if it holds at most this share of one thread's elements, so
+/// that the whole-grain tasks balance over the threads.
+const WHOLE_GRAIN_SHARE: usize = 4;
 
 /// Colours a node can remember with one bit each; a chunk that finds them all taken gets
 /// a colour of its own (always safe: it then runs alone).
@@ -72,10 +78,16 @@ pub struct ScheduleTasks {
 }
 
 impl ScheduleTasks {
-    /// Splits the colour-ordered `chunks` between whole-grain tasks and colour sweeps.
-    fn new(model: &Model, chunks: &[ElementChunk], colours: &[Range<usize>]) -> Self {
+    /// Splits the colour-ordered `chunks` between whole-grain tasks (grains of at most
+    /// `whole_limit` elements) and colour sweeps.
+    fn new(
+        model: &Model,
+        chunks: &[ElementChunk],
+        colours: &[Range<usize>],
+        whole_limit: usize,
+    ) -> Self {
         let grain_of = |k: usize| model.grain_of_element(chunks[k].elements.start);
-        let is_small = |g: usize| model.grains[g].elements.len() <= WHOLE_GRAIN_ELEMENTS;
+        let is_small = |g: usize| model.grains[g].elements.len() <= whole_limit;
         let mut tasks = Self::default();
         // a grain's chunks, taken in schedule order, are in colour order
         let mut of_grain: Vec<Vec<usize>> = vec![Vec::new(); model.owned_grains];
@@ -103,7 +115,17 @@ impl ScheduleTasks {
 }
 
 impl ElementSchedule {
+    /// The schedule of `model`'s owned elements for the current rayon pool.
     pub fn new(model: &Model) -> Self {
+        let per_thread = model.owned_elements / rayon::current_num_threads().max(1);
+        Self::with_whole_limit(
+            model,
+            WHOLE_GRAIN_ELEMENTS.min(per_thread / WHOLE_GRAIN_SHARE),
+        )
+    }
+
+    /// The schedule with grains of at most `whole_limit` elements run whole.
+    pub fn with_whole_limit(model: &Model, whole_limit: usize) -> Self {
         let mut coloured: Vec<(usize, ElementChunk)> = Vec::new();
         let mut node_colours = vec![0u64; model.owned_nodes];
         let mut own_colours = 0;
@@ -148,7 +170,7 @@ impl ElementSchedule {
             }
         }
         let chunks: Vec<ElementChunk> = coloured.into_iter().map(|(_, chunk)| chunk).collect();
-        let tasks = ScheduleTasks::new(model, &chunks, &colours);
+        let tasks = ScheduleTasks::new(model, &chunks, &colours, whole_limit);
         Self {
             chunks,
             colours,
@@ -212,7 +234,11 @@ shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
     #[test]
     fn every_chunk_is_one_task_and_a_whole_grain_runs_its_chunks_in_colour_order() {
         let model = two_sphere_model();
-        let schedule = ElementSchedule::new(&model);
+        // the small sphere whole, the large one by colour
+        let limit = model.grains[1].elements.len();
+        assert!(model.grains[0].elements.len() > limit);
+        let schedule = ElementSchedule::with_whole_limit(&model, limit);
+        assert_eq!(schedule.chunks, ElementSchedule::new(&model).chunks);
         let tasks = &schedule.tasks;
         assert!(
             !tasks.whole_grains.is_empty(),
@@ -231,7 +257,7 @@ shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
         for g in &tasks.whole_grains {
             let ks = &tasks.whole_chunks[g.clone()];
             let grain = model.grain_of_element(schedule.chunks[ks[0]].elements.start);
-            assert!(model.grains[grain].elements.len() <= WHOLE_GRAIN_ELEMENTS);
+            assert!(model.grains[grain].elements.len() <= limit);
             // chunks of one grain and one colour share no node: their order is free
             for w in ks.windows(2) {
                 assert!(
