@@ -178,6 +178,17 @@ impl<T> Disjoint<T> {
         std::slice::from_raw_parts(self.ptr.add(first), len)
     }
 
+    /// Entries `first..first + len`, to write.
+    ///
+    /// # Safety
+    /// No other task may access them while the returned slice lives.
+    #[inline(always)]
+    #[allow(clippy::mut_from_ref)]
+    pub(super) unsafe fn slice_mut(&self, first: usize, len: usize) -> &mut [T] {
+        debug_assert!(first + len <= self.len);
+        std::slice::from_raw_parts_mut(self.ptr.add(first), len)
+    }
+
     /// # Safety
     /// No other task may access entry `i` while the returned reference lives.
     #[inline(always)]

@@ -72,6 +72,11 @@ pub struct ScheduleTasks {
     /// `whole_chunks[whole_grains[g]]`: the chunks of small grain g, in colour order.
     pub whole_grains: Vec<Range<usize>>,
     pub whole_chunks: Vec<usize>,
+    /// The nodes of small grain g: its task zeroes their forces, while they are in cache.
+    pub whole_nodes: Vec<Range<usize>>,
+    /// The other nodes (of large grains, ghosts, images), whose forces the pass zeroes
+    /// before its tasks.
+    pub zeroed_before: Vec<Range<usize>>,
     /// `large_chunks[large_colours[c]]`: the chunks of large grains of one colour.
     pub large_colours: Vec<Range<usize>>,
     pub large_chunks: Vec<usize>,
@@ -96,10 +101,23 @@ impl ScheduleTasks {
                 of_grain[grain_of(k)].push(k);
             }
         }
-        for ks in of_grain.iter().filter(|ks| !ks.is_empty()) {
+        for (g, ks) in of_grain.iter().enumerate().filter(|(_, ks)| !ks.is_empty()) {
             let start = tasks.whole_chunks.len();
             tasks.whole_chunks.extend(ks);
             tasks.whole_grains.push(start..tasks.whole_chunks.len());
+            tasks.whole_nodes.push(model.grains[g].nodes.clone());
+        }
+        let mut whole_nodes = tasks.whole_nodes.clone();
+        whole_nodes.sort_by_key(|r| r.start);
+        let mut next = 0;
+        for r in whole_nodes
+            .iter()
+            .chain([&(model.num_nodes()..model.num_nodes())])
+        {
+            if r.start > next {
+                tasks.zeroed_before.push(next..r.start);
+            }
+            next = next.max(r.end);
         }
         for colour in colours {
             let start = tasks.large_chunks.len();
@@ -253,7 +271,23 @@ shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
             seen[k] += 1;
         }
         assert!(seen.iter().all(|&s| s == 1));
+        let mut zeroed = vec![0u8; model.num_nodes()];
+        for r in tasks.whole_nodes.iter().chain(&tasks.zeroed_before) {
+            r.clone().for_each(|n| zeroed[n] += 1);
+        }
+        assert!(
+            zeroed.iter().all(|&z| z == 1),
+            "every node's force zeroed once"
+        );
         let colour_of = |k: usize| schedule.colours.iter().position(|c| c.contains(&k));
+        for (g, nodes) in tasks.whole_grains.iter().zip(&tasks.whole_nodes) {
+            let ks = &tasks.whole_chunks[g.clone()];
+            for &k in ks {
+                for e in schedule.chunks[k].elements.clone() {
+                    assert!(model.tets[e].iter().all(|&n| nodes.contains(&(n as usize))));
+                }
+            }
+        }
         for g in &tasks.whole_grains {
             let ks = &tasks.whole_chunks[g.clone()];
             let grain = model.grain_of_element(schedule.chunks[ks[0]].elements.start);

@@ -52,7 +52,8 @@ impl ElementScratch {
 
 /// Computes element forces at positions `x`, commits the plastic state of plastic
 /// elements, and writes the assembled internal force of every node into `force`
-/// (overwriting it; ghost nodes get zero).
+/// (overwriting it; ghost nodes get zero). A grain that runs whole zeroes its own nodes'
+/// forces just before its elements add to them, so they are still in cache.
 pub fn compute_internal_forces_into(
     model: &Model,
     x: &[[f64; 3]],
@@ -60,9 +61,14 @@ pub fn compute_internal_forces_into(
     scratch: &mut ElementScratch,
     force: &mut [[f64; 3]],
 ) -> InternalForceSummary {
-    force
-        .par_chunks_mut(NODE_CHUNK)
-        .for_each(|part| part.fill([0.0; 3]));
+    // the schedule's node ranges were laid out for this model's nodes
+    assert_eq!(force.len(), model.num_nodes());
+    let tasks = &scratch.schedule.tasks;
+    for r in &tasks.zeroed_before {
+        force[r.clone()]
+            .par_chunks_mut(NODE_CHUNK)
+            .for_each(|part| part.fill([0.0; 3]));
+    }
     let pass = Pass {
         model,
         x,
@@ -70,7 +76,6 @@ pub fn compute_internal_forces_into(
         plastic: Disjoint::new(plastic),
     };
     let schedule = &scratch.schedule;
-    let tasks = &schedule.tasks;
     let path = scratch.path;
     let results = Disjoint::new(&mut scratch.chunk_results);
     let run = |k: usize| {
@@ -83,7 +88,12 @@ pub fn compute_internal_forces_into(
     tasks
         .whole_grains
         .par_iter()
-        .for_each(|g| tasks.whole_chunks[g.clone()].iter().for_each(|&k| run(k)));
+        .zip(&tasks.whole_nodes)
+        .for_each(|(g, nodes)| {
+            // SAFETY: a grain's nodes are its task's alone
+            unsafe { pass.force.slice_mut(nodes.start, nodes.len()) }.fill([0.0; 3]);
+            tasks.whole_chunks[g.clone()].iter().for_each(|&k| run(k));
+        });
     for colour in &tasks.large_colours {
         tasks.large_chunks[colour.clone()]
             .par_iter()
