@@ -41,23 +41,23 @@ pub enum KernelPath {
 }
 
 impl KernelPath {
-    /// The widest path the CPU supports, unless `MUFE_KERNEL` names a narrower one
-    /// (`portable`, `avx2`), to compare them on one machine.
+    /// Every path, widest first.
+    const ALL: [Self; 3] = [Self::Avx512, Self::Avx2, Self::Portable];
+
+    /// The widest path the CPU supports, unless `MUFE_KERNEL` names another one it
+    /// supports (to compare them on one machine).
     pub fn detect() -> Self {
-        let asked = std::env::var("MUFE_KERNEL").ok();
-        if asked.as_deref() == Some("portable") {
-            return Self::Portable;
-        }
-        #[cfg(target_arch = "x86_64")]
-        {
-            if asked.as_deref() != Some("avx2") && Self::Avx512.is_supported() {
-                return Self::Avx512;
-            }
-            if Self::Avx2.is_supported() {
-                return Self::Avx2;
-            }
-        }
-        Self::Portable
+        let widest = Self::ALL.into_iter().find(|p| p.is_supported());
+        Self::requested()
+            .filter(|p| p.is_supported())
+            .or(widest)
+            .unwrap_or_default()
+    }
+
+    /// The path `MUFE_KERNEL` names, if it names one.
+    fn requested() -> Option<Self> {
+        let asked = std::env::var("MUFE_KERNEL").ok()?;
+        Self::ALL.into_iter().find(|p| p.name() == asked.trim())
     }
 
     /// Checks `MUFE_KERNEL`: unset, or the name of a path this CPU can run (the command
@@ -67,17 +67,15 @@ impl KernelPath {
         let Ok(asked) = std::env::var("MUFE_KERNEL") else {
             return Ok(());
         };
-        let all = [Self::Portable, Self::Avx2, Self::Avx512];
         let wrong = |message: String| InputError::new("<environment>", "MUFE_KERNEL", message);
-        let Some(path) = all.into_iter().find(|p| p.name() == asked.trim()) else {
+        let Some(path) = Self::requested() else {
             return Err(wrong(format!(
                 "'{}' is not an element kernel (portable, avx2 or avx512)",
                 crate::error::echo(&asked)
             )));
         };
         if !path.is_supported() {
-            let here: Vec<&str> = all
-                .iter()
+            let here: Vec<&str> = (Self::ALL.iter().rev())
                 .filter(|p| p.is_supported())
                 .map(|p| p.name())
                 .collect();
