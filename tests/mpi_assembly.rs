@@ -347,6 +347,32 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
     );
 }
 
+/// A grain driven onto one at rest, each on its own rank, until it has pushed in for
+/// 1 200 steps (before any broad-phase rebuild): the resting grain's rank only sees the
+/// other grain as a ghost, and must still evaluate its contact, so 2 ranks give the serial
+/// history (before the fix the resting rank skipped it and the penetration doubled).
+#[test]
+fn a_grain_driven_onto_a_resting_one_on_another_rank_gives_the_serial_history() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/contact_onto_resting.toml");
+    let (serial_path, out) = run_scene(&scene, "2400", 1, 1, "onto_resting_r1", &[]);
+    mpi_launch::assert_success(&out);
+    let (path, out) = run_scene(&scene, "2400", 2, 1, "onto_resting_r2", &[]);
+    mpi_launch::assert_success(&out);
+    let f = hdf5::File::open(&path).unwrap();
+    let owners: Vec<u32> = f
+        .dataset("mesh/owner_rank_of_grain")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert_eq!(owners.len(), 2);
+    assert_ne!(owners[0], owners[1], "one grain per rank");
+    let serial = history(&serial_path);
+    let contacts = results::column(&serial, "contacts");
+    assert!(contacts.iter().any(|&c| c > 0.0), "the grains touch");
+    let kinetic = results::column(&serial, "kinetic_energy");
+    results::assert_same_history(&serial, &history(&path), kinetic[0], "2 ranks");
+}
+
 #[test]
 fn an_error_on_one_rank_stops_the_whole_job() {
     // Grain 13 (the centre) flung into its neighbour at 2 km/s: the contact tunnels on

@@ -54,7 +54,9 @@ pub struct BroadPhase {
     pub boxes: Vec<Aabb>,
     /// Candidate grain pairs (model grain indices, a < b).
     pub pairs: Vec<(u32, u32)>,
-    /// Largest surface-node displacement since the last rebuild, as of the last check (m).
+    /// Largest surface-node displacement since the last rebuild, as of the last check (m):
+    /// this rank's nodes after [`BroadPhase::needs_rebuild`], every rank's once the step has
+    /// taken the maximum over ranks (before the narrow phase uses it).
     pub moved: f64,
     order: Vec<u32>,
     chunk_max: Vec<f64>,

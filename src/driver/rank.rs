@@ -153,13 +153,10 @@ impl StepHooks for RankHooks<'_> {
     ) -> Result<(), MufeError> {
         self.halo.begin(x, v, cell)
     }
-    fn any(&mut self, local: bool) -> bool {
-        if self.domain.size() == 1 {
-            return local;
+    fn max(&mut self, values: &mut [f64]) {
+        if self.domain.size() > 1 {
+            self.domain.max_in_place(values);
         }
-        let mut v = [if local { 1.0 } else { 0.0 }];
-        self.domain.max_in_place(&mut v);
-        v[0] > 0.0
     }
     fn sum(&mut self, values: &mut [f64]) {
         if self.domain.size() > 1 {

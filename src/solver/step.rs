@@ -44,10 +44,8 @@ pub trait StepHooks {
     ) -> Result<(), MufeError> {
         Ok(())
     }
-    /// Logical OR over ranks (all ranks must call).
-    fn any(&mut self, local: bool) -> bool {
-        local
-    }
+    /// Element-wise maximum over ranks in place (all ranks must call).
+    fn max(&mut self, _values: &mut [f64]) {}
     /// Sums over ranks in place (all ranks must call).
     fn sum(&mut self, _values: &mut [f64]) {}
 }
@@ -251,7 +249,13 @@ impl Solver {
                 &state.contact,
                 &mut scratch.contact,
             );
-            let rebuild = hooks.any(local);
+            // Every rank skips entries and prunes candidates by the largest displacement of
+            // any surface node, ghosts included (their owners count them): a rank whose own
+            // grains rest must still see a ghost grain that comes at them.
+            let mut over_ranks = [scratch.contact.broad.moved, f64::from(u8::from(local))];
+            hooks.max(&mut over_ranks);
+            scratch.contact.broad.moved = over_ranks[0];
+            let rebuild = over_ranks[1] > 0.0;
             crate::contact::evaluate_with(
                 model,
                 &state.x,
