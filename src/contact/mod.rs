@@ -94,6 +94,7 @@ pub mod friction;
 pub mod narrow;
 mod overlap;
 pub mod patch;
+mod prefetch;
 mod vertex_normals;
 pub mod walls;
 
@@ -113,6 +114,7 @@ use crate::model::Model;
 pub use broad::DetectionReference;
 use broad::{BroadPhase, CandidateLists};
 use narrow::{evaluate_entry, Entry, EvalContext, PointResult};
+use prefetch::{warm_up, WARM_BATCH};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -389,8 +391,11 @@ pub fn evaluate_with(
         .par_chunks_mut(ENTRY_CHUNK)
         .zip(scratch.evaluated.par_chunks(ENTRY_CHUNK))
         .for_each(|(out, indices)| {
-            for (r, &i) in out.iter_mut().zip(indices) {
-                *r = evaluate_entry(&ctx, &lists.entries[i as usize]);
+            for (out, batch) in out.chunks_mut(WARM_BATCH).zip(indices.chunks(WARM_BATCH)) {
+                warm_up(&ctx, &lists.entries, batch);
+                for (r, &i) in out.iter_mut().zip(batch) {
+                    *r = evaluate_entry(&ctx, &lists.entries[i as usize]);
+                }
             }
         });
 
