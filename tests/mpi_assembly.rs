@@ -64,6 +64,15 @@ fn run_scene(
     (out.join("results.h5"), output)
 }
 
+/// `/mesh/owner_rank_of_grain`: the rank that owns each grain at the start.
+fn owner_rank_of_grains(path: &Path) -> Vec<u32> {
+    let f = hdf5::File::open(path).unwrap();
+    f.dataset("mesh/owner_rank_of_grain")
+        .unwrap()
+        .read_raw()
+        .unwrap()
+}
+
 /// The last frame's `owner_rank` (the rank that advanced each element, written per frame
 /// so that migration shows) names every rank of the run and no other, and is constant
 /// over each grain.
@@ -230,12 +239,7 @@ fn compare_configurations(
         }
         assert_last_frame_equal(golden_path, &path, &format!("{label}, {ranks} ranks"));
         // the file records the decomposition
-        let f = hdf5::File::open(&path).unwrap();
-        let owners = f
-            .dataset("mesh/owner_rank_of_grain")
-            .unwrap()
-            .read_raw::<u32>()
-            .unwrap();
+        let owners = owner_rank_of_grains(&path);
         let used: std::collections::BTreeSet<u32> = owners.iter().copied().collect();
         assert_eq!(used.len(), ranks, "every rank owns grains");
     }
@@ -358,12 +362,7 @@ fn a_grain_driven_onto_a_resting_one_on_another_rank_gives_the_serial_history() 
     mpi_launch::assert_success(&out);
     let (path, out) = run_scene(&scene, "2400", 2, 1, "onto_resting_r2", &[]);
     mpi_launch::assert_success(&out);
-    let f = hdf5::File::open(&path).unwrap();
-    let owners: Vec<u32> = f
-        .dataset("mesh/owner_rank_of_grain")
-        .unwrap()
-        .read_raw()
-        .unwrap();
+    let owners = owner_rank_of_grains(&path);
     assert_eq!(owners.len(), 2);
     assert_ne!(owners[0], owners[1], "one grain per rank");
     let serial = history(&serial_path);

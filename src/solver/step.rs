@@ -249,9 +249,9 @@ impl Solver {
                 &state.contact,
                 &mut scratch.contact,
             );
-            // Every rank skips entries and prunes candidates by the largest displacement of
-            // any surface node, ghosts included (their owners count them): a rank whose own
-            // grains rest must still see a ghost grain that comes at them.
+            // Every rank skips entries by the largest displacement of any surface node,
+            // ghosts included (their owners count them): a rank whose own grains rest must
+            // still see a ghost grain that comes at them.
             let mut over_ranks = [scratch.contact.broad.moved, f64::from(u8::from(local))];
             hooks.max(&mut over_ranks);
             scratch.contact.broad.moved = over_ranks[0];
