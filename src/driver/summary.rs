@@ -255,8 +255,15 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
             );
         }
     }
+    // ½ v₋·M v₊ is the kinetic energy the leapfrog conserves exactly; it dips below zero
+    // (by O((ωΔt)²) of the strain energy) when the fast modes dominate a block at rest.
+    let kinetic_note = if e.kinetic < 0.0 {
+        " (½ v(n−½)·M v(n+½), below 0 near rest: docs/THEORY.md, energy ledger)"
+    } else {
+        ""
+    };
     println!(
-        "energy: kinetic {:.4e} J, strain {:.4e} J (recoverable {:.4e} J, plastic {:.4e} J), friction {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
+        "energy: kinetic {:.4e} J{kinetic_note}, strain {:.4e} J (recoverable {:.4e} J, plastic {:.4e} J), friction {:.4e} J, external work {:.4e} J, damping {:.4e} J, balance error {:.2e} (relative)",
         e.kinetic,
         e.strain(),
         e.recoverable_strain,
