@@ -58,6 +58,9 @@ def main():
     shared = next((start for start, _, _, _ in curves if start is not None), None)
     if shared is None:
         raise SystemExit("no run has a history row before the stage: its start is unknown")
+    def vs_theory(value):
+        return f" ({100 * (value / a.theory - 1):+.2f} % vs {a.theory})" if a.theory else ""
+
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for (path, label), (start, strain, ratio, pairs) in zip(runs, curves):
         if start is None:
@@ -65,19 +68,15 @@ def main():
         eps = strain - (shared if start is None else start)
         k = int(np.argmax(ratio))
         line = ax.plot(eps * 1e5, ratio, marker=".", label=label)[0]
-        note = f"{label}: sampled peak {ratio[k]:.4f} at axial strain {eps[k]:.3e}"
-        if a.theory:
-            note += f" ({100 * (ratio[k] / a.theory - 1):+.2f} % vs {a.theory})"
-        print(note)
+        print(f"{label}: sampled peak {ratio[k]:.4f} at axial strain {eps[k]:.3e}"
+              + vs_theory(ratio[k]))
         g = first_opening(pairs)
         if g is not None:
+            opened = f"{int(pairs[0] - pairs[g])} of {int(pairs[0])} pairs"
             ax.plot(eps[g] * 1e5, ratio[g], "o", mfc="none", ms=10, color=line.get_color(),
-                    label=f"{label}: first gap opens ({int(pairs[0] - pairs[g])} of {int(pairs[0])} pairs)")
-            note = (f"{label}: first gap opens by axial strain {eps[g]:.3e}, σ1/σ3 {ratio[g]:.4f} "
-                    f"(previous row {ratio[g - 1]:.4f}); {int(pairs[0] - pairs[g])} of {int(pairs[0])} pairs open")
-            if a.theory:
-                note += f" ({100 * (ratio[g] / a.theory - 1):+.2f} % vs {a.theory})"
-            print(note)
+                    label=f"{label}: first gap opens ({opened})")
+            print(f"{label}: first gap opens by axial strain {eps[g]:.3e}, σ1/σ3 {ratio[g]:.4f} "
+                  f"(previous row {ratio[g - 1]:.4f}); {opened} open" + vs_theory(ratio[g]))
     if a.theory:
         ax.axhline(a.theory, color="k", ls="--", lw=1, label=f"{a.theory_label}: {a.theory}")
     ax.set_xlabel("axial strain since the stage began (10⁻⁵)")
