@@ -349,6 +349,36 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         drift > 0.0 && drift < limit,
         "dormant nodes moved {drift} (limit {limit})"
     );
+    // "ms/step by rank (0 / 1 / …): halo a / b, contact c / d, internal_forces e / f, …":
+    // every rank's stage times, rank 0's equal to its stage table ("internal_forces  s  %  µs")
+    let stdout = String::from_utf8_lossy(&out_t.stdout);
+    let by_rank = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("ms/step by rank (0 / 1 / …): "))
+        .expect("per-rank stage line");
+    let forces: Vec<f64> = by_rank
+        .split(", ")
+        .find_map(|c| c.strip_prefix("internal_forces "))
+        .expect("internal_forces on every rank")
+        .split(" / ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        forces.len() == 2 && forces.iter().all(|&v| v > 0.0),
+        "{by_rank}"
+    );
+    let table_us: f64 = stdout
+        .lines()
+        .find(|l| l.starts_with("internal_forces "))
+        .and_then(|l| l.split_whitespace().last())
+        .expect("stage table row")
+        .parse()
+        .unwrap();
+    assert!(
+        (table_us / 1e3 - forces[0]).abs() <= 0.051,
+        "rank 0: table {table_us} µs/step, per-rank line {} ms/step",
+        forces[0]
+    );
 }
 
 /// A grain driven onto one at rest, each on its own rank, until it has pushed in for

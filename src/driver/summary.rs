@@ -5,7 +5,7 @@ use super::RunSummary;
 use crate::boundary::stages::{StagePlan, StageRecord, WallMode};
 use crate::model::Model;
 use crate::scene::LoadedScene;
-use crate::solver::Solver;
+use crate::solver::{Solver, Stage};
 
 /// The `mufe check`/`run` header: grains, elements, nodes, Δt, mass scaling, memory.
 pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u64) {
@@ -215,6 +215,9 @@ pub fn estimate_memory_bytes(m: &Model) -> usize {
 pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
     let e = &summary.energy;
     println!("{}", summary.timing_table);
+    if let Some(line) = stage_times_by_rank(summary) {
+        println!("{line}");
+    }
     println!(
         "done: {} steps to t = {:.6e} s in {:.2} s wall ({:.3e} element updates/s, all ranks)",
         summary.steps,
@@ -448,4 +451,26 @@ mod tests {
         let loaded = parse_scene("energy_plastic.toml", ENERGY_CELL, &undamped).unwrap();
         assert!(heavy_scaling_damping_note(&loaded.scene, added).is_none());
     }
+}
+
+/// One line with every rank's time per step in each stage (ms), when there are several
+/// ranks: the stage table is rank 0's, and load imbalance shows as one rank's wait.
+fn stage_times_by_rank(summary: &RunSummary) -> Option<String> {
+    let ranks = summary.stage_seconds_by_rank[0].len();
+    if ranks < 2 || summary.steps_run == 0 {
+        return None;
+    }
+    let per_step = 1e3 / summary.steps_run as f64;
+    let stages = Stage::ALL.iter().zip(&summary.stage_seconds_by_rank);
+    let cells: Vec<String> = stages
+        .filter(|(_, by_rank)| by_rank.iter().any(|&t| t * per_step >= 0.05))
+        .map(|(st, by_rank)| {
+            let ms: Vec<String> = by_rank
+                .iter()
+                .map(|t| format!("{:.1}", t * per_step))
+                .collect();
+            format!("{} {}", st.name(), ms.join(" / "))
+        })
+        .collect();
+    Some(format!("ms/step by rank (0 / 1 / …): {}", cells.join(", ")))
 }

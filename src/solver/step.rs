@@ -240,22 +240,24 @@ impl Solver {
                 refresh_local_images(model, &mut state.x, &mut state.v, &cell_before)
             });
         }
-        timers.time(Stage::Contact, || {
-            let local = crate::contact::needs_rebuild(
+        let local = timers.time(Stage::Contact, || {
+            crate::contact::needs_rebuild(
                 model,
                 &state.x,
                 state.time,
                 dt,
                 &state.contact,
                 &mut scratch.contact,
-            );
-            // Every rank skips entries by the largest displacement of any surface node,
-            // ghosts included (their owners count them): a rank whose own grains rest must
-            // still see a ghost grain that comes at them.
-            let mut over_ranks = [scratch.contact.broad.moved, f64::from(u8::from(local))];
-            hooks.max(&mut over_ranks);
-            scratch.contact.broad.moved = over_ranks[0];
-            let rebuild = over_ranks[1] > 0.0;
+            )
+        });
+        // Every rank skips entries by the largest displacement of any surface node, ghosts
+        // included (their owners count them): a rank whose own grains rest must still see
+        // a ghost grain that comes at them. The wait for the other ranks is communication.
+        let mut over_ranks = [scratch.contact.broad.moved, f64::from(u8::from(local))];
+        timers.time(Stage::Halo, || hooks.max(&mut over_ranks));
+        scratch.contact.broad.moved = over_ranks[0];
+        let rebuild = over_ranks[1] > 0.0;
+        timers.time(Stage::Contact, || {
             crate::contact::evaluate_with(
                 model,
                 &state.x,
@@ -321,23 +323,25 @@ impl Solver {
             )
         });
         let cell_sums = (model.periodic.as_ref()).map(|_| {
-            timers.time(Stage::Contact, || {
-                let sums = cell_contact_sums(
+            let sums = timers.time(Stage::Contact, || {
+                cell_contact_sums(
                     model,
                     &state.x,
                     &scratch.contact,
                     &mut scratch.grain_centres,
                     &mut scratch.cell_grain_sums,
                     state.partition.owner.len(),
-                );
-                hooks.sum(&mut scratch.cell_grain_sums);
+                )
+            });
+            timers.time(Stage::Halo, || hooks.sum(&mut scratch.cell_grain_sums));
+            timers.time(Stage::Contact, || {
                 let total = total_over_grains(&scratch.cell_grain_sums);
                 let volume: f64 = cell_before.length.iter().product();
                 if let Some(c) = &mut state.cell {
                     c.contact_stress = total.map(|v| v / volume);
                 }
-                sums
-            })
+            });
+            sums
         });
         if let Some(plan) = &model.stages {
             // State-driven walls must move identically on every rank, and stages end at
@@ -351,7 +355,9 @@ impl Solver {
                     grains,
                     &mut scratch.wall_grain_forces,
                 );
-                hooks.sum(&mut scratch.wall_grain_forces);
+            });
+            timers.time(Stage::Halo, || hooks.sum(&mut scratch.wall_grain_forces));
+            timers.time(Stage::Contact, || {
                 crate::contact::wall_totals(
                     &scratch.wall_grain_forces,
                     model.contact.walls.len(),
@@ -448,7 +454,7 @@ impl Solver {
             self.energy_floor,
             e.contact_energy + e.friction_dissipation,
         ];
-        hooks.sum(&mut global);
+        timers.time(Stage::Halo, || hooks.sum(&mut global));
         state.supplied_energy = state
             .supplied_energy
             .max(global[0].abs() + global[1].abs() + global[2].abs());

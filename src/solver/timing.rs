@@ -5,6 +5,9 @@ use std::time::{Duration, Instant};
 /// The stages of one explicit step, in pipeline order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
+    /// Ghost exchange and the step's small collectives (rebuild decision, wall forces,
+    /// energy sums), including the wait for the slowest rank: a rank's compute stages
+    /// show its own work only, and load imbalance shows here.
     Halo,
     Contact,
     InternalForces,
