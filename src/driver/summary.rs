@@ -429,6 +429,28 @@ pub fn describe_stage(r: &StageRecord) -> String {
     line
 }
 
+/// One line with every rank's time per step in each stage (ms), when there are several
+/// ranks: the stage table is rank 0's, and load imbalance shows as one rank's wait.
+fn stage_times_by_rank(summary: &RunSummary) -> Option<String> {
+    let ranks = summary.stage_seconds_by_rank[0].len();
+    if ranks < 2 || summary.steps_run == 0 {
+        return None;
+    }
+    let per_step = 1e3 / summary.steps_run as f64;
+    let stages = Stage::ALL.iter().zip(&summary.stage_seconds_by_rank);
+    let cells: Vec<String> = stages
+        .filter(|(_, by_rank)| by_rank.iter().any(|&t| t * per_step >= 0.05))
+        .map(|(st, by_rank)| {
+            let ms: Vec<String> = by_rank
+                .iter()
+                .map(|t| format!("{:.1}", t * per_step))
+                .collect();
+            format!("{} {}", st.name(), ms.join(" / "))
+        })
+        .collect();
+    Some(format!("ms/step by rank (0 / 1 / …): {}", cells.join(", ")))
+}
+
 #[cfg(test)]
 mod tests {
     use super::heavy_scaling_damping_note;
@@ -451,26 +473,4 @@ mod tests {
         let loaded = parse_scene("energy_plastic.toml", ENERGY_CELL, &undamped).unwrap();
         assert!(heavy_scaling_damping_note(&loaded.scene, added).is_none());
     }
-}
-
-/// One line with every rank's time per step in each stage (ms), when there are several
-/// ranks: the stage table is rank 0's, and load imbalance shows as one rank's wait.
-fn stage_times_by_rank(summary: &RunSummary) -> Option<String> {
-    let ranks = summary.stage_seconds_by_rank[0].len();
-    if ranks < 2 || summary.steps_run == 0 {
-        return None;
-    }
-    let per_step = 1e3 / summary.steps_run as f64;
-    let stages = Stage::ALL.iter().zip(&summary.stage_seconds_by_rank);
-    let cells: Vec<String> = stages
-        .filter(|(_, by_rank)| by_rank.iter().any(|&t| t * per_step >= 0.05))
-        .map(|(st, by_rank)| {
-            let ms: Vec<String> = by_rank
-                .iter()
-                .map(|t| format!("{:.1}", t * per_step))
-                .collect();
-            format!("{} {}", st.name(), ms.join(" / "))
-        })
-        .collect();
-    Some(format!("ms/step by rank (0 / 1 / …): {}", cells.join(", ")))
 }
