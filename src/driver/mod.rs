@@ -79,7 +79,7 @@ pub struct RunSummary {
     pub energy: crate::energy::EnergyLedger,
     pub timing_table: String,
     /// Seconds in each stage (in `Stage::ALL` order) on each rank.
-    pub stage_seconds_by_rank: [Vec<f64>; 7],
+    pub stage_seconds_by_rank: [Vec<f64>; Stage::ALL.len()],
     pub results: PathBuf,
     /// Most contact points at one step (grain–grain per pass + wall nodes).
     pub max_contacts: usize,
@@ -485,8 +485,8 @@ impl Run<'_, '_> {
         if let Some(e) = failure {
             return Err(e);
         }
-        // every rank's stage times: the table above is this rank's, and a rank that waits
-        // for a slower one shows the wait in its halo row
+        // every rank's stage times: the stage table is this rank's alone, and a rank that
+        // waits for a slower one shows the wait in its halo row
         let stage_seconds_by_rank = Stage::ALL
             .map(|st| domain.all_gather_u64((solver.timers.seconds(st) * 1e9) as u64))
             .map(|ns| ns.iter().map(|&t| t as f64 * 1e-9).collect());
