@@ -78,8 +78,9 @@ pub struct RunSummary {
     pub nodes: usize,
     pub energy: crate::energy::EnergyLedger,
     pub timing_table: String,
-    /// Seconds in each stage (in `Stage::ALL` order) on each rank.
-    pub stage_seconds_by_rank: [Vec<f64>; Stage::ALL.len()],
+    /// Seconds in each stage (in `Stage::ALL` order), one row per rank, in rank order (on
+    /// rank 0; empty elsewhere).
+    pub stage_seconds_by_rank: Vec<[f64; Stage::ALL.len()]>,
     pub results: PathBuf,
     /// Most contact points at one step (grain–grain per pass + wall nodes).
     pub max_contacts: usize,
@@ -487,9 +488,14 @@ impl Run<'_, '_> {
         }
         // every rank's stage times: the stage table is this rank's alone, and a rank that
         // waits for a slower one shows the wait in its halo row
-        let stage_seconds_by_rank = Stage::ALL
-            .map(|st| domain.all_gather_u64((solver.timers.seconds(st) * 1e9) as u64))
-            .map(|ns| ns.iter().map(|&t| t as f64 * 1e-9).collect());
+        let stage_seconds = Stage::ALL.map(|st| solver.timers.seconds(st));
+        let stage_seconds_by_rank = (domain.gather_f64_to_root(&stage_seconds))
+            .map(|all| {
+                (all.chunks_exact(Stage::ALL.len()))
+                    .map(|row| std::array::from_fn(|i| row[i]))
+                    .collect()
+            })
+            .unwrap_or_default();
         Ok(RunSummary {
             stage_seconds_by_rank,
             steps: solver.state.step,

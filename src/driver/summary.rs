@@ -432,18 +432,16 @@ pub fn describe_stage(r: &StageRecord) -> String {
 /// One line with every rank's time per step in each stage (ms), when there are several
 /// ranks: the stage table is rank 0's, and load imbalance shows as one rank's wait.
 fn stage_times_by_rank(summary: &RunSummary) -> Option<String> {
-    let ranks = summary.stage_seconds_by_rank[0].len();
-    if ranks < 2 || summary.steps_run == 0 {
+    let rows = &summary.stage_seconds_by_rank;
+    if rows.len() < 2 || summary.steps_run == 0 {
         return None;
     }
     let per_step = 1e3 / summary.steps_run as f64;
-    let stages = Stage::ALL.iter().zip(&summary.stage_seconds_by_rank);
-    let cells: Vec<String> = stages
-        .filter(|(_, by_rank)| by_rank.iter().any(|&t| t * per_step >= 0.05))
-        .map(|(st, by_rank)| {
-            let ms: Vec<String> = by_rank
-                .iter()
-                .map(|t| format!("{:.1}", t * per_step))
+    let cells: Vec<String> = (Stage::ALL.iter().enumerate())
+        .filter(|&(i, _)| rows.iter().any(|row| row[i] * per_step >= 0.05))
+        .map(|(i, st)| {
+            let ms: Vec<String> = (rows.iter())
+                .map(|row| format!("{:.1}", row[i] * per_step))
                 .collect();
             format!("{} {}", st.name(), ms.join(" / "))
         })
