@@ -95,6 +95,7 @@ pub mod narrow;
 mod overlap;
 pub mod patch;
 mod prefetch;
+pub mod triangle;
 mod vertex_normals;
 pub mod walls;
 

@@ -1,8 +1,8 @@
 //! Narrow phase: surface nodes against surface facets.
 //!
-//! - [`closest_point_on_triangle`]: exact closest point with the feature it lies on (face,
-//!   edge or vertex) and its barycentric coordinates (Ericson, *Real-Time Collision
-//!   Detection* §5.1.5).
+//! - [`closest_point_on_triangle`] (in [`super::triangle`]): exact closest point with the
+//!   feature it lies on (face, edge or vertex) and its barycentric coordinates; the
+//!   nearest of a node's candidate facets is found in f64 lanes there.
 //! - [`Bvh`]: a bounding-volume hierarchy over the facet boxes of one grain, built at each
 //!   broad-phase rebuild and queried with the boxes of nearby surface nodes of other grains.
 //! - [`evaluate_entry`]: one slave node against its candidate facets of one master grain:
@@ -21,89 +21,11 @@
 
 use super::friction::{return_map, rotate_onto_plane, tangential};
 use super::patch::Patch;
+use super::triangle::nearest_candidate;
+pub use super::triangle::{closest_point_on_triangle, Closest, Feature};
 use super::vertex_normals::{facet_normal, triangle_normal, vertex_normals, VertexNormal};
 use super::{ContactKey, ContactModel, FrictionPoint, NONE};
 use crate::math::{add, dot, norm, scale, sub};
-
-/// Which part of a triangle a closest point lies on. Edge k joins corners k and (k+1)%3.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Feature {
-    Face,
-    Edge(u8),
-    Vertex(u8),
-}
-
-/// Closest point of a triangle to a query point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Closest {
-    pub point: [f64; 3],
-    /// Barycentric coordinates of `point` with respect to (a, b, c).
-    pub bary: [f64; 3],
-    pub feature: Feature,
-    /// Squared distance from the query point (m²).
-    pub dist2: f64,
-}
-
-/// Exact closest point of triangle (a, b, c) to p, with its feature and barycentric
-/// coordinates (Voronoi-region tests, no square roots).
-pub fn closest_point_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> Closest {
-    let done = |point: [f64; 3], bary: [f64; 3], feature| Closest {
-        point,
-        bary,
-        feature,
-        dist2: {
-            let d = sub(p, point);
-            dot(d, d)
-        },
-    };
-    let ab = sub(b, a);
-    let ac = sub(c, a);
-    let ap = sub(p, a);
-    let d1 = dot(ab, ap);
-    let d2 = dot(ac, ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return done(a, [1.0, 0.0, 0.0], Feature::Vertex(0));
-    }
-    let bp = sub(p, b);
-    let d3 = dot(ab, bp);
-    let d4 = dot(ac, bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return done(b, [0.0, 1.0, 0.0], Feature::Vertex(1));
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return done(add(a, scale(ab, v)), [1.0 - v, v, 0.0], Feature::Edge(0));
-    }
-    let cp = sub(p, c);
-    let d5 = dot(ab, cp);
-    let d6 = dot(ac, cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return done(c, [0.0, 0.0, 1.0], Feature::Vertex(2));
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return done(add(a, scale(ac, w)), [1.0 - w, 0.0, w], Feature::Edge(2));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return done(
-            add(b, scale(sub(c, b), w)),
-            [0.0, 1.0 - w, w],
-            Feature::Edge(1),
-        );
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let v = vb * denom;
-    let w = vc * denom;
-    done(
-        add(a, add(scale(ab, v), scale(ac, w))),
-        [1.0 - v - w, v, w],
-        Feature::Face,
-    )
-}
 
 /// Axis-aligned bounding box.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -427,15 +349,9 @@ pub fn locate(
     xs: [f64; 3],
     candidates: &[u32],
 ) -> Option<Located> {
-    let mut best: Option<(Closest, usize)> = None;
-    for &f in candidates {
-        let [a, b, c] = cm.facet[f as usize].map(|n| x[n as usize]);
-        let cl = closest_point_on_triangle(xs, a, b, c);
-        if best.is_none_or(|(bc, _)| cl.dist2 < bc.dist2) {
-            best = Some((cl, f as usize));
-        }
-    }
-    let (cl, facet) = best?;
+    let facet = candidates[nearest_candidate(cm, x, xs, candidates)?] as usize;
+    let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
+    let cl = closest_point_on_triangle(xs, a, b, c);
     // The corners' normals serve both the pseudo-normal and the curved patch.
     let corners = cm.facet[facet].map(|v| vertex_normals(cm, x, v));
     let pn = pseudo_normal(cm, x, &corners, facet, cl.feature);
@@ -629,54 +545,6 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    const A: [f64; 3] = [0.0, 0.0, 0.0];
-    const B: [f64; 3] = [1.0, 0.0, 0.0];
-    const C: [f64; 3] = [0.0, 1.0, 0.0];
-
-    fn check(p: [f64; 3], point: [f64; 3], feature: Feature) {
-        let cl = closest_point_on_triangle(p, A, B, C);
-        assert_eq!(cl.feature, feature, "{p:?}");
-        for (a, b) in cl.point.iter().zip(&point) {
-            assert!((a - b).abs() < 1e-14, "{cl:?}");
-        }
-        // barycentric coordinates reproduce the point and sum to one
-        let q = add(
-            add(scale(A, cl.bary[0]), scale(B, cl.bary[1])),
-            scale(C, cl.bary[2]),
-        );
-        for i in 0..3 {
-            assert!((q[i] - point[i]).abs() < 1e-14);
-        }
-        assert!((cl.bary.iter().sum::<f64>() - 1.0).abs() < 1e-14);
-        let d = sub(p, point);
-        assert!((cl.dist2 - dot(d, d)).abs() < 1e-14);
-    }
-
-    #[test]
-    fn projection_inside_on_edges_and_vertices() {
-        check([0.25, 0.25, -0.3], [0.25, 0.25, 0.0], Feature::Face);
-        check([0.5, -0.2, 0.1], [0.5, 0.0, 0.0], Feature::Edge(0));
-        check([0.8, 0.8, 0.0], [0.5, 0.5, 0.0], Feature::Edge(1));
-        check([-0.3, 0.4, 0.2], [0.0, 0.4, 0.0], Feature::Edge(2));
-        check([-1.0, -1.0, 0.5], A, Feature::Vertex(0));
-        check([2.0, -0.1, 0.0], B, Feature::Vertex(1));
-        check([-0.1, 3.0, -1.0], C, Feature::Vertex(2));
-    }
-
-    #[test]
-    fn projection_is_continuous_across_a_region_boundary() {
-        // Sweep across edge 0 (y = 0): the closest point moves continuously.
-        let mut prev: Option<[f64; 3]> = None;
-        for k in 0..=200 {
-            let y = -0.01 + 0.0001 * k as f64;
-            let cl = closest_point_on_triangle([0.4, y, -0.05], A, B, C);
-            if let Some(p) = prev {
-                assert!(norm(sub(cl.point, p)) <= 1.0001e-4);
-            }
-            prev = Some(cl.point);
-        }
-    }
 
     #[test]
     fn bvh_query_matches_brute_force() {
