@@ -170,6 +170,11 @@ pub struct StageRecord {
     pub peak: Option<RatioPoint>,
     /// Time and axial strain at which failure was detected.
     pub failure: Option<RatioPoint>,
+    /// Mean σ1/σ3 over the steps from failure detection to the stage's end (the strain
+    /// margin): the post-failure residual. Its loading-rate sensitivity is far below the
+    /// peak's on open-faced blocks (docs/QUASI_STATIC.md).
+    #[serde(default)]
+    pub residual: Option<f64>,
 }
 
 /// A point of the stress-ratio curve.
@@ -197,6 +202,10 @@ pub struct StageProgress {
     /// Last point where the ratio rose by [`PLATEAU_RISE`] over the previous such point.
     #[serde(default)]
     pub rising: Option<RatioPoint>,
+    /// Σ σ1/σ3 and the number of steps since failure was detected (for
+    /// [`StageRecord::residual`]).
+    #[serde(default)]
+    pub after_failure: (f64, u64),
     /// All stages done: the run stops.
     pub finished: bool,
     /// Normal force of every wall at the last step, summed over ranks and low-pass
@@ -485,6 +494,10 @@ impl StagePlan {
                 if p.failure.is_none() && (dropped || stalled) {
                     p.failure = Some(point);
                 }
+                if p.failure.is_some() {
+                    p.after_failure.0 += ratio;
+                    p.after_failure.1 += 1;
+                }
                 if p.failure
                     .is_some_and(|f| strain >= f.axial_strain + rule.strain_margin)
                 {
@@ -509,6 +522,8 @@ impl StagePlan {
                         && (until.axial_strain.is_some() || until.failure.is_some())
                 }),
                 failure: p.failure,
+                residual: (p.after_failure.1 > 0)
+                    .then(|| p.after_failure.0 / p.after_failure.1 as f64),
             });
             p.index += 1;
             p.finished = p.index >= self.stages.len();
@@ -521,6 +536,7 @@ impl StagePlan {
             p.peak = None;
             p.failure = None;
             p.rising = None;
+            p.after_failure = (0.0, 0);
         }
     }
 
@@ -1002,6 +1018,12 @@ until = {{ failure = {{ drop = 0.05, strain_margin = 0.002 }}, max_time = 1.0 }}
             "{fail:?}"
         );
         // the strain measured at the end lags r·t by the step before the wall starts
+        // the ratio falls linearly over the margin, 2.85 → 2.45: its mean is 2.65
+        let residual = r.residual.expect("a post-failure mean");
+        assert!(
+            (residual - 2.65).abs() < 200.0 * (2.0 * lag + 2e-5),
+            "residual {residual}"
+        );
         let end_strain = 10.0 * r.end;
         assert!(
             (end_strain - (fail.axial_strain + 0.002)).abs() < 5e-5,

@@ -426,6 +426,9 @@ pub fn describe_stage(r: &StageRecord) -> String {
             f.time, f.axial_strain, f.ratio
         );
     }
+    if let Some(residual) = r.residual {
+        line += &format!("; mean σ1/σ3 after it (residual) = {residual:.4}");
+    }
     line
 }
 
