@@ -352,9 +352,11 @@ fn interrupted_run(ranks: Option<usize>, out: &Path, signal: &str, whole_group: 
 
 const LONG: &str = "1200";
 
-/// The uninterrupted long run on `ranks` ranks (same checkpoints, so the files compare).
-fn whole_long_run(ranks: usize) -> PathBuf {
-    let d = dir(&format!("whole_long{ranks}"));
+/// The uninterrupted long run on `ranks` ranks (same checkpoints, so the files compare),
+/// in a directory of its own per test (`test`): tests run in parallel, and `dir` empties
+/// the directory it names, so a shared one could vanish under another test's comparison.
+fn whole_long_run(ranks: usize, test: &str) -> PathBuf {
+    let d = dir(&format!("whole_long{ranks}_{test}"));
     let o = mufe(
         ranks,
         &d,
@@ -389,7 +391,7 @@ fn resume_and_compare(ranks: usize, out: &Path, whole: &Path, what: &str) {
 #[test]
 fn kill_9_then_latest_ends_equal_to_the_uninterrupted_run() {
     for ranks in [1, 2] {
-        let whole = whole_long_run(ranks);
+        let whole = whole_long_run(ranks, "kill_9");
         let d = dir(&format!("killed{ranks}"));
         let launch = (ranks > 1).then_some(ranks);
         let o = interrupted_run(launch, &d, "KILL", true);
@@ -401,7 +403,7 @@ fn kill_9_then_latest_ends_equal_to_the_uninterrupted_run() {
 #[test]
 fn a_stop_signal_writes_a_checkpoint_and_a_readable_file() {
     // serial: SIGTERM to the process
-    let whole = whole_long_run(1);
+    let whole = whole_long_run(1, "stop_signal");
     let d = dir("sigterm");
     let o = interrupted_run(None, &d, "TERM", false);
     let err = String::from_utf8_lossy(&o.stderr);
@@ -420,7 +422,7 @@ fn a_stop_signal_writes_a_checkpoint_and_a_readable_file() {
     resume_and_compare(1, &d, &whole, "SIGTERM");
 
     // 2 ranks: SIGUSR1 to mpirun, which forwards it to every rank
-    let whole = whole_long_run(2);
+    let whole = whole_long_run(2, "stop_signal");
     let d = dir("sigusr1");
     let o = interrupted_run(Some(2), &d, "USR1", false);
     let err = String::from_utf8_lossy(&o.stderr);
