@@ -1017,13 +1017,13 @@ until = {{ failure = {{ drop = 0.05, strain_margin = 0.002 }}, max_time = 1.0 }}
             (fail.axial_strain - 0.00475).abs() < 2e-5 + 2.0 * lag,
             "{fail:?}"
         );
-        // the strain measured at the end lags r·t by the step before the wall starts
         // the ratio falls linearly over the margin, 2.85 → 2.45: its mean is 2.65
         let residual = r.residual.expect("a post-failure mean");
         assert!(
             (residual - 2.65).abs() < 200.0 * (2.0 * lag + 2e-5),
             "residual {residual}"
         );
+        // the strain measured at the end lags r·t by the step before the wall starts
         let end_strain = 10.0 * r.end;
         assert!(
             (end_strain - (fail.axial_strain + 0.002)).abs() < 5e-5,
