@@ -379,6 +379,13 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         "rank 0: table {table_us} µs/step, per-rank line {} ms/step",
         forces[0]
     );
+    // the ghost exchange and the wait in the step's collectives are separate rows
+    for row in ["halo ", "sync "] {
+        assert!(
+            stdout.lines().any(|l| l.starts_with(row)),
+            "no '{row}' row in the stage table:\n{stdout}"
+        );
+    }
 }
 
 /// A grain driven onto one at rest, each on its own rank, until it has pushed in for

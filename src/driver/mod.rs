@@ -487,7 +487,7 @@ impl Run<'_, '_> {
             return Err(e);
         }
         // every rank's stage times: the stage table is this rank's alone, and a rank that
-        // waits for a slower one shows the wait in its halo row
+        // waits for a slower one shows the wait in its sync row
         let stage_seconds = Stage::ALL.map(|st| solver.timers.seconds(st));
         let stage_seconds_by_rank = (domain.gather_f64_to_root(&stage_seconds))
             .map(|all| {

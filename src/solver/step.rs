@@ -2,13 +2,15 @@
 //! contact (detection, grain–grain forces at x_n) → internal forces (+ contact forces)
 //! → boundary (body force, damping, prescribed motions) → contact (kinematic walls on
 //! v_{n+½}; servo walls move to t_{n+1} from their force summed over ranks) → integrate
-//! → energy. Time in both contact parts is charged to `contact`.
+//! → energy. Time in both contact parts is charged to `contact`; the ghost exchange to
+//! `halo`, and the step's small collectives, which wait for the slowest rank, to `sync`.
 //!
 //! Convention: at the start of step n the state holds x_n and v_{n−½};
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
 
 use super::damping::{
-    apply_body_and_damping_forces, damping_force, damping_in_force, gravity_in_force, RigidVelocity,
+    apply_body_and_damping_forces, damping_force, damping_in_force, gravity_in_force,
+    has_body_or_damping_force, RigidVelocity,
 };
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::motions::drive_prescribed_motions;
@@ -252,9 +254,9 @@ impl Solver {
         });
         // Every rank skips entries by the largest displacement of any surface node, ghosts
         // included (their owners count them): a rank whose own grains rest must still see
-        // a ghost grain that comes at them. The wait for the other ranks is communication.
+        // a ghost grain that comes at them.
         let mut over_ranks = [scratch.contact.broad.moved, f64::from(u8::from(local))];
-        timers.time(Stage::Halo, || hooks.max(&mut over_ranks));
+        timers.time(Stage::Sync, || hooks.max(&mut over_ranks));
         scratch.contact.broad.moved = over_ranks[0];
         let rebuild = over_ranks[1] > 0.0;
         timers.time(Stage::Contact, || {
@@ -333,7 +335,7 @@ impl Solver {
                     state.partition.owner.len(),
                 )
             });
-            timers.time(Stage::Halo, || hooks.sum(&mut scratch.cell_grain_sums));
+            timers.time(Stage::Sync, || hooks.sum(&mut scratch.cell_grain_sums));
             timers.time(Stage::Contact, || {
                 let total = total_over_grains(&scratch.cell_grain_sums);
                 let volume: f64 = cell_before.length.iter().product();
@@ -356,7 +358,7 @@ impl Solver {
                     &mut scratch.wall_grain_forces,
                 );
             });
-            timers.time(Stage::Halo, || hooks.sum(&mut scratch.wall_grain_forces));
+            timers.time(Stage::Sync, || hooks.sum(&mut scratch.wall_grain_forces));
             timers.time(Stage::Contact, || {
                 crate::contact::wall_totals(
                     &scratch.wall_grain_forces,
@@ -454,7 +456,7 @@ impl Solver {
             self.energy_floor,
             e.contact_energy + e.friction_dissipation,
         ];
-        timers.time(Stage::Halo, || hooks.sum(&mut global));
+        timers.time(Stage::Sync, || hooks.sum(&mut global));
         state.supplied_energy = state
             .supplied_energy
             .max(global[0].abs() + global[1].abs() + global[2].abs());
@@ -515,6 +517,7 @@ fn integrate_and_sum(
 ) -> NodePartials {
     let rigid = &scratch.grain_rigid;
     let owned = model.owned_nodes;
+    let undamped = !has_body_or_damping_force(model, alpha, g);
     state.x[..owned]
         .par_chunks_mut(NODE_CHUNK)
         .zip(state.v[..owned].par_chunks_mut(NODE_CHUNK))
@@ -526,15 +529,20 @@ fn integrate_and_sum(
             let mut p = NodePartials::default();
             for k in 0..x.len() {
                 let n = base + k;
-                let (m, mp) = (model.mass[n], model.physical_mass[n]);
+                let m = model.mass[n];
                 let (a, b) = (v[k], vn[k]);
                 let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-                let fd = damping_force(model, alpha, rigid, n, &x[k], &a);
                 p.kinetic += 0.5 * m * ab;
-                p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
-                p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
-                p.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
-                p.damping_after += fd[0] * b[0] + fd[1] * b[1] + fd[2] * b[2];
+                // without gravity and damping their powers are +0 whatever the node does
+                // (a non-finite velocity ends the run below)
+                if !undamped {
+                    let mp = model.physical_mass[n];
+                    let fd = damping_force(model, alpha, rigid, n, &x[k], &a);
+                    p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
+                    p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
+                    p.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
+                    p.damping_after += fd[0] * b[0] + fd[1] * b[1] + fd[2] * b[2];
+                }
                 if p.bad_node.is_none()
                     && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite())
                 {
