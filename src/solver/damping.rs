@@ -172,7 +172,9 @@ pub(super) fn apply_body_and_damping_forces(
                 // of a nonzero force), without reading the physical mass or writing f
                 for k in 0..f.len() {
                     let (m, v) = (model.mass[base + k], state.v[base + k]);
-                    vn[k] = [0, 1, 2].map(|i| v[i] + dt * f[k][i] / m);
+                    for i in 0..3 {
+                        vn[k][i] = v[i] + dt * f[k][i] / m;
+                    }
                 }
                 return;
             }
