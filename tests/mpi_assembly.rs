@@ -379,13 +379,21 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         "rank 0: table {table_us} µs/step, per-rank line {} ms/step",
         forces[0]
     );
-    // the ghost exchange and the wait in the step's collectives are separate rows
+    // the ghost exchange and the wait in the step's collectives are separate rows, and the
+    // whole step is set against the slowest force stage (issue 14's measure)
     for row in ["halo ", "sync "] {
         assert!(
             stdout.lines().any(|l| l.starts_with(row)),
             "no '{row}' row in the stage table:\n{stdout}"
         );
     }
+    let whole: f64 = (stdout.lines())
+        .find_map(|l| l.strip_prefix("whole step = "))
+        .and_then(|l| l.split(' ').next())
+        .expect("whole step line")
+        .parse()
+        .unwrap();
+    assert!(whole > 1.0, "whole step {whole} × the force stage");
 }
 
 /// A grain driven onto one at rest, each on its own rank, until it has pushed in for

@@ -218,6 +218,11 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
     if let Some(line) = stage_times_by_rank(summary) {
         println!("{line}");
     }
+    if let Some((whole, own)) = step_against_force_stage(&summary.stage_seconds_by_rank) {
+        println!(
+            "whole step = {whole:.2} × the internal-force stage of the slowest rank ({own:.2} × without the wait in sync)"
+        );
+    }
     println!(
         "done: {} steps to t = {:.6e} s in {:.2} s wall ({:.3e} element updates/s, all ranks)",
         summary.steps,
@@ -452,9 +457,51 @@ fn stage_times_by_rank(summary: &RunSummary) -> Option<String> {
     Some(format!("ms/step by rank (0 / 1 / …): {}", cells.join(", ")))
 }
 
+/// The whole step (every stage, the wait included) over the internal-force stage of the
+/// slowest rank, and the largest ratio of one rank's own work (its step less its `sync`
+/// wait) to its own force stage: how much the rest of the step costs next to the
+/// elements. `None` without steps or force-stage time.
+fn step_against_force_stage(rows: &[[f64; Stage::ALL.len()]]) -> Option<(f64, f64)> {
+    let (forces, sync) = (Stage::InternalForces as usize, Stage::Sync as usize);
+    let slowest = rows.iter().map(|r| r[forces]).fold(0.0, f64::max);
+    if slowest <= 0.0 {
+        return None;
+    }
+    let step = rows
+        .iter()
+        .map(|r| r.iter().sum::<f64>())
+        .fold(0.0, f64::max);
+    let own = (rows.iter())
+        .map(|r| (r.iter().sum::<f64>() - r[sync]) / r[forces].max(f64::MIN_POSITIVE))
+        .fold(0.0, f64::max);
+    Some((step / slowest, own))
+}
+
 #[cfg(test)]
 mod tests {
     use super::heavy_scaling_damping_note;
+
+    #[test]
+    fn the_step_is_set_against_the_slowest_force_stage_and_the_wait_taken_out() {
+        use super::step_against_force_stage;
+        use crate::solver::timing::Stage;
+        let row = |forces: f64, contact: f64, sync: f64| {
+            let mut r = [0.0; Stage::ALL.len()];
+            r[Stage::InternalForces as usize] = forces;
+            r[Stage::Contact as usize] = contact;
+            r[Stage::Sync as usize] = sync;
+            r[Stage::Halo as usize] = 1.0;
+            r
+        };
+        // rank 0 waits 20 for rank 1, whose force stage is the longer one: both steps are
+        // 100 + 40 + 1 + their wait
+        let rows = [row(80.0, 40.0, 21.0), row(100.0, 40.0, 1.0)];
+        let (whole, own) = step_against_force_stage(&rows).unwrap();
+        assert_eq!(whole, 142.0 / 100.0);
+        assert_eq!(own, 121.0 / 80.0);
+        assert_eq!(step_against_force_stage(&[row(0.0, 3.0, 0.0)]), None);
+        assert_eq!(step_against_force_stage(&[]), None);
+    }
     use crate::scene::parse_scene;
 
     const ENERGY_CELL: &str = include_str!("../../jobs/fcc/energy_plastic.toml");
