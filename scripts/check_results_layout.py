@@ -6,8 +6,9 @@ How to run:  scripts/check_results_layout.py DIR/results.h5 [--doc docs/RESULTS.
 Needs h5py (pip install h5py, or apt install python3-h5py).
 
 The tables of docs/RESULTS.md are the specification: every group, dataset and attribute in
-the file must match a documented path (with NNNNNN, WALL, MOTION, AXIS, IJ as placeholders),
-with the documented shape (symbols N, E, G, C, R bound from the file itself, consistently),
+the file must match a documented path (with NNNNNN, WALL, MOTION, AXIS, IJ, STAGE as
+placeholders), with the documented shape (symbols N, E, G, C, R bound from the file itself,
+consistently),
 dtype, `units` attribute and attribute set; every documented object whose condition holds
 (`always`, or one named with --expect) must exist. Prints one line per problem and exits 1
 if there is any, else prints a summary and exits 0.
@@ -30,6 +31,7 @@ PLACEHOLDERS = {
     "MOTION": r"[^/]+",
     "AXIS": r"[xyz]",
     "IJ": r"(xx|yy|zz|yz|xz|xy)",
+    "STAGE": r"\d+_[^/]+",
 }
 
 DTYPES = {"f64": "float64", "u32": "uint32", "u64": "uint64"}

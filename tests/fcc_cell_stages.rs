@@ -10,7 +10,9 @@
 //! - the cell's 36 lattice contacts all carry load after stage 1;
 //! - Love–Weber: at the last frame the grains' volume-averaged stresses add up to the wall
 //!   forces times the wall distances (Σ V σ̄ = −F L per axis) within 2 %;
-//! - `/history` is the same on 2 ranks as on 1 (1e-10 of each series' scale).
+//! - `/history` is the same on 2 ranks as on 1 (1e-10 of each series' scale);
+//! - `/stages` holds both stages with the summary's lines, peak and residual, and the file
+//!   matches docs/RESULTS.md.
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
@@ -56,6 +58,7 @@ fn both_stages_run_hold_fail_and_agree_on_two_ranks() {
     );
 
     love_weber_balances_the_walls(&serial_dir.join("results.h5"), &serial);
+    stages_are_in_the_file_as_the_summary_says(&serial_dir.join("results.h5"), &stdout, peak);
 
     let (parallel_dir, _) = run(2, "r2");
     let parallel = history(&parallel_dir.join("results.h5"));
@@ -65,6 +68,64 @@ fn both_stages_run_hold_fail_and_agree_on_two_ranks() {
     for d in [serial_dir, parallel_dir] {
         let _ = std::fs::remove_dir_all(d);
     }
+}
+
+/// `/stages` holds each finished stage with the run summary's line and its figures, and
+/// the file still matches docs/RESULTS.md with the staged objects expected.
+fn stages_are_in_the_file_as_the_summary_says(path: &Path, stdout: &str, sampled_peak: f64) {
+    let f = hdf5::File::open(path).unwrap();
+    let stage = |name: &str| f.group(&format!("stages/{name}")).unwrap();
+    let text = |g: &hdf5::Group, a: &str| -> String {
+        let v: hdf5::types::VarLenUnicode = g.attr(a).unwrap().read_scalar().unwrap();
+        v.as_str().to_string()
+    };
+    let number = |g: &hdf5::Group, a: &str| -> f64 {
+        g.attr(a)
+            .unwrap_or_else(|e| panic!("{a}: {e}"))
+            .read_scalar()
+            .unwrap()
+    };
+    let (iso, shear) = (stage("1_isotropic"), stage("2_shear"));
+    assert_eq!(text(&iso, "ended_by"), "stress held");
+    assert_eq!(text(&shear, "ended_by"), "failure + margin");
+    for g in [&iso, &shear] {
+        let line = text(g, "summary");
+        assert!(stdout.contains(&line), "'{line}' is not in the summary");
+    }
+    assert_eq!(number(&shear, "start_time"), number(&iso, "end_time"));
+    // the per-step peak, the residual after failure and the ratio at failure detection
+    let peak = number(&shear, "peak_stress_ratio");
+    assert!(peak >= sampled_peak, "{peak} < history's {sampled_peak}");
+    let summary = text(&shear, "summary");
+    assert!(
+        summary.contains(&format!("peak σ1/σ3 = {peak:.4}")),
+        "{summary}"
+    );
+    let residual = number(&shear, "residual_stress_ratio");
+    assert!(
+        summary.contains(&format!("(residual) = {residual:.4}")),
+        "{summary}"
+    );
+    assert!(residual > 0.0 && residual <= peak);
+    assert!(number(&shear, "failure_time") > number(&shear, "peak_time"));
+    drop(f);
+
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let check = std::process::Command::new(root.join("scripts/h5python"))
+        .arg(root.join("scripts/check_results_layout.py"))
+        .arg(path)
+        .args([
+            "--expect",
+            "frames,walls,contact,grain-contact,servo,staged,cell",
+        ])
+        .output()
+        .expect("scripts/h5python runs");
+    assert!(
+        check.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&check.stdout),
+        String::from_utf8_lossy(&check.stderr)
+    );
 }
 
 /// Σ_g V_g σ̄_g (the frame's grain stresses over the grains' current volumes) against

@@ -208,6 +208,11 @@ impl<'a, 'd> Output<'a, 'd> {
         if self.frames && !stopped {
             self.write_frame(solver)?;
         }
+        if solver.model.stages.is_some() {
+            let done = &solver.state.stages.done;
+            self.writer
+                .write_stages(&super::summary::stage_attributes(done))?;
+        }
         // the last history rows too, so that the report counts every write
         self.writer.flush_history()?;
         self.report_io();

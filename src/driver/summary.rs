@@ -3,6 +3,7 @@
 
 use super::RunSummary;
 use crate::boundary::stages::{StagePlan, StageRecord, WallMode};
+use crate::io::results::StageAttributes;
 use crate::model::Model;
 use crate::scene::LoadedScene;
 use crate::solver::{Solver, Stage};
@@ -407,6 +408,42 @@ fn print_stage_plan(plan: &StagePlan, walls: &[crate::model::contact_layout::Wal
             }
         }
     }
+}
+
+/// The finished stages as `/stages` of results.h5 holds them: the summary line and its
+/// figures (times in s, ratios and strains dimensionless).
+pub fn stage_attributes(done: &[StageRecord]) -> Vec<StageAttributes> {
+    (done.iter().enumerate())
+        .map(|(i, r)| {
+            let mut numbers = vec![("start_time", r.start), ("end_time", r.end)];
+            if let Some(p) = r.peak.filter(|p| p.ratio > 0.0) {
+                numbers.extend([
+                    ("peak_stress_ratio", p.ratio),
+                    ("peak_time", p.time),
+                    ("peak_axial_strain", p.axial_strain),
+                ]);
+            }
+            if let Some(f) = r.failure {
+                numbers.extend([
+                    ("failure_stress_ratio", f.ratio),
+                    ("failure_time", f.time),
+                    ("failure_axial_strain", f.axial_strain),
+                ]);
+            }
+            if let Some(residual) = r.residual {
+                numbers.push(("residual_stress_ratio", residual));
+            }
+            StageAttributes {
+                number: i as u64 + 1,
+                name: r.name.clone(),
+                text: vec![
+                    ("ended_by", r.reason.describe().to_string()),
+                    ("summary", describe_stage(r)),
+                ],
+                numbers,
+            }
+        })
+        .collect()
 }
 
 /// One line for a finished stage: its span, why it ended, the peak stress ratio and

@@ -769,9 +769,11 @@ pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
 
 mod blocks;
 mod resume;
+mod stages;
 use blocks::global_row;
 pub use blocks::grain_row_blocks;
 pub use resume::Resumed;
+pub use stages::StageAttributes;
 
 #[cfg(test)]
 mod tests;
