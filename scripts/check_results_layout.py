@@ -8,10 +8,9 @@ Needs h5py (pip install h5py, or apt install python3-h5py).
 The tables of docs/RESULTS.md are the specification: every group, dataset and attribute in
 the file must match a documented path (with NNNNNN, WALL, MOTION, AXIS, IJ, STAGE as
 placeholders), with the documented shape (symbols N, E, G, C, R bound from the file itself,
-consistently),
-dtype, `units` attribute and attribute set; every documented object whose condition holds
-(`always`, or one named with --expect) must exist. Prints one line per problem and exits 1
-if there is any, else prints a summary and exits 0.
+consistently), dtype, `units` attribute and attribute set; every documented object whose
+condition holds (`always`, or one named with --expect) must exist. Prints one line per
+problem and exits 1 if there is any, else prints a summary and exits 0.
 """
 import argparse
 import os

@@ -145,18 +145,7 @@ fn a_two_rank_checkpoint_restarts_on_one_and_three_ranks() {
             "/provenance records the restart: {note}"
         );
         // the continued file still matches docs/RESULTS.md
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let check = std::process::Command::new(root.join("scripts/h5python"))
-            .arg(root.join("scripts/check_results_layout.py"))
-            .arg(d.join("results.h5"))
-            .output()
-            .expect("scripts/h5python runs");
-        assert!(
-            check.status.success(),
-            "{}{}",
-            String::from_utf8_lossy(&check.stdout),
-            String::from_utf8_lossy(&check.stderr)
-        );
+        results::assert_matches_documented_layout(&d.join("results.h5"), "");
     }
 }
 

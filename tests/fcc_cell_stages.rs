@@ -20,8 +20,8 @@ mod mpi_launch;
 mod results;
 
 use results::{
-    assert_held_then_failed, assert_lateral_stress_held, assert_same_history, column, history,
-    stage2_peak_ratio,
+    assert_held_then_failed, assert_lateral_stress_held, assert_matches_documented_layout,
+    assert_same_history, column, history, stage2_peak_ratio,
 };
 use std::path::{Path, PathBuf};
 
@@ -109,23 +109,7 @@ fn stages_are_in_the_file_as_the_summary_says(path: &Path, stdout: &str, sampled
     assert!(residual > 0.0 && residual <= peak);
     assert!(number(&shear, "failure_time") > number(&shear, "peak_time"));
     drop(f);
-
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let check = std::process::Command::new(root.join("scripts/h5python"))
-        .arg(root.join("scripts/check_results_layout.py"))
-        .arg(path)
-        .args([
-            "--expect",
-            "frames,walls,contact,grain-contact,servo,staged,cell",
-        ])
-        .output()
-        .expect("scripts/h5python runs");
-    assert!(
-        check.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&check.stdout),
-        String::from_utf8_lossy(&check.stderr)
-    );
+    assert_matches_documented_layout(path, "frames,walls,contact,grain-contact,servo,staged,cell");
 }
 
 /// Σ_g V_g σ̄_g (the frame's grain stresses over the grains' current volumes) against

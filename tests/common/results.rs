@@ -89,3 +89,22 @@ pub fn assert_held_then_failed(stdout: &str) {
         "no failure detected in stage 2:\n{stdout}"
     );
 }
+
+/// Runs `scripts/check_results_layout.py` on `path` with the conditions `expect` (comma
+/// separated, e.g. "staged,cell"; "" for the unconditional objects only) and fails with
+/// its report when the file does not match docs/RESULTS.md.
+pub fn assert_matches_documented_layout(path: &Path, expect: &str) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let check = std::process::Command::new(root.join("scripts/h5python"))
+        .arg(root.join("scripts/check_results_layout.py"))
+        .arg(path)
+        .args(["--expect", expect])
+        .output()
+        .expect("scripts/h5python runs");
+    assert!(
+        check.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&check.stdout),
+        String::from_utf8_lossy(&check.stderr)
+    );
+}
