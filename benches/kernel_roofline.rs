@@ -7,6 +7,7 @@
 //! How to run:  scripts/bench_vs_reference TETBENCH_DIR   (builds and runs tetbench too)
 //!         or:  cargo bench --bench kernel_roofline -- [--tetbench UPDATES_PER_S] [--threads N]
 //!                  [--seeding M]   (the large mesh's seeding, m; default 7e-5)
+//!                  [--law NAME]    (one law only, e.g. biot, to profile it)
 //!
 //! Model: one glass sphere R = 1.1 mm at seeding 70 µm (≈ 1.5·10⁵ tets, the mesh of
 //! `benches/internal_force.rs`), built the way `mufe run` builds it; one call of
@@ -121,6 +122,8 @@ fn main() {
     let threads = value_of("--threads").map_or(2, |t| t as usize);
     // 3.3e-5 gives ≈ 1.5·10⁶ tets (≈ 160 MB), a mesh only DRAM holds
     let seeding = value_of("--seeding").unwrap_or(SEEDING);
+    // one law only, e.g. to profile it
+    let only_law = (args.iter().position(|a| a == "--law")).and_then(|i| args.get(i + 1).cloned());
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -143,6 +146,9 @@ fn main() {
         );
         println!("|---|---|---|---|---|---|---|---|---|---|");
         for (name, lines) in common::LAWS {
+            if only_law.as_ref().is_some_and(|only| only != name) {
+                continue;
+            }
             let (rate, bytes, ne, path) = kernel_rate(lines, seeding, 5);
             let (in_cache, _, _, _) = single.install(|| kernel_rate(lines, SEEDING_IN_CACHE, 5));
             let compute = in_cache * threads as f64;

@@ -6,6 +6,11 @@
 //! (no fused multiply–add, no reassociation), so every lane computes bit for bit what the
 //! `f64` code computes for that element: the vector kernel changes the speed, never the
 //! result.
+//!
+//! The element data reach the lanes by hardware gathers ([`Lanes::gather_corners`],
+//! [`Lanes::gather_records`]: one `vgatherdpd` per quantity) rather than by eight scalar
+//! loads and inserts each, which took a third of the kernel's time and all of it on the
+//! shuffle port the arithmetic also needs (docs/BENCHMARKS.md, session 27).
 
 use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
 
@@ -32,6 +37,30 @@ pub trait Lanes:
     fn sqrt(self) -> Self;
     /// Per lane: `then` where `self > 0`, else `otherwise` (NaN is not > 0).
     fn where_positive(self, then: Self, otherwise: Self) -> Self;
+
+    /// The corner positions of the first `WIDTH` tetrahedra of `tets`, one per lane:
+    /// lane `l` of `[a][i]` is `x[tets[l][a]][i]`.
+    #[inline(always)]
+    fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
+        let mut corners = [[Self::splat(0.0); 3]; 4];
+        for (a, corner) in corners.iter_mut().enumerate() {
+            for (i, c) in corner.iter_mut().enumerate() {
+                *c = gather(|l| x[tets[l][a] as usize][i]);
+            }
+        }
+        corners
+    }
+
+    /// The first `WIDTH` records of `records`, one per lane: lane `l` of `[k]` is
+    /// `records[l][k]`.
+    #[inline(always)]
+    fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+        let mut out = [Self::splat(0.0); N];
+        for (k, v) in out.iter_mut().enumerate() {
+            *v = gather(|l| records[l][k]);
+        }
+        out
+    }
 }
 
 impl Lanes for f64 {
@@ -141,6 +170,41 @@ mod avx {
                 Self(_mm256_blendv_pd(otherwise.0, then.0, positive))
             }
         }
+        #[inline(always)]
+        fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
+            assert!(tets.len() >= 4 && x.len() <= (i32::MAX / 3) as usize);
+            let mut corners = [[Self::splat(0.0); 3]; 4];
+            // SAFETY: see the type's documentation; every gathered offset 3·n + i is inside
+            // `x` (n < x.len(), and 3·x.len() fits an i32)
+            unsafe {
+                let base = x.as_ptr() as *const f64;
+                for (a, corner) in corners.iter_mut().enumerate() {
+                    let id = |l: usize| tets[l][a] as i32;
+                    let nodes = _mm_setr_epi32(id(0), id(1), id(2), id(3));
+                    let offsets = _mm_add_epi32(nodes, _mm_add_epi32(nodes, nodes));
+                    for (i, c) in corner.iter_mut().enumerate() {
+                        *c = Self(_mm256_i32gather_pd::<8>(base.add(i), offsets));
+                    }
+                }
+            }
+            corners
+        }
+        #[inline(always)]
+        fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+            assert!(records.len() >= 4);
+            let mut out = [Self::splat(0.0); N];
+            // SAFETY: see the type's documentation; offsets N·l + k, l < 4, k < N, are
+            // inside records[..4]
+            unsafe {
+                let n = N as i32;
+                let offsets = _mm_setr_epi32(0, n, 2 * n, 3 * n);
+                let base = records.as_ptr() as *const f64;
+                for (k, v) in out.iter_mut().enumerate() {
+                    *v = Self(_mm256_i32gather_pd::<8>(base.add(k), offsets));
+                }
+            }
+            out
+        }
     }
 
     macro_rules! lane_wise {
@@ -221,6 +285,64 @@ mod avx512 {
                 Self(_mm512_mask_blend_pd(positive, otherwise.0, then.0))
             }
         }
+        #[inline(always)]
+        fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
+            assert!(tets.len() >= 8 && x.len() <= (i32::MAX / 3) as usize);
+            let mut corners = [[Self::splat(0.0); 3]; 4];
+            // SAFETY: see the type's documentation; the two loads read the 32 node ids of
+            // tets[..8], and every gathered offset 3·n + i is inside `x` (n < x.len(), and
+            // 3·x.len() fits an i32)
+            unsafe {
+                let ids = tets.as_ptr() as *const i32;
+                let first = _mm512_loadu_si512(ids as *const _);
+                let second = _mm512_loadu_si512(ids.add(16) as *const _);
+                let base = x.as_ptr() as *const f64;
+                for (a, corner) in corners.iter_mut().enumerate() {
+                    let a = a as i32;
+                    let pick = _mm512_setr_epi32(
+                        a,
+                        a + 4,
+                        a + 8,
+                        a + 12,
+                        a + 16,
+                        a + 20,
+                        a + 24,
+                        a + 28,
+                        0,
+                        0,
+                        0,
+                        0,
+                        0,
+                        0,
+                        0,
+                        0,
+                    );
+                    let nodes =
+                        _mm512_castsi512_si256(_mm512_permutex2var_epi32(first, pick, second));
+                    let offsets = _mm256_add_epi32(nodes, _mm256_add_epi32(nodes, nodes));
+                    for (i, c) in corner.iter_mut().enumerate() {
+                        *c = Self(_mm512_i32gather_pd::<8>(offsets, base.add(i)));
+                    }
+                }
+            }
+            corners
+        }
+        #[inline(always)]
+        fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+            assert!(records.len() >= 8);
+            let mut out = [Self::splat(0.0); N];
+            // SAFETY: see the type's documentation; offsets N·l + k, l < 8, k < N, are
+            // inside records[..8]
+            unsafe {
+                let n = N as i32;
+                let offsets = _mm256_setr_epi32(0, n, 2 * n, 3 * n, 4 * n, 5 * n, 6 * n, 7 * n);
+                let base = records.as_ptr() as *const f64;
+                for (k, v) in out.iter_mut().enumerate() {
+                    *v = Self(_mm512_i32gather_pd::<8>(offsets, base.add(k)));
+                }
+            }
+            out
+        }
     }
 
     macro_rules! lane_wise {
@@ -278,6 +400,33 @@ mod tests {
             assert_eq!(nan[l], y, "NaN is not positive");
             assert_eq!(negated_zero[l].to_bits(), (-0.0f64).to_bits());
             assert_eq!(T::splat(2.0).to_array()[l], 2.0);
+        }
+        // the kernel's loads: corner positions by node id, and records of ten f64
+        let x: Vec<[f64; 3]> = (0..50)
+            .map(|n| [n as f64, 0.5 - n as f64, 1e-3 * n as f64])
+            .collect();
+        let tets: Vec<[u32; 4]> = (0..8)
+            .map(|e| [7 * e, 49 - 5 * e, 3 + e, 6 * e + 1])
+            .collect();
+        let records: Vec<[f64; 10]> = (0..8)
+            .map(|e| build(0.0, |k| (10 * e + k) as f64 + 0.25))
+            .collect();
+        let corners = T::gather_corners(&x, &tets);
+        let fields: [T; 10] = T::gather_records(&records);
+        for l in 0..T::WIDTH {
+            for a in 0..4 {
+                for i in 0..3 {
+                    let want = x[tets[l][a] as usize][i];
+                    assert_eq!(
+                        corners[a][i].to_array()[l],
+                        want,
+                        "corner {a}, component {i}"
+                    );
+                }
+            }
+            for (k, field) in fields.iter().enumerate() {
+                assert_eq!(field.to_array()[l], records[l][k], "record field {k}");
+            }
         }
     }
 

@@ -6,7 +6,7 @@
 //! that could drift. Dm⁻¹ and the reference volume are the only per-element data the force
 //! kernel needs (80 bytes), plus the plastic state of elements of plastic materials.
 
-use crate::lanes::{build, gather, Lanes};
+use crate::lanes::{build, Lanes};
 use crate::material::elastic::{
     biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym,
 };
@@ -15,6 +15,7 @@ use crate::math::det3;
 
 /// Reference data of one tetrahedron needed by the force kernel.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[repr(C)]
 pub struct TetReference {
     /// Inverse of the reference edge matrix Dm = [X1−X0, X2−X0, X3−X0] (row-major, 1/m).
     pub dm_inv: [f64; 9],
@@ -23,6 +24,15 @@ pub struct TetReference {
 }
 
 impl TetReference {
+    /// The references as records of ten f64: Dm⁻¹ (row-major), then V0.
+    #[inline(always)]
+    pub fn as_records(references: &[Self]) -> &[[f64; 10]] {
+        // SAFETY: `TetReference` is `repr(C)` of [f64; 9] and f64: ten f64, no padding
+        unsafe {
+            std::slice::from_raw_parts(references.as_ptr() as *const [f64; 10], references.len())
+        }
+    }
+
     /// Returns `None` if the tetrahedron is inverted or degenerate (V0 ≤ 0).
     pub fn new(x: [[f64; 3]; 4]) -> Option<Self> {
         let dm = edge_matrix(&x);
@@ -188,8 +198,10 @@ pub fn tet_forces_plastic_lanes<T: Lanes>(
     let (f, d, v) = deformation_lanes::<T>(x, tets, references);
     let e = green_lagrange_sym(&f);
     let eps = biot_strain_from_green(&e);
-    let old_strain: [T; 6] = build(T::splat(0.0), |k| gather(|l| old[l].strain[k]));
-    let old_equivalent = gather(|l| old[l].equivalent);
+    let old_record: [T; 7] = T::gather_records(PlasticPoint::as_records(&old[..T::WIDTH]));
+    let mut old_strain = [T::splat(0.0); 6];
+    old_strain.copy_from_slice(&old_record[..6]);
+    let old_equivalent = old_record[6];
     let r = j2.return_map_lanes(&eps, &old_strain, old_equivalent);
     let p = first_piola_from_biot_stress(&f, &e, &r.stress);
     let forces = ElementLanes {
@@ -243,18 +255,11 @@ fn deformation_lanes<T: Lanes>(
     references: &[TetReference],
 ) -> ([T; 9], [T; 9], T) {
     let (tets, references) = (&tets[..T::WIDTH], &references[..T::WIDTH]);
-    // plain loops: every step must inline into the vector caller
-    let mut xl = [[T::splat(0.0); 3]; 4];
-    for a in 0..4 {
-        for i in 0..3 {
-            xl[a][i] = gather(|l| x[tets[l][a] as usize][i]);
-        }
-    }
+    let xl = T::gather_corners(x, tets);
+    let record: [T; 10] = T::gather_records(TetReference::as_records(references));
     let mut d = [T::splat(0.0); 9];
-    for k in 0..9 {
-        d[k] = gather(|l| references[l].dm_inv[k]);
-    }
-    let v = gather(|l| references[l].volume);
+    d.copy_from_slice(&record[..9]);
+    let v = record[9];
     (crate::math::mat_mul(&edge_matrix(&xl), &d), d, v)
 }
 

@@ -24,11 +24,22 @@ use serde::{Deserialize, Serialize};
 
 /// Plastic state of one element (the only per-element material state in mufe).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+#[repr(C)]
 pub struct PlasticPoint {
     /// Plastic strain εᵖ in the ε̃ measure (xx, yy, zz, yz, xz, xy; tensor components).
     pub strain: Sym,
     /// Equivalent plastic strain α = Σ Δα (–).
     pub equivalent: f64,
+}
+
+impl PlasticPoint {
+    /// The states as records of seven f64: εᵖ (Sym order), then α; how the vector kernel
+    /// loads eight of them into lanes.
+    #[inline(always)]
+    pub fn as_records(points: &[Self]) -> &[[f64; 7]] {
+        // SAFETY: `PlasticPoint` is `repr(C)` of [f64; 6] and f64: seven f64, no padding
+        unsafe { std::slice::from_raw_parts(points.as_ptr() as *const [f64; 7], points.len()) }
+    }
 }
 
 /// J2 parameters with the elastic constants they return against.
