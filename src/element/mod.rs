@@ -246,8 +246,9 @@ impl<T: Lanes> PlasticLanes<T> {
     }
 }
 
-/// F = Ds·Dm⁻¹, Dm⁻¹ and V0 of `T::WIDTH` elements, one per lane, filled straight from `x`
-/// and `references`: no per-element copy in between, which the vector loads would stall on.
+/// F = Ds·Dm⁻¹, Dm⁻¹ and V0 of `T::WIDTH` elements, one per lane, gathered straight from
+/// `x` and `references` ([`Lanes::gather_corners`], [`Lanes::gather_records`]): no
+/// per-element copy in between, which the vector loads would stall on.
 #[inline(always)]
 fn deformation_lanes<T: Lanes>(
     x: &[[f64; 3]],
