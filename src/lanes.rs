@@ -175,10 +175,12 @@ mod avx {
             assert!(tets.len() >= 4 && x.len() <= (i32::MAX / 3) as usize);
             let mut corners = [[Self::splat(0.0); 3]; 4];
             // SAFETY: see the type's documentation; every gathered offset 3·n + i is inside
-            // `x` (n < x.len(), and 3·x.len() fits an i32)
+            // `x` (n < x.len(), asserted below, and 3·x.len() fits an i32)
             unsafe {
                 let base = x.as_ptr() as *const f64;
                 for (a, corner) in corners.iter_mut().enumerate() {
+                    let largest = tets[..4].iter().fold(0, |m, t| m.max(t[a]));
+                    assert!((largest as usize) < x.len(), "node id beyond the positions");
                     let id = |l: usize| tets[l][a] as i32;
                     let nodes = _mm_setr_epi32(id(0), id(1), id(2), id(3));
                     let offsets = _mm_add_epi32(nodes, _mm_add_epi32(nodes, nodes));
@@ -290,8 +292,8 @@ mod avx512 {
             assert!(tets.len() >= 8 && x.len() <= (i32::MAX / 3) as usize);
             let mut corners = [[Self::splat(0.0); 3]; 4];
             // SAFETY: see the type's documentation; the two loads read the 32 node ids of
-            // tets[..8], and every gathered offset 3·n + i is inside `x` (n < x.len(), and
-            // 3·x.len() fits an i32)
+            // tets[..8], and every gathered offset 3·n + i is inside `x` (n < x.len(),
+            // asserted below, and 3·x.len() fits an i32)
             unsafe {
                 let ids = tets.as_ptr() as *const i32;
                 let first = _mm512_loadu_si512(ids as *const _);
@@ -317,8 +319,12 @@ mod avx512 {
                         0,
                         0,
                     );
-                    let nodes =
-                        _mm512_castsi512_si256(_mm512_permutex2var_epi32(first, pick, second));
+                    let all = _mm512_permutex2var_epi32(first, pick, second);
+                    // this corner's eight ids (the low lanes), unsigned, below x.len()
+                    let bound = _mm512_set1_epi32(x.len() as i32);
+                    let inside = _mm512_mask_cmplt_epu32_mask(0xff, all, bound);
+                    assert!(inside == 0xff, "node id beyond the positions");
+                    let nodes = _mm512_castsi512_si256(all);
                     let offsets = _mm256_add_epi32(nodes, _mm256_add_epi32(nodes, nodes));
                     for (i, c) in corner.iter_mut().enumerate() {
                         *c = Self(_mm512_i32gather_pd::<8>(offsets, base.add(i)));
@@ -430,12 +436,23 @@ mod tests {
         }
     }
 
+    /// A node id beyond the positions stops the gather (an index check, not a stray read).
+    fn a_node_id_beyond_the_positions_panics<T: Lanes>() {
+        let x = vec![[0.0; 3]; 10];
+        let mut tets = vec![[0u32, 1, 2, 3]; 8];
+        tets[T::WIDTH - 1][2] = 10;
+        let outcome = std::panic::catch_unwind(|| T::gather_corners(&x, &tets));
+        assert!(outcome.is_err(), "node 10 of 10 positions was gathered");
+    }
+
     #[test]
     fn avx2_lanes_compute_what_scalars_compute() {
         if !std::arch::is_x86_feature_detected!("avx2") {
             panic!("this test needs an AVX2 CPU: the kernel's fast path could not be checked");
         }
         lanes_compute_what_scalars_compute::<F64x4>();
+        a_node_id_beyond_the_positions_panics::<F64x4>();
+        a_node_id_beyond_the_positions_panics::<f64>();
     }
 
     #[test]
@@ -445,5 +462,6 @@ mod tests {
             return;
         }
         lanes_compute_what_scalars_compute::<F64x8>();
+        a_node_id_beyond_the_positions_panics::<F64x8>();
     }
 }
