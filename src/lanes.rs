@@ -51,13 +51,23 @@ pub trait Lanes:
         corners
     }
 
+    /// Lane `l` is `*base.add(l * stride)` (one `vgatherdpd` on the vector types).
+    ///
+    /// # Safety
+    /// `base.add(l * stride)` must be readable for every lane `l < WIDTH`, and
+    /// `WIDTH · stride` must fit an i32.
+    unsafe fn gather_strided(base: *const f64, stride: usize) -> Self;
+
     /// The first `WIDTH` records of `records`, one per lane: lane `l` of `[k]` is
     /// `records[l][k]`.
     #[inline(always)]
     fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+        assert!(records.len() >= Self::WIDTH);
+        let base = records.as_ptr() as *const f64;
         let mut out = [Self::splat(0.0); N];
         for (k, v) in out.iter_mut().enumerate() {
-            *v = gather(|l| records[l][k]);
+            // SAFETY: lane l reads records[l][k], l < WIDTH ≤ records.len(), k < N
+            *v = unsafe { Self::gather_strided(base.add(k), N) };
         }
         out
     }
@@ -89,6 +99,10 @@ impl Lanes for f64 {
         } else {
             otherwise
         }
+    }
+    #[inline(always)]
+    unsafe fn gather_strided(base: *const f64, _stride: usize) -> Self {
+        *base
     }
 }
 
@@ -192,20 +206,12 @@ mod avx {
             corners
         }
         #[inline(always)]
-        fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
-            assert!(records.len() >= 4);
-            let mut out = [Self::splat(0.0); N];
-            // SAFETY: see the type's documentation; offsets N·l + k, l < 4, k < N, are
-            // inside records[..4]
-            unsafe {
-                let n = N as i32;
-                let offsets = _mm_setr_epi32(0, n, 2 * n, 3 * n);
-                let base = records.as_ptr() as *const f64;
-                for (k, v) in out.iter_mut().enumerate() {
-                    *v = Self(_mm256_i32gather_pd::<8>(base.add(k), offsets));
-                }
-            }
-            out
+        unsafe fn gather_strided(base: *const f64, stride: usize) -> Self {
+            let n = stride as i32;
+            Self(_mm256_i32gather_pd::<8>(
+                base,
+                _mm_setr_epi32(0, n, 2 * n, 3 * n),
+            ))
         }
     }
 
@@ -299,29 +305,14 @@ mod avx512 {
                 let first = _mm512_loadu_si512(ids as *const _);
                 let second = _mm512_loadu_si512(ids.add(16) as *const _);
                 let base = x.as_ptr() as *const f64;
+                // element l's corner a is id 4l + a of the 32 loaded (low eight lanes)
+                let element_starts =
+                    _mm512_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28, 0, 0, 0, 0, 0, 0, 0, 0);
+                let bound = _mm512_set1_epi32(x.len() as i32);
                 for (a, corner) in corners.iter_mut().enumerate() {
-                    let a = a as i32;
-                    let pick = _mm512_setr_epi32(
-                        a,
-                        a + 4,
-                        a + 8,
-                        a + 12,
-                        a + 16,
-                        a + 20,
-                        a + 24,
-                        a + 28,
-                        0,
-                        0,
-                        0,
-                        0,
-                        0,
-                        0,
-                        0,
-                        0,
-                    );
+                    let pick = _mm512_add_epi32(element_starts, _mm512_set1_epi32(a as i32));
                     let all = _mm512_permutex2var_epi32(first, pick, second);
                     // this corner's eight ids (the low lanes), unsigned, below x.len()
-                    let bound = _mm512_set1_epi32(x.len() as i32);
                     let inside = _mm512_mask_cmplt_epu32_mask(0xff, all, bound);
                     assert!(inside == 0xff, "node id beyond the positions");
                     let nodes = _mm512_castsi512_si256(all);
@@ -334,20 +325,10 @@ mod avx512 {
             corners
         }
         #[inline(always)]
-        fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
-            assert!(records.len() >= 8);
-            let mut out = [Self::splat(0.0); N];
-            // SAFETY: see the type's documentation; offsets N·l + k, l < 8, k < N, are
-            // inside records[..8]
-            unsafe {
-                let n = N as i32;
-                let offsets = _mm256_setr_epi32(0, n, 2 * n, 3 * n, 4 * n, 5 * n, 6 * n, 7 * n);
-                let base = records.as_ptr() as *const f64;
-                for (k, v) in out.iter_mut().enumerate() {
-                    *v = Self(_mm512_i32gather_pd::<8>(offsets, base.add(k)));
-                }
-            }
-            out
+        unsafe fn gather_strided(base: *const f64, stride: usize) -> Self {
+            let n = stride as i32;
+            let offsets = _mm256_setr_epi32(0, n, 2 * n, 3 * n, 4 * n, 5 * n, 6 * n, 7 * n);
+            Self(_mm512_i32gather_pd::<8>(offsets, base))
         }
     }
 
