@@ -114,8 +114,8 @@ use crate::math::dot;
 use crate::model::Model;
 pub use broad::DetectionReference;
 use broad::{BroadPhase, CandidateLists};
-use narrow::{evaluate_entry, Entry, EvalContext, PointResult};
-use prefetch::{warm_up, WARM_BATCH};
+use narrow::{evaluate_entry_on, nearest_facet, Entry, EvalContext, PointResult};
+use prefetch::{warm_rings, warm_up, WARM_BATCH};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -394,8 +394,14 @@ pub fn evaluate_with(
         .for_each(|(out, indices)| {
             for (out, batch) in out.chunks_mut(WARM_BATCH).zip(indices.chunks(WARM_BATCH)) {
                 warm_up(&ctx, &lists.entries, batch);
-                for (r, &i) in out.iter_mut().zip(batch) {
-                    *r = evaluate_entry(&ctx, &lists.entries[i as usize]);
+                let mut nearest = [None; WARM_BATCH];
+                for (f, &i) in nearest.iter_mut().zip(batch) {
+                    *f = nearest_facet(&ctx, &lists.entries[i as usize]);
+                }
+                let nearest = &nearest[..batch.len()];
+                warm_rings(&ctx, nearest);
+                for ((r, &i), &f) in out.iter_mut().zip(batch).zip(nearest) {
+                    *r = evaluate_entry_on(&ctx, &lists.entries[i as usize], f);
                 }
             }
         });

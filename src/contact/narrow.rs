@@ -23,7 +23,9 @@ use super::friction::{return_map, rotate_onto_plane, tangential};
 use super::patch::Patch;
 use super::triangle::nearest_candidate;
 pub use super::triangle::{closest_point_on_triangle, Closest, Feature};
-use super::vertex_normals::{facet_normal, triangle_normal, vertex_normals, VertexNormal};
+use super::vertex_normals::{
+    facet_normal, pseudo_normal_at_vertex, smooth_normal, triangle_normal,
+};
 use super::{ContactKey, ContactModel, FrictionPoint, NONE};
 use crate::math::{add, dot, norm, scale, sub};
 
@@ -307,13 +309,7 @@ pub struct EvalContext<'a> {
 }
 
 /// Outward pseudo-normal of the master surface at a closest-point feature.
-fn pseudo_normal(
-    cm: &ContactModel,
-    x: &[[f64; 3]],
-    corners: &[VertexNormal; 3],
-    facet: usize,
-    feature: Feature,
-) -> [f64; 3] {
+fn pseudo_normal(cm: &ContactModel, x: &[[f64; 3]], facet: usize, feature: Feature) -> [f64; 3] {
     match feature {
         Feature::Face => facet_normal(cm, x, facet),
         Feature::Edge(k) => {
@@ -325,7 +321,7 @@ fn pseudo_normal(
                 add(n, facet_normal(cm, x, other as usize))
             }
         }
-        Feature::Vertex(k) => corners[k as usize].pseudo,
+        Feature::Vertex(k) => pseudo_normal_at_vertex(cm, x, cm.facet[facet][k as usize]),
     }
 }
 
@@ -350,24 +346,29 @@ pub fn locate(
     candidates: &[u32],
 ) -> Option<Located> {
     let facet = candidates[nearest_candidate(cm, x, xs, candidates)?] as usize;
+    Some(locate_on_facet(cm, x, xs, facet))
+}
+
+/// [`locate`] once the nearest candidate facet (by the flat closest-point distance) is
+/// known.
+pub fn locate_on_facet(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], facet: usize) -> Located {
     let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
     let cl = closest_point_on_triangle(xs, a, b, c);
-    // The corners' normals serve both the pseudo-normal and the curved patch.
-    let corners = cm.facet[facet].map(|v| vertex_normals(cm, x, v));
-    let pn = pseudo_normal(cm, x, &corners, facet, cl.feature);
+    let pn = pseudo_normal(cm, x, facet, cl.feature);
     let d = sub(xs, cl.point);
     let dist = cl.dist2.sqrt();
     let flat_inside = dot(d, pn) < 0.0 && dist > 0.0;
+    let corners = cm.facet[facet].map(|v| smooth_normal(cm, x, v));
     if let Some(on_patch) = locate_on_patch(cm, x, &corners, xs, facet, cl, flat_inside) {
-        return Some(on_patch);
+        return on_patch;
     }
     if !flat_inside {
-        return Some(Located {
+        return Located {
             closest: cl,
             facet,
             depth: -dist,
             normal: [0.0; 3],
-        });
+        };
     }
     let (depth, normal) = match cl.feature {
         Feature::Face => {
@@ -376,12 +377,12 @@ pub fn locate(
         }
         _ => (dist, scale(d, -1.0 / dist)),
     };
-    Some(Located {
+    Located {
         closest: cl,
         facet,
         depth,
         normal,
-    })
+    }
 }
 
 /// The curved patch of a master facet, or `None` when it stays flat.
@@ -403,13 +404,13 @@ fn facet_patch(
 fn locate_on_patch(
     cm: &ContactModel,
     x: &[[f64; 3]],
-    corners: &[VertexNormal; 3],
+    corners: &[Option<[f64; 3]>; 3],
     xs: [f64; 3],
     facet: usize,
     cl: Closest,
     flat_inside: bool,
 ) -> Option<Located> {
-    let patch = facet_patch(cm, x, facet, |k| corners[k].smooth)?;
+    let patch = facet_patch(cm, x, facet, |k| corners[k])?;
     let dist = cl.dist2.sqrt();
     let bulge = patch.bulge_bound();
     if !flat_inside && dist > 2.0 * bulge {
@@ -429,8 +430,8 @@ fn locate_on_patch(
             let smooth_at = |k: usize| {
                 let v = cm.facet[o][k];
                 match cm.facet[facet].iter().position(|&c| c == v) {
-                    Some(i) => corners[i].smooth,
-                    None => vertex_normals(cm, x, v).smooth,
+                    Some(i) => corners[i],
+                    None => smooth_normal(cm, x, v),
                 }
             };
             if let Some(p) = facet_patch(cm, x, o, smooth_at) {
@@ -461,6 +462,20 @@ fn locate_on_patch(
 /// of its inputs: safe to run in parallel, results independent of scheduling. Callers
 /// evaluate only the entries that [`Entry::may_touch`].
 pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
+    evaluate_entry_on(ctx, entry, nearest_facet(ctx, entry))
+}
+
+/// The candidate facet of `entry` nearest to its slave node (by the flat closest-point
+/// distance), `None` without candidates: the first step of [`evaluate_entry`], which
+/// [`super::prefetch::warm_rings`] needs before the rest.
+pub fn nearest_facet(ctx: &EvalContext, entry: &Entry) -> Option<u32> {
+    let cands = &ctx.candidates[entry.start as usize..entry.end as usize];
+    let xs = ctx.x[ctx.cm.node[entry.slave as usize] as usize];
+    nearest_candidate(ctx.cm, ctx.x, xs, cands).map(|i| cands[i])
+}
+
+/// [`evaluate_entry`] with its [`nearest_facet`] already found.
+pub fn evaluate_entry_on(ctx: &EvalContext, entry: &Entry, nearest: Option<u32>) -> PointResult {
     let cm = ctx.cm;
     let x = ctx.x;
     let s_flat = entry.slave as usize;
@@ -470,10 +485,10 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
         ..Default::default()
     };
     let xs = x[s as usize];
-    let cands = &ctx.candidates[entry.start as usize..entry.end as usize];
-    let Some(loc) = locate(cm, x, xs, cands) else {
+    let Some(facet) = nearest else {
         return r;
     };
+    let loc = locate_on_facet(cm, x, xs, facet as usize);
     if loc.depth <= 0.0 {
         return r;
     }

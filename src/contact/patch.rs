@@ -3,13 +3,13 @@
 //!
 //! q(b) = p(b) − ½ Σᵢ bᵢ ((p(b) − pᵢ)·nᵢ) nᵢ,   p(b) = Σᵢ bᵢ pᵢ,
 //!
-//! where pᵢ are the facet's corners, nᵢ their unit angle-weighted vertex normals and b the
-//! barycentric coordinates. The patch passes through the corners with the tangent planes
-//! ⟂ nᵢ there, neighbouring patches share their edge curves (an edge's curve depends only
-//! on its two corners), and for a quadratic surface (a sphere at mesh scale) with exact
-//! vertex normals the factor ½ reproduces the surface to leading order: the flat facet lies
-//! h²/(8R) inside a sphere of radius R meshed at edge h, full Phong (factor 1) as far
-//! outside.
+//! where pᵢ are the facet's corners, nᵢ their unit vertex normals (Max's weights, exact on
+//! a sphere: [`super::vertex_normals`]) and b the barycentric coordinates. The patch
+//! passes through the corners with the tangent planes ⟂ nᵢ there, neighbouring patches
+//! share their edge curves (an edge's curve depends only on its two corners), and for a
+//! quadratic surface (a sphere at mesh scale) with exact vertex normals the factor ½
+//! reproduces the surface to leading order: the flat facet lies h²/(8R) inside a sphere of
+//! radius R meshed at edge h, full Phong (factor 1) as far outside.
 //!
 //! Why: a flat facet's normal is tilted from the body's by up to ~h/(2R). Where a contact is
 //! carried by one node or a few (the FCC cell at 50 kPa: contact radii ~1 % of R, a single
@@ -70,9 +70,10 @@ pub struct PatchPoint {
     pub clamped_edge: Option<usize>,
 }
 
-/// The unit vertex normal `vertex_normal` (angle-weighted, unnormalised) of a vertex whose
-/// surrounding facets have the unit normals `facet_normals`, or `None` when the vertex is
-/// sharp: some facet's normal is more than [`CREASE_DEG`] from it, or it is degenerate.
+/// The unit vertex normal along `vertex_normal` (any length) of a vertex whose
+/// surrounding facets have the normals `facet_normals` (any lengths, e.g. area normals), or
+/// `None` when the vertex is sharp: some facet's normal is more than [`CREASE_DEG`] from it,
+/// or it or a facet's normal is zero (a degenerate facet).
 pub fn smooth_vertex_normal(
     vertex_normal: [f64; 3],
     facet_normals: impl IntoIterator<Item = [f64; 3]>,
@@ -83,9 +84,14 @@ pub fn smooth_vertex_normal(
     }
     let n = scale(vertex_normal, 1.0 / l);
     let cos_crease = CREASE_DEG.to_radians().cos();
+    // cos(n, f) ≥ cos_crease without normalising f
+    let cos2 = cos_crease * cos_crease;
     facet_normals
         .into_iter()
-        .all(|f| dot(n, f) >= cos_crease)
+        .all(|f| {
+            let d = dot(n, f);
+            d > 0.0 && d * d >= cos2 * dot(f, f)
+        })
         .then_some(n)
 }
 

@@ -8,6 +8,12 @@
 //! same chain for a batch of entries one link at a time, so that the misses of the whole
 //! batch are in flight together, and the evaluation then finds its data in cache. It only
 //! prefetches: the results do not change.
+//!
+//! The chain forks at the nearest candidate facet: only its corners' facet rings are read
+//! (the curved patch's vertex normals), so a batch is fetched in two rounds, [`warm_up`]
+//! for the candidates, then, once the nearest facets are found, [`warm_rings`] for the
+//! rings (session 28: fetching every candidate corner's ring head, as before, left the
+//! rings themselves to miss one link at a time).
 
 use super::narrow::{Entry, EvalContext};
 
@@ -28,9 +34,10 @@ fn touch<T>(r: &T) {
     let _ = r;
 }
 
-/// Prefetches, link by link, what evaluating the entries `batch` (indices into `entries`)
-/// reads: the slave node's data, the candidate facets, their corners' positions,
-/// velocities and facet lists.
+/// Prefetches, link by link, what finding the nearest candidate facet of the entries
+/// `batch` (indices into `entries`) reads: the slave node's data, the candidate facets and
+/// their corners' positions. The rest of an evaluation reads around the nearest facet
+/// only, which [`warm_rings`] fetches once it is known.
 pub fn warm_up(ctx: &EvalContext, entries: &[Entry], batch: &[u32]) {
     let cm = ctx.cm;
     let batch = || batch.iter().map(|&i| &entries[i as usize]);
@@ -53,27 +60,52 @@ pub fn warm_up(ctx: &EvalContext, entries: &[Entry], batch: &[u32]) {
     }
     for e in batch() {
         for &f in candidates(e) {
-            touch(&cm.facet_adjacent[f as usize]);
             for n in cm.facet[f as usize] {
                 touch(&ctx.x[n as usize]);
-                touch(&cm.surface_index[n as usize]);
             }
         }
     }
-    for e in batch() {
-        for &f in candidates(e) {
-            for n in cm.facet[f as usize] {
-                touch(&cm.vertex_facet_offsets[cm.surface_index[n as usize] as usize]);
-            }
+}
+
+/// Prefetches, link by link, what the rest of an evaluation reads around each entry's
+/// nearest facet (`nearest`, from [`super::narrow::nearest_facet`]): its neighbours, its
+/// corners' velocities and sizes, and for each corner the ring of facets around it with
+/// their corners' positions (the smooth vertex normals of the curved patch).
+pub fn warm_rings(ctx: &EvalContext, nearest: &[Option<u32>]) {
+    let cm = ctx.cm;
+    let corners = || nearest.iter().flatten().flat_map(|&f| cm.facet[f as usize]);
+    for &f in nearest.iter().flatten() {
+        touch(&cm.facet_adjacent[f as usize]);
+    }
+    for n in corners() {
+        touch(&cm.surface_index[n as usize]);
+        touch(&ctx.v[n as usize]);
+    }
+    for n in corners() {
+        let s = cm.surface_index[n as usize] as usize;
+        touch(&cm.vertex_facet_offsets[s]);
+        touch(&cm.node_h[s]);
+    }
+    let ring = |n: u32| {
+        let s = cm.surface_index[n as usize] as usize;
+        &cm.vertex_facets
+            [cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize]
+    };
+    for n in corners() {
+        if let (Some(first), Some(last)) = (ring(n).first(), ring(n).last()) {
+            touch(first);
+            touch(last);
         }
     }
-    for e in batch() {
-        for &f in candidates(e) {
-            for n in cm.facet[f as usize] {
-                let s = cm.surface_index[n as usize] as usize;
-                if let Some(f) = cm.vertex_facets.get(cm.vertex_facet_offsets[s] as usize) {
-                    touch(f);
-                }
+    for n in corners() {
+        for &f in ring(n) {
+            touch(&cm.facet[f as usize]);
+        }
+    }
+    for n in corners() {
+        for &f in ring(n) {
+            for m in cm.facet[f as usize] {
+                touch(&ctx.x[m as usize]);
             }
         }
     }

@@ -1,11 +1,23 @@
-//! Normals at the master surface's vertices: the angle-weighted pseudo-normal that decides
-//! inside/outside at a vertex (Bærentzen & Aanæs 2005) and the smooth unit normal of the
-//! curved patches (see [`super::patch`]).
+//! Normals at the master surface's vertices: the smooth unit normal of the curved patches
+//! (see [`super::patch`]) and the angle-weighted pseudo-normal that decides inside/outside
+//! when a node's closest point is a vertex (Bærentzen & Aanæs 2005).
 //!
-//! Both are sums over the facets around a vertex, with an `acos` per facet, and the narrow
-//! phase needs them at the three corners of the closest facet of every evaluated slave node
-//! (and at the corners of its neighbour across an edge): [`vertex_normals`] computes both
-//! at once, each facet normal once.
+//! The smooth normal uses Max's weights (Max 1999),
+//!
+//! n ∝ Σ_f (e₁ × e₂) / (|e₁|² |e₂|²),
+//!
+//! e₁, e₂ the facet's two edges from the vertex in its orientation order. It is exact when
+//! the vertex and its ring lie on a sphere, however irregular the ring: what the Phong
+//! patch's shape factor ½ assumes (its leading-order reproduction of a quadratic surface
+//! needs exact vertex normals). The angle-weighted normal it replaced is not exact on an
+//! irregular ring, and it cost an `acos` and three square roots per facet where this costs
+//! one division; the narrow phase needs it at the three corners of every evaluated node's
+//! closest facet, so that was the largest part of a contact point's arithmetic
+//! (docs/BENCHMARKS.md, session 28).
+//!
+//! The pseudo-normal keeps the angle weights: only they make the sign test at a vertex
+//! exact for any closed mesh. It is needed only when the closest point is a vertex, so it
+//! is computed then, not with the smooth normal.
 //!
 //! A per-step memo of these sums was measured and dropped: in a dense FCC packing each
 //! master vertex is asked for by one or two evaluations per step, and emptying the memo
@@ -40,68 +52,107 @@ fn facets_around(cm: &ContactModel, s: usize) -> &[u32] {
     &cm.vertex_facets[cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize]
 }
 
-/// Facets around a vertex whose normals [`vertex_normals`] keeps on the stack; a vertex of
-/// higher valence computes the rest twice.
+/// Facets around a vertex whose area normals [`smooth_normal`] keeps on the stack for the
+/// crease test; a vertex of higher valence computes the rest twice.
 const KEPT_NORMALS: usize = 16;
 
-/// θ_f n_f of facet `f` at model node `vnode` (θ_f the facet's angle there), `None` when an
-/// edge at the vertex is degenerate; and the facet's unit normal n_f.
-#[inline]
-fn weighted_facet_normal(
-    cm: &ContactModel,
-    x: &[[f64; 3]],
-    vnode: u32,
-    f: usize,
-) -> (Option<[f64; 3]>, [f64; 3]) {
+/// The edges e₁, e₂ of facet `f` from its corner at model node `vnode`, in the facet's
+/// orientation order (e₁ × e₂ is its outward area normal, twice its area long).
+#[inline(always)]
+fn edges_from(cm: &ContactModel, x: &[[f64; 3]], vnode: u32, f: usize) -> ([f64; 3], [f64; 3]) {
     let tri = cm.facet[f];
-    let n = facet_normal(cm, x, f);
     let j = tri.iter().position(|&v| v == vnode).unwrap_or(0);
     let p = x[tri[j] as usize];
-    let e1 = sub(x[tri[(j + 1) % 3] as usize], p);
-    let e2 = sub(x[tri[(j + 2) % 3] as usize], p);
-    let (l1, l2) = (norm(e1), norm(e2));
-    if l1 == 0.0 || l2 == 0.0 {
-        return (None, n);
-    }
-    let angle = (dot(e1, e2) / (l1 * l2)).clamp(-1.0, 1.0).acos();
-    (Some(scale(n, angle)), n)
+    (
+        sub(x[tri[(j + 1) % 3] as usize], p),
+        sub(x[tri[(j + 2) % 3] as usize], p),
+    )
 }
 
-/// The pseudo-normal at model node `vnode` and its smooth unit normal (`None` at a
-/// crease, see [`smooth_vertex_normal`]), each facet normal computed once.
-pub fn vertex_normals(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> VertexNormal {
+/// The smooth unit normal at model node `vnode` (Max's weights, module docs), or `None`
+/// at a crease or a degenerate facet (see [`smooth_vertex_normal`]).
+pub fn smooth_normal(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> Option<[f64; 3]> {
     let s = cm.surface_index[vnode as usize] as usize;
     let around = facets_around(cm, s);
     let mut kept = [[0.0; 3]; KEPT_NORMALS];
-    let mut pseudo = [0.0; 3];
+    let mut sum = [0.0; 3];
     for (i, &f) in around.iter().enumerate() {
-        let (weighted, n) = weighted_facet_normal(cm, x, vnode, f as usize);
-        if let Some(w) = weighted {
-            pseudo = add(pseudo, w);
+        let (e1, e2) = edges_from(cm, x, vnode, f as usize);
+        let weight = dot(e1, e1) * dot(e2, e2);
+        if weight == 0.0 {
+            return None;
         }
+        let area_normal = cross(e1, e2);
+        sum = add(sum, scale(area_normal, 1.0 / weight));
         if i < KEPT_NORMALS {
-            kept[i] = n;
+            kept[i] = area_normal;
         }
     }
-    let normal_of = |(i, &f): (usize, &u32)| {
+    let area_normal_of = |(i, &f): (usize, &u32)| {
         if i < KEPT_NORMALS {
             kept[i]
         } else {
-            facet_normal(cm, x, f as usize)
+            let (e1, e2) = edges_from(cm, x, vnode, f as usize);
+            cross(e1, e2)
         }
     };
-    VertexNormal {
-        pseudo,
-        smooth: smooth_vertex_normal(pseudo, around.iter().enumerate().map(normal_of)),
-    }
+    smooth_vertex_normal(sum, around.iter().enumerate().map(area_normal_of))
 }
 
-/// Both normals of one vertex.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct VertexNormal {
-    /// Σ θ_f n_f over the facets around the vertex (not normalised): decides inside or
-    /// outside when the closest point is the vertex.
-    pub pseudo: [f64; 3],
-    /// Unit normal of the curved patches there, `None` at a crease.
-    pub smooth: Option<[f64; 3]>,
+/// The angle-weighted pseudo-normal Σ θ_f n_f at model node `vnode` (θ_f the angle of
+/// facet f there, n_f its unit normal; not normalised). A facet with a degenerate edge at
+/// the vertex adds nothing.
+pub fn pseudo_normal_at_vertex(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> [f64; 3] {
+    let s = cm.surface_index[vnode as usize] as usize;
+    let mut pseudo = [0.0; 3];
+    for &f in facets_around(cm, s) {
+        let (e1, e2) = edges_from(cm, x, vnode, f as usize);
+        let (l1, l2) = (norm(e1), norm(e2));
+        if l1 == 0.0 || l2 == 0.0 {
+            continue;
+        }
+        let angle = (dot(e1, e2) / (l1 * l2)).clamp(-1.0, 1.0).acos();
+        pseudo = add(pseudo, scale(facet_normal(cm, x, f as usize), angle));
+    }
+    pseudo
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::parse_scene;
+    use crate::solver::build_solver;
+
+    /// A sphere mesh's surface vertices lie on the sphere, and its rings are irregular:
+    /// Max's normal is radial there to round-off, the angle-weighted one is not (which is
+    /// why the curved patches take Max's).
+    #[test]
+    fn smooth_normals_are_radial_on_a_sphere_mesh() {
+        let (radius, centre) = (1.1e-3, [2.0e-4, -1.0e-4, 3.0e-4]);
+        let text = format!(
+            "[simulation]\nduration = 1e-6\n[materials.glass]\nyoungs_modulus = 63e9\n\
+             poisson_ratio = 0.22\ndensity = 2500.0\n[contact]\nfriction = 0.3\n\
+             [[grains]]\nname = \"a\"\nmaterial = \"glass\"\n\
+             shape = {{ sphere = {{ radius = {radius:e}, seeding = 3.0e-4 }} }}\n\
+             centre = {centre:?}\n"
+        );
+        let loaded = parse_scene("test.toml", &text, &[]).expect("scene parses");
+        let s = build_solver(&loaded).expect("model builds");
+        let (cm, x) = (&s.model.contact, &s.state.x);
+        let unit = |v: [f64; 3]| scale(v, 1.0 / norm(v));
+        let (mut max_weights, mut angle_weights) = (0.0f64, 0.0f64);
+        for &v in &cm.node {
+            let radial = unit(sub(x[v as usize], centre));
+            let n = smooth_normal(cm, x, v).expect("a sphere has no crease");
+            max_weights = max_weights.max(norm(sub(n, radial)));
+            let pseudo = unit(pseudo_normal_at_vertex(cm, x, v));
+            angle_weights = angle_weights.max(norm(sub(pseudo, radial)));
+        }
+        assert!(cm.node.len() > 100, "{} surface nodes", cm.node.len());
+        assert!(
+            max_weights < 1e-12,
+            "Max's normal {max_weights:e} from radial"
+        );
+        assert!(angle_weights > 1e-4, "angle-weighted {angle_weights:e}");
+    }
 }
