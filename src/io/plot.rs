@@ -98,6 +98,8 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
                 .configure_mesh()
                 .x_desc(plot.x_label)
                 .y_desc(plot.y_label)
+                .x_label_formatter(&|v| tick_label(*v))
+                .y_label_formatter(&|v| tick_label(*v))
                 .label_style(("sans-serif", 16))
                 .axis_desc_style(("sans-serif", 20))
                 .draw()
@@ -177,6 +179,28 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(())
 }
+/// A tick value as short text that tells neighbouring ticks apart: up to four decimals
+/// between 10⁻³ and 10⁵ ("0.5", "2.25", "3000"), else a mantissa of up to three
+/// significant digits ("1.25e-5"). Plotters' own labels round a strain axis of 10⁻⁵ steps to
+/// "0.0, 0.0, 0.00001, 0.00001, …".
+pub fn tick_label(v: f64) -> String {
+    let trim = |t: String| -> String {
+        if t.contains('.') {
+            t.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            t
+        }
+    };
+    if v == 0.0 || !v.is_finite() {
+        return if v == 0.0 { "0".into() } else { format!("{v}") };
+    }
+    if (1e-3..1e5).contains(&v.abs()) {
+        return trim(format!("{v:.4}"));
+    }
+    let text = format!("{v:.2e}");
+    let (mantissa, exponent) = text.split_once('e').unwrap_or((&text, "0"));
+    format!("{}e{exponent}", trim(mantissa.to_string()))
+}
 
 /// The SI prefix that shows energies up to `largest` (J) as numbers between 1 and 1000:
 /// (unit, multiplier from joules).
@@ -233,6 +257,19 @@ mod tests {
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
         assert!(bytes.len() > 5000);
+    }
+
+    #[test]
+    fn tick_labels_tell_small_ticks_apart() {
+        let strain: Vec<String> = [0.0, 2.5e-6, 5e-6, 1e-5, 1.25e-5, 5e-5]
+            .map(tick_label)
+            .to_vec();
+        assert_eq!(strain, ["0", "2.5e-6", "5e-6", "1e-5", "1.25e-5", "5e-5"]);
+        assert_eq!(tick_label(0.5), "0.5");
+        assert_eq!(tick_label(2.25), "2.25");
+        assert_eq!(tick_label(3000.0), "3000");
+        assert_eq!(tick_label(-0.002), "-0.002");
+        assert_eq!(tick_label(2.0e5), "2e5");
     }
 
     #[test]
