@@ -16,6 +16,7 @@
 //! rings themselves to miss one link at a time).
 
 use super::narrow::{Entry, EvalContext};
+use super::vertex_normals::facets_around;
 
 /// Entries whose data is fetched together: enough misses in flight to fill the core's
 /// miss buffers, few enough that the batch's lines (≈ 100 each) stay in L2 until used.
@@ -58,11 +59,14 @@ pub fn warm_up(ctx: &EvalContext, entries: &[Entry], batch: &[u32]) {
             touch(&cm.facet[f as usize]);
         }
     }
-    for e in batch() {
-        for &f in candidates(e) {
-            for n in cm.facet[f as usize] {
-                touch(&ctx.x[n as usize]);
-            }
+    touch_corner_positions(ctx, batch().flat_map(candidates));
+}
+
+/// Prefetches the positions of the corners of `facets`.
+fn touch_corner_positions<'a>(ctx: &EvalContext, facets: impl Iterator<Item = &'a u32>) {
+    for &f in facets {
+        for n in ctx.cm.facet[f as usize] {
+            touch(&ctx.x[n as usize]);
         }
     }
 }
@@ -86,27 +90,16 @@ pub fn warm_rings(ctx: &EvalContext, nearest: &[Option<u32>]) {
         touch(&cm.vertex_facet_offsets[s]);
         touch(&cm.node_h[s]);
     }
-    let ring = |n: u32| {
-        let s = cm.surface_index[n as usize] as usize;
-        &cm.vertex_facets
-            [cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize]
-    };
+    let rings = || corners().flat_map(|n| facets_around(cm, n));
     for n in corners() {
-        if let (Some(first), Some(last)) = (ring(n).first(), ring(n).last()) {
+        let ring = facets_around(cm, n);
+        if let (Some(first), Some(last)) = (ring.first(), ring.last()) {
             touch(first);
             touch(last);
         }
     }
-    for n in corners() {
-        for &f in ring(n) {
-            touch(&cm.facet[f as usize]);
-        }
+    for &f in rings() {
+        touch(&cm.facet[f as usize]);
     }
-    for n in corners() {
-        for &f in ring(n) {
-            for m in cm.facet[f as usize] {
-                touch(&ctx.x[m as usize]);
-            }
-        }
-    }
+    touch_corner_positions(ctx, rings());
 }

@@ -46,9 +46,10 @@ pub fn facet_normal(cm: &ContactModel, x: &[[f64; 3]], f: usize) -> [f64; 3] {
     triangle_normal(a, b, c)
 }
 
-/// The facets around surface vertex `s` (flat surface index).
+/// The facets around the surface vertex at model node `vnode`.
 #[inline]
-fn facets_around(cm: &ContactModel, s: usize) -> &[u32] {
+pub(super) fn facets_around(cm: &ContactModel, vnode: u32) -> &[u32] {
+    let s = cm.surface_index[vnode as usize] as usize;
     &cm.vertex_facets[cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize]
 }
 
@@ -72,8 +73,7 @@ fn edges_from(cm: &ContactModel, x: &[[f64; 3]], vnode: u32, f: usize) -> ([f64;
 /// The smooth unit normal at model node `vnode` (Max's weights, module docs), or `None`
 /// at a crease or a degenerate facet (see [`smooth_vertex_normal`]).
 pub fn smooth_normal(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> Option<[f64; 3]> {
-    let s = cm.surface_index[vnode as usize] as usize;
-    let around = facets_around(cm, s);
+    let around = facets_around(cm, vnode);
     let mut kept = [[0.0; 3]; KEPT_NORMALS];
     let mut sum = [0.0; 3];
     for (i, &f) in around.iter().enumerate() {
@@ -103,9 +103,8 @@ pub fn smooth_normal(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> Option<[f
 /// facet f there, n_f its unit normal; not normalised). A facet with a degenerate edge at
 /// the vertex adds nothing.
 pub fn pseudo_normal_at_vertex(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> [f64; 3] {
-    let s = cm.surface_index[vnode as usize] as usize;
     let mut pseudo = [0.0; 3];
-    for &f in facets_around(cm, s) {
+    for &f in facets_around(cm, vnode) {
         let (e1, e2) = edges_from(cm, x, vnode, f as usize);
         let (l1, l2) = (norm(e1), norm(e2));
         if l1 == 0.0 || l2 == 0.0 {

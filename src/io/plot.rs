@@ -179,6 +179,7 @@ pub fn draw(path: &Path, plot: &Plot) -> Result<(), String> {
         .map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(())
 }
+
 /// A tick value as short text that tells neighbouring ticks apart: up to four decimals
 /// between 10⁻³ and 10⁵ ("0.5", "2.25", "3000"), else a mantissa of up to three
 /// significant digits ("1.25e-5"). Plotters' own labels round a strain axis of 10⁻⁵ steps to
@@ -191,8 +192,11 @@ pub fn tick_label(v: f64) -> String {
             t
         }
     };
-    if v == 0.0 || !v.is_finite() {
-        return if v == 0.0 { "0".into() } else { format!("{v}") };
+    if v == 0.0 {
+        return "0".into();
+    }
+    if !v.is_finite() {
+        return format!("{v}");
     }
     if (1e-3..1e5).contains(&v.abs()) {
         return trim(format!("{v:.4}"));
