@@ -7,10 +7,12 @@
 //! `f64` code computes for that element: the vector kernel changes the speed, never the
 //! result.
 //!
-//! The element data reach the lanes by hardware gathers ([`Lanes::gather_corners`],
-//! [`Lanes::gather_records`]: one `vgatherdpd` per quantity) rather than by eight scalar
-//! loads and inserts each, which took a third of the kernel's time and all of it on the
-//! shuffle port the arithmetic also needs (docs/BENCHMARKS.md, session 27).
+//! The element data reach the lanes ([`Lanes::gather_corners`], [`Lanes::gather_records`])
+//! not by scalar loads and inserts, which took a third of the kernel's time and all of it
+//! on the shuffle port the arithmetic also needs (docs/BENCHMARKS.md, session 27), but on
+//! eight lanes by hardware gathers (one `vgatherdpd` per quantity) and on four lanes by
+//! row loads and a 4×4 transpose: on AMD cores a four-lane gather is slower than the loads
+//! it replaces, and the transpose doubled the AVX2 kernel's rate there (session 29).
 
 use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
 
@@ -186,24 +188,58 @@ mod avx {
         }
         #[inline(always)]
         fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
-            assert!(tets.len() >= 4 && x.len() <= (i32::MAX / 3) as usize);
+            assert!(tets.len() >= 4);
             let mut corners = [[Self::splat(0.0); 3]; 4];
-            // SAFETY: see the type's documentation; every gathered offset 3·n + i is inside
-            // `x` (n < x.len(), asserted below, and 3·x.len() fits an i32)
+            // Four masked row loads and a transpose, not three `vgatherdpd`: on AMD cores
+            // a four-lane gather costs more than the loads it replaces (docs/BENCHMARKS.md,
+            // session 29); the values, and so the results, are the same.
+            // SAFETY: see the type's documentation; each row reads the three f64 of
+            // x[n] only (the mask drops the fourth), n < x.len() asserted below
             unsafe {
-                let base = x.as_ptr() as *const f64;
+                let xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
                 for (a, corner) in corners.iter_mut().enumerate() {
                     let largest = tets[..4].iter().fold(0, |m, t| m.max(t[a]));
                     assert!((largest as usize) < x.len(), "node id beyond the positions");
-                    let id = |l: usize| tets[l][a] as i32;
-                    let nodes = _mm_setr_epi32(id(0), id(1), id(2), id(3));
-                    let offsets = _mm_add_epi32(nodes, _mm_add_epi32(nodes, nodes));
-                    for (i, c) in corner.iter_mut().enumerate() {
-                        *c = Self(_mm256_i32gather_pd::<8>(base.add(i), offsets));
-                    }
+                    let row = |l: usize| {
+                        _mm256_maskload_pd(x.as_ptr().add(tets[l][a] as usize) as *const f64, xyz)
+                    };
+                    let [cx, cy, cz, _] = transpose4([row(0), row(1), row(2), row(3)]);
+                    *corner = [Self(cx), Self(cy), Self(cz)];
                 }
             }
             corners
+        }
+        #[inline(always)]
+        fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+            assert!(records.len() >= 4);
+            let mut out = [Self::splat(0.0); N];
+            // Rows of four fields and a transpose, as in `gather_corners`.
+            // SAFETY: see the type's documentation; row l of block j reads
+            // records[l][4j..min(4j + 4, N)] only (the mask drops fields ≥ N)
+            unsafe {
+                for j in 0..N.div_ceil(4) {
+                    let fields = (N - 4 * j).min(4);
+                    let mask = _mm256_setr_epi64x(
+                        -1,
+                        if fields > 1 { -1 } else { 0 },
+                        if fields > 2 { -1 } else { 0 },
+                        if fields > 3 { -1 } else { 0 },
+                    );
+                    let row = |l: usize| {
+                        let p = (records.as_ptr().add(l) as *const f64).add(4 * j);
+                        if fields == 4 {
+                            _mm256_loadu_pd(p)
+                        } else {
+                            _mm256_maskload_pd(p, mask)
+                        }
+                    };
+                    let columns = transpose4([row(0), row(1), row(2), row(3)]);
+                    for (k, c) in columns.into_iter().take(fields).enumerate() {
+                        out[4 * j + k] = Self(c);
+                    }
+                }
+            }
+            out
         }
         #[inline(always)]
         unsafe fn gather_strided(base: *const f64, stride: usize) -> Self {
@@ -213,6 +249,25 @@ mod avx {
                 _mm_setr_epi32(0, n, 2 * n, 3 * n),
             ))
         }
+    }
+
+    /// Columns of four rows of four f64: `[r0, r1, r2, r3]` → `[c0, c1, c2, c3]` with lane l
+    /// of c_k equal to lane k of r_l.
+    ///
+    /// # Safety
+    /// AVX must be present.
+    #[inline(always)]
+    unsafe fn transpose4(r: [__m256d; 4]) -> [__m256d; 4] {
+        let t0 = _mm256_unpacklo_pd(r[0], r[1]);
+        let t1 = _mm256_unpackhi_pd(r[0], r[1]);
+        let t2 = _mm256_unpacklo_pd(r[2], r[3]);
+        let t3 = _mm256_unpackhi_pd(r[2], r[3]);
+        [
+            _mm256_permute2f128_pd::<0x20>(t0, t2),
+            _mm256_permute2f128_pd::<0x20>(t1, t3),
+            _mm256_permute2f128_pd::<0x31>(t0, t2),
+            _mm256_permute2f128_pd::<0x31>(t1, t3),
+        ]
     }
 
     macro_rules! lane_wise {
@@ -413,6 +468,17 @@ mod tests {
             }
             for (k, field) in fields.iter().enumerate() {
                 assert_eq!(field.to_array()[l], records[l][k], "record field {k}");
+            }
+        }
+        // records whose length is not a multiple of four (the J2 state has seven fields):
+        // the last block of each is a partial row
+        let states: Vec<[f64; 7]> = (0..8)
+            .map(|e| build(0.0, |k| -((7 * e + k) as f64) - 0.5))
+            .collect();
+        let fields: [T; 7] = T::gather_records(&states[..T::WIDTH]);
+        for l in 0..T::WIDTH {
+            for (k, field) in fields.iter().enumerate() {
+                assert_eq!(field.to_array()[l], states[l][k], "state field {k}");
             }
         }
     }
