@@ -12,7 +12,7 @@
 //! on the shuffle port the arithmetic also needs (docs/BENCHMARKS.md, session 27), but on
 //! eight lanes by hardware gathers (one `vgatherdpd` per quantity) and on four lanes by
 //! row loads and a 4×4 transpose: on AMD cores a four-lane gather is slower than the loads
-//! it replaces, and the transpose doubled the AVX2 kernel's rate there (session 29).
+//! it replaces, and the transpose made the AVX2 kernel 1.9× faster there (session 29).
 
 use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
 
