@@ -53,26 +53,9 @@ pub trait Lanes:
         corners
     }
 
-    /// Lane `l` is `*base.add(l * stride)` (one `vgatherdpd` on the vector types).
-    ///
-    /// # Safety
-    /// `base.add(l * stride)` must be readable for every lane `l < WIDTH`, and
-    /// `WIDTH · stride` must fit an i32.
-    unsafe fn gather_strided(base: *const f64, stride: usize) -> Self;
-
     /// The first `WIDTH` records of `records`, one per lane: lane `l` of `[k]` is
     /// `records[l][k]`.
-    #[inline(always)]
-    fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
-        assert!(records.len() >= Self::WIDTH);
-        let base = records.as_ptr() as *const f64;
-        let mut out = [Self::splat(0.0); N];
-        for (k, v) in out.iter_mut().enumerate() {
-            // SAFETY: lane l reads records[l][k], l < WIDTH ≤ records.len(), k < N
-            *v = unsafe { Self::gather_strided(base.add(k), N) };
-        }
-        out
-    }
+    fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N];
 }
 
 impl Lanes for f64 {
@@ -103,8 +86,8 @@ impl Lanes for f64 {
         }
     }
     #[inline(always)]
-    unsafe fn gather_strided(base: *const f64, _stride: usize) -> Self {
-        *base
+    fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+        records[0]
     }
 }
 
@@ -241,14 +224,6 @@ mod avx {
             }
             out
         }
-        #[inline(always)]
-        unsafe fn gather_strided(base: *const f64, stride: usize) -> Self {
-            let n = stride as i32;
-            Self(_mm256_i32gather_pd::<8>(
-                base,
-                _mm_setr_epi32(0, n, 2 * n, 3 * n),
-            ))
-        }
     }
 
     /// Columns of four rows of four f64: `[r0, r1, r2, r3]` → `[c0, c1, c2, c3]` with lane l
@@ -380,10 +355,20 @@ mod avx512 {
             corners
         }
         #[inline(always)]
-        unsafe fn gather_strided(base: *const f64, stride: usize) -> Self {
-            let n = stride as i32;
-            let offsets = _mm256_setr_epi32(0, n, 2 * n, 3 * n, 4 * n, 5 * n, 6 * n, 7 * n);
-            Self(_mm512_i32gather_pd::<8>(offsets, base))
+        fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+            assert!(records.len() >= 8 && 8 * N <= i32::MAX as usize);
+            let base = records.as_ptr() as *const f64;
+            let n = N as i32;
+            let mut out = [Self::splat(0.0); N];
+            // SAFETY: see the type's documentation; lane l of field k reads records[l][k],
+            // l < 8 ≤ records.len(), k < N, and 8·N fits an i32
+            unsafe {
+                let offsets = _mm256_setr_epi32(0, n, 2 * n, 3 * n, 4 * n, 5 * n, 6 * n, 7 * n);
+                for (k, v) in out.iter_mut().enumerate() {
+                    *v = Self(_mm512_i32gather_pd::<8>(offsets, base.add(k)));
+                }
+            }
+            out
         }
     }
 
