@@ -325,51 +325,85 @@ mod avx512 {
         }
         #[inline(always)]
         fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
-            assert!(tets.len() >= 8 && x.len() <= (i32::MAX / 3) as usize);
+            assert!(tets.len() >= 8);
             let mut corners = [[Self::splat(0.0); 3]; 4];
-            // SAFETY: see the type's documentation; the two loads read the 32 node ids of
-            // tets[..8], and every gathered offset 3·n + i is inside `x` (n < x.len(),
-            // asserted below, and 3·x.len() fits an i32)
+            // Eight masked row loads and a transpose, not three `vgatherdpd`: on AMD cores
+            // an eight-lane gather costs more than the loads it replaces, as the four-lane
+            // one did (docs/BENCHMARKS.md, sessions 29 and 31); the values, and so the
+            // results, are the same.
+            // SAFETY: see the type's documentation; each row reads the three f64 of
+            // x[n] only (the mask drops the fourth), n < x.len() asserted below
             unsafe {
-                let ids = tets.as_ptr() as *const i32;
-                let first = _mm512_loadu_si512(ids as *const _);
-                let second = _mm512_loadu_si512(ids.add(16) as *const _);
-                let base = x.as_ptr() as *const f64;
-                // element l's corner a is id 4l + a of the 32 loaded (low eight lanes)
-                let element_starts =
-                    _mm512_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28, 0, 0, 0, 0, 0, 0, 0, 0);
-                let bound = _mm512_set1_epi32(x.len() as i32);
+                let xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
                 for (a, corner) in corners.iter_mut().enumerate() {
-                    let pick = _mm512_add_epi32(element_starts, _mm512_set1_epi32(a as i32));
-                    let all = _mm512_permutex2var_epi32(first, pick, second);
-                    // this corner's eight ids (the low lanes), unsigned, below x.len()
-                    let inside = _mm512_mask_cmplt_epu32_mask(0xff, all, bound);
-                    assert!(inside == 0xff, "node id beyond the positions");
-                    let nodes = _mm512_castsi512_si256(all);
-                    let offsets = _mm256_add_epi32(nodes, _mm256_add_epi32(nodes, nodes));
-                    for (i, c) in corner.iter_mut().enumerate() {
-                        *c = Self(_mm512_i32gather_pd::<8>(offsets, base.add(i)));
-                    }
+                    let largest = tets[..8].iter().fold(0, |m, t| m.max(t[a]));
+                    assert!((largest as usize) < x.len(), "node id beyond the positions");
+                    let row = |l: usize| {
+                        _mm256_maskload_pd(x.as_ptr().add(tets[l][a] as usize) as *const f64, xyz)
+                    };
+                    let [cx, cy, cz, _] = transpose8x4(row);
+                    *corner = [Self(cx), Self(cy), Self(cz)];
                 }
             }
             corners
         }
         #[inline(always)]
         fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
-            assert!(records.len() >= 8 && 8 * N <= i32::MAX as usize);
-            let base = records.as_ptr() as *const f64;
-            let n = N as i32;
+            assert!(records.len() >= 8);
             let mut out = [Self::splat(0.0); N];
-            // SAFETY: see the type's documentation; lane l of field k reads records[l][k],
-            // l < 8 ≤ records.len(), k < N, and 8·N fits an i32
+            // Rows of four fields and a transpose, as in `gather_corners`.
+            // SAFETY: see the type's documentation; row l of block j reads
+            // records[l][4j..min(4j + 4, N)] only (the mask drops fields ≥ N)
             unsafe {
-                let offsets = _mm256_setr_epi32(0, n, 2 * n, 3 * n, 4 * n, 5 * n, 6 * n, 7 * n);
-                for (k, v) in out.iter_mut().enumerate() {
-                    *v = Self(_mm512_i32gather_pd::<8>(offsets, base.add(k)));
+                for j in 0..N.div_ceil(4) {
+                    let fields = (N - 4 * j).min(4);
+                    let mask = _mm256_setr_epi64x(
+                        -1,
+                        if fields > 1 { -1 } else { 0 },
+                        if fields > 2 { -1 } else { 0 },
+                        if fields > 3 { -1 } else { 0 },
+                    );
+                    let row = |l: usize| {
+                        let p = (records.as_ptr().add(l) as *const f64).add(4 * j);
+                        if fields == 4 {
+                            _mm256_loadu_pd(p)
+                        } else {
+                            _mm256_maskload_pd(p, mask)
+                        }
+                    };
+                    let columns = transpose8x4(row);
+                    for (k, c) in columns.into_iter().take(fields).enumerate() {
+                        out[4 * j + k] = Self(c);
+                    }
                 }
             }
             out
         }
+    }
+
+    /// Columns of eight rows of four f64: `row(l)` for l in 0..8 → `[c0, c1, c2, c3]` with
+    /// lane l of c_k equal to lane k of row l. Rows l and l + 4 share a register, so one
+    /// in-lane unpack and one two-source permute per column do the transpose.
+    ///
+    /// # Safety
+    /// AVX-512F must be present.
+    #[inline(always)]
+    unsafe fn transpose8x4(row: impl Fn(usize) -> __m256d) -> [__m512d; 4] {
+        let pair = |l: usize| _mm512_insertf64x4::<1>(_mm512_castpd256_pd512(row(l)), row(l + 4));
+        let [z0, z1, z2, z3] = [pair(0), pair(1), pair(2), pair(3)];
+        // t0 = [r0[0], r1[0], r0[2], r1[2] | r4[0], r5[0], r4[2], r5[2]], and so on
+        let t0 = _mm512_unpacklo_pd(z0, z1);
+        let t1 = _mm512_unpackhi_pd(z0, z1);
+        let t2 = _mm512_unpacklo_pd(z2, z3);
+        let t3 = _mm512_unpackhi_pd(z2, z3);
+        let even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13);
+        let odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
+        [
+            _mm512_permutex2var_pd(t0, even, t2),
+            _mm512_permutex2var_pd(t1, even, t3),
+            _mm512_permutex2var_pd(t0, odd, t2),
+            _mm512_permutex2var_pd(t1, odd, t3),
+        ]
     }
 
     macro_rules! lane_wise {
