@@ -2,17 +2,19 @@
 //!
 //! The element laws are written once, generic over [`Lanes`]: with `f64` they evaluate one
 //! element, with [`F64x4`] four elements side by side in one AVX register per quantity and
-//! with [`F64x8`] eight in one AVX-512 register, each lane holding one element's value. The lane operations are plain IEEE arithmetic
-//! (no fused multiply–add, no reassociation), so every lane computes bit for bit what the
-//! `f64` code computes for that element: the vector kernel changes the speed, never the
-//! result.
+//! with [`F64x8`] eight in one AVX-512 register, each lane holding one element's value.
+//! The lane operations are plain IEEE arithmetic (no fused multiply–add, no
+//! reassociation), so every lane computes bit for bit what the `f64` code computes for
+//! that element: the vector kernel changes the speed, never the result.
 //!
 //! The element data reach the lanes ([`Lanes::gather_corners`], [`Lanes::gather_records`])
 //! not by scalar loads and inserts, which took a third of the kernel's time and all of it
-//! on the shuffle port the arithmetic also needs (docs/BENCHMARKS.md, session 27), but on
-//! eight lanes by hardware gathers (one `vgatherdpd` per quantity) and on four lanes by
-//! row loads and a 4×4 transpose: on AMD cores a four-lane gather is slower than the loads
-//! it replaces, and the transpose made the AVX2 kernel 1.9× faster there (session 29).
+//! on the shuffle port the arithmetic also needs (docs/BENCHMARKS.md, session 27), and not
+//! by hardware gathers (`vgatherdpd`), which on AMD cores cost more than the loads they
+//! stand for, but by row loads and a transpose: one row of four f64 per element and
+//! quantity block, turned into columns by unpacks and permutes (4×4 on four lanes, 8×4 on
+//! eight). This made the AVX2 kernel 1.9× faster on AMD (session 29) and the AVX-512 one
+//! 1.4–1.9× faster there (session 31).
 
 use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
 
