@@ -14,7 +14,7 @@
 //! stand for, but by row loads and a transpose: one row of four f64 per element and
 //! quantity block, turned into columns by unpacks and permutes (4×4 on four lanes, 8×4 on
 //! eight). This made the AVX2 kernel 1.9× faster on AMD (session 29) and the AVX-512 one
-//! 1.4–1.9× faster there (session 31).
+//! 1.4–2× faster there (session 31).
 
 use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
 
