@@ -120,8 +120,93 @@ pub use avx::F64x4;
 #[cfg(target_arch = "x86_64")]
 pub use avx512::F64x8;
 
+/// Element data into lanes by row loads and a transpose, for both vector widths: one
+/// masked load of four f64 per element (a node's x, y, z, or a block of four fields of a
+/// record), turned into one register per quantity by the width's transpose. Not
+/// `vgatherdpd`: on AMD cores a gather costs more than the loads it stands for, on four
+/// lanes and on eight (docs/BENCHMARKS.md, sessions 29 and 31); the values, and so the
+/// results, are the same.
+#[cfg(target_arch = "x86_64")]
+mod rows {
+    use super::Lanes;
+    use std::arch::x86_64::*;
+
+    /// A register of `ROWS` f64 lanes.
+    pub(super) trait Transpose: Copy {
+        const ROWS: usize;
+        /// `[c0, c1, c2, c3]` with lane l of c_k equal to lane k of `row(l)`, l < `ROWS`.
+        ///
+        /// # Safety
+        /// The CPU must support the register's instruction set.
+        unsafe fn columns(row: impl Fn(usize) -> __m256d) -> [Self; 4];
+    }
+
+    /// [`Lanes::gather_corners`] for lanes `L` wrapping registers `V`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX and `V`'s instruction set.
+    #[inline(always)]
+    pub(super) unsafe fn corners<V: Transpose, L: Lanes>(
+        x: &[[f64; 3]],
+        tets: &[[u32; 4]],
+        wrap: impl Fn(V) -> L,
+    ) -> [[L; 3]; 4] {
+        assert!(tets.len() >= V::ROWS);
+        let mut corners = [[L::splat(0.0); 3]; 4];
+        // each row reads the three f64 of x[n] only (the mask drops the fourth), and
+        // n < x.len() is asserted first
+        let xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
+        for (a, corner) in corners.iter_mut().enumerate() {
+            let largest = tets[..V::ROWS].iter().fold(0, |m, t| m.max(t[a]));
+            assert!((largest as usize) < x.len(), "node id beyond the positions");
+            let [cx, cy, cz, _] = V::columns(|l| {
+                _mm256_maskload_pd(x.as_ptr().add(tets[l][a] as usize) as *const f64, xyz)
+            });
+            *corner = [wrap(cx), wrap(cy), wrap(cz)];
+        }
+        corners
+    }
+
+    /// [`Lanes::gather_records`] for lanes `L` wrapping registers `V`.
+    ///
+    /// # Safety
+    /// As [`corners`].
+    #[inline(always)]
+    pub(super) unsafe fn records<V: Transpose, L: Lanes, const N: usize>(
+        records: &[[f64; N]],
+        wrap: impl Fn(V) -> L,
+    ) -> [L; N] {
+        assert!(records.len() >= V::ROWS);
+        let mut out = [L::splat(0.0); N];
+        for j in 0..N.div_ceil(4) {
+            // row l of block j reads records[l][4j..min(4j + 4, N)] only (the mask drops
+            // fields ≥ N)
+            let fields = (N - 4 * j).min(4);
+            let mask = _mm256_setr_epi64x(
+                -1,
+                if fields > 1 { -1 } else { 0 },
+                if fields > 2 { -1 } else { 0 },
+                if fields > 3 { -1 } else { 0 },
+            );
+            let columns = V::columns(|l| {
+                let p = (records.as_ptr().add(l) as *const f64).add(4 * j);
+                if fields == 4 {
+                    _mm256_loadu_pd(p)
+                } else {
+                    _mm256_maskload_pd(p, mask)
+                }
+            });
+            for (k, c) in columns.into_iter().take(fields).enumerate() {
+                out[4 * j + k] = wrap(c);
+            }
+        }
+        out
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 mod avx {
+    use super::rows::{self, Transpose};
     use super::Lanes;
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Neg, Sub};
@@ -173,58 +258,21 @@ mod avx {
         }
         #[inline(always)]
         fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
-            assert!(tets.len() >= 4);
-            let mut corners = [[Self::splat(0.0); 3]; 4];
-            // Four masked row loads and a transpose, not three `vgatherdpd`: on AMD cores
-            // a four-lane gather costs more than the loads it replaces (docs/BENCHMARKS.md,
-            // session 29); the values, and so the results, are the same.
-            // SAFETY: see the type's documentation; each row reads the three f64 of
-            // x[n] only (the mask drops the fourth), n < x.len() asserted below
-            unsafe {
-                let xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
-                for (a, corner) in corners.iter_mut().enumerate() {
-                    let largest = tets[..4].iter().fold(0, |m, t| m.max(t[a]));
-                    assert!((largest as usize) < x.len(), "node id beyond the positions");
-                    let row = |l: usize| {
-                        _mm256_maskload_pd(x.as_ptr().add(tets[l][a] as usize) as *const f64, xyz)
-                    };
-                    let [cx, cy, cz, _] = transpose4([row(0), row(1), row(2), row(3)]);
-                    *corner = [Self(cx), Self(cy), Self(cz)];
-                }
-            }
-            corners
+            // SAFETY: see the type's documentation (AVX2 is present where this runs)
+            unsafe { rows::corners::<__m256d, _>(x, tets, Self) }
         }
         #[inline(always)]
         fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
-            assert!(records.len() >= 4);
-            let mut out = [Self::splat(0.0); N];
-            // Rows of four fields and a transpose, as in `gather_corners`.
-            // SAFETY: see the type's documentation; row l of block j reads
-            // records[l][4j..min(4j + 4, N)] only (the mask drops fields ≥ N)
-            unsafe {
-                for j in 0..N.div_ceil(4) {
-                    let fields = (N - 4 * j).min(4);
-                    let mask = _mm256_setr_epi64x(
-                        -1,
-                        if fields > 1 { -1 } else { 0 },
-                        if fields > 2 { -1 } else { 0 },
-                        if fields > 3 { -1 } else { 0 },
-                    );
-                    let row = |l: usize| {
-                        let p = (records.as_ptr().add(l) as *const f64).add(4 * j);
-                        if fields == 4 {
-                            _mm256_loadu_pd(p)
-                        } else {
-                            _mm256_maskload_pd(p, mask)
-                        }
-                    };
-                    let columns = transpose4([row(0), row(1), row(2), row(3)]);
-                    for (k, c) in columns.into_iter().take(fields).enumerate() {
-                        out[4 * j + k] = Self(c);
-                    }
-                }
-            }
-            out
+            // SAFETY: as `gather_corners`
+            unsafe { rows::records::<__m256d, _, N>(records, Self) }
+        }
+    }
+
+    impl Transpose for __m256d {
+        const ROWS: usize = 4;
+        #[inline(always)]
+        unsafe fn columns(row: impl Fn(usize) -> __m256d) -> [Self; 4] {
+            transpose4([row(0), row(1), row(2), row(3)])
         }
     }
 
@@ -277,6 +325,7 @@ mod avx {
 
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
+    use super::rows::{self, Transpose};
     use super::Lanes;
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Neg, Sub};
@@ -327,59 +376,21 @@ mod avx512 {
         }
         #[inline(always)]
         fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
-            assert!(tets.len() >= 8);
-            let mut corners = [[Self::splat(0.0); 3]; 4];
-            // Eight masked row loads and a transpose, not three `vgatherdpd`: on AMD cores
-            // an eight-lane gather costs more than the loads it replaces, as the four-lane
-            // one did (docs/BENCHMARKS.md, sessions 29 and 31); the values, and so the
-            // results, are the same.
-            // SAFETY: see the type's documentation; each row reads the three f64 of
-            // x[n] only (the mask drops the fourth), n < x.len() asserted below
-            unsafe {
-                let xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
-                for (a, corner) in corners.iter_mut().enumerate() {
-                    let largest = tets[..8].iter().fold(0, |m, t| m.max(t[a]));
-                    assert!((largest as usize) < x.len(), "node id beyond the positions");
-                    let row = |l: usize| {
-                        _mm256_maskload_pd(x.as_ptr().add(tets[l][a] as usize) as *const f64, xyz)
-                    };
-                    let [cx, cy, cz, _] = transpose8x4(row);
-                    *corner = [Self(cx), Self(cy), Self(cz)];
-                }
-            }
-            corners
+            // SAFETY: see the type's documentation (AVX-512F is present where this runs)
+            unsafe { rows::corners::<__m512d, _>(x, tets, Self) }
         }
         #[inline(always)]
         fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
-            assert!(records.len() >= 8);
-            let mut out = [Self::splat(0.0); N];
-            // Rows of four fields and a transpose, as in `gather_corners`.
-            // SAFETY: see the type's documentation; row l of block j reads
-            // records[l][4j..min(4j + 4, N)] only (the mask drops fields ≥ N)
-            unsafe {
-                for j in 0..N.div_ceil(4) {
-                    let fields = (N - 4 * j).min(4);
-                    let mask = _mm256_setr_epi64x(
-                        -1,
-                        if fields > 1 { -1 } else { 0 },
-                        if fields > 2 { -1 } else { 0 },
-                        if fields > 3 { -1 } else { 0 },
-                    );
-                    let row = |l: usize| {
-                        let p = (records.as_ptr().add(l) as *const f64).add(4 * j);
-                        if fields == 4 {
-                            _mm256_loadu_pd(p)
-                        } else {
-                            _mm256_maskload_pd(p, mask)
-                        }
-                    };
-                    let columns = transpose8x4(row);
-                    for (k, c) in columns.into_iter().take(fields).enumerate() {
-                        out[4 * j + k] = Self(c);
-                    }
-                }
-            }
-            out
+            // SAFETY: as `gather_corners`
+            unsafe { rows::records::<__m512d, _, N>(records, Self) }
+        }
+    }
+
+    impl Transpose for __m512d {
+        const ROWS: usize = 8;
+        #[inline(always)]
+        unsafe fn columns(row: impl Fn(usize) -> __m256d) -> [Self; 4] {
+            transpose8x4(row)
         }
     }
 
