@@ -41,11 +41,52 @@ pub trait Lanes:
     fn sqrt(self) -> Self;
     /// Per lane: `then` where `self > 0`, else `otherwise` (NaN is not > 0).
     fn where_positive(self, then: Self, otherwise: Self) -> Self;
-
-    /// The corner positions of the first `WIDTH` tetrahedra of `tets`, one per lane:
-    /// lane `l` of `[a][i]` is `x[tets[l][a]][i]`.
+    /// Whether every lane is > 0 (NaN is not).
     #[inline(always)]
-    fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
+    fn all_positive(self) -> bool {
+        let v = self.to_array();
+        (0..Self::WIDTH).all(|l| v[l] > 0.0)
+    }
+    /// Whether every lane is finite (x − x is 0 for finite x, NaN for ±∞ and NaN).
+    #[inline(always)]
+    fn all_finite(self) -> bool {
+        let v = (self - self).to_array();
+        (0..Self::WIDTH).all(|l| v[l] == 0.0)
+    }
+
+    /// Adds lane `l`'s `nodal[a]` into `force[n]` for node n = `tets[first + l][a]`, lane
+    /// after lane and corner after corner: the order of the one-element loop, so every
+    /// node's sum is bitwise the same.
+    ///
+    /// # Safety
+    /// `force` points to at least as many entries as the positions `tets` was checked
+    /// against, and no other thread accesses the entries these elements add to.
+    #[inline(always)]
+    unsafe fn add_corner_forces(
+        nodal: &[[Self; 3]; 4],
+        tets: &TetNodes,
+        first: usize,
+        force: *mut [f64; 3],
+    ) {
+        let tets = &tets.tets[first..first + Self::WIDTH];
+        let nodal: [[Self::Array; 3]; 4] = build([Self::Array::default(); 3], |a| {
+            build(Self::Array::default(), |i| nodal[a][i].to_array())
+        });
+        for (l, t) in tets.iter().enumerate() {
+            for (a, &n) in t.iter().enumerate() {
+                let out = &mut *force.add(n as usize);
+                out[0] += nodal[a][0][l];
+                out[1] += nodal[a][1][l];
+                out[2] += nodal[a][2][l];
+            }
+        }
+    }
+
+    /// The corner positions of tetrahedra `first..first + WIDTH` of `tets`, one per
+    /// lane: lane `l` of `[a][i]` is `x[tets[first + l][a]][i]`.
+    #[inline(always)]
+    fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {
+        let (x, tets) = (tets.x, &tets.tets[first..first + Self::WIDTH]);
         let mut corners = [[Self::splat(0.0); 3]; 4];
         for (a, corner) in corners.iter_mut().enumerate() {
             for (i, c) in corner.iter_mut().enumerate() {
@@ -105,6 +146,50 @@ pub fn build<T: Copy, const N: usize>(zero: T, mut f: impl FnMut(usize) -> T) ->
     out
 }
 
+/// Node positions and tetrahedra whose node ids were all checked, once, to be below
+/// `x.len()`: the row loads of [`Lanes::gather_corners`] then need no check per load (a
+/// check per load, a compare and a conditional move for every corner, was an eighth of
+/// the eight-lane kernel's instructions and kept every node id live in a register).
+#[derive(Debug, Clone, Copy)]
+pub struct TetNodes<'a> {
+    x: &'a [[f64; 3]],
+    tets: &'a [[u32; 4]],
+}
+
+impl<'a> TetNodes<'a> {
+    /// Checks every node id of `tets` against `x.len()`.
+    pub fn new(x: &'a [[f64; 3]], tets: &'a [[u32; 4]]) -> Self {
+        // a plain max over the ids vectorises; it costs a fraction of one element
+        let largest = tets.iter().flatten().fold(0u32, |m, &n| m.max(n));
+        assert!(
+            tets.is_empty() || (largest as usize) < x.len(),
+            "node id {largest} beyond the {} positions",
+            x.len()
+        );
+        Self { x, tets }
+    }
+
+    /// The positions of the four corners of tetrahedron `k`.
+    #[inline(always)]
+    pub fn corners_of(&self, k: usize) -> [[f64; 3]; 4] {
+        let t = &self.tets[k];
+        // SAFETY: every id was checked against x.len() in `new`
+        build([0.0; 3], |a| unsafe {
+            *self.x.get_unchecked(t[a] as usize)
+        })
+    }
+
+    /// Number of tetrahedra.
+    pub fn len(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.tets.is_empty()
+    }
+}
+
 /// One value per lane from `value(lane)`: how the kernel gathers element data into lanes.
 #[inline(always)]
 pub fn gather<T: Lanes>(mut value: impl FnMut(usize) -> f64) -> T {
@@ -128,7 +213,7 @@ pub use avx512::F64x8;
 /// results, are the same.
 #[cfg(target_arch = "x86_64")]
 mod rows {
-    use super::Lanes;
+    use super::{Lanes, TetNodes};
     use std::arch::x86_64::*;
 
     /// A register of `ROWS` f64 lanes.
@@ -147,21 +232,19 @@ mod rows {
     /// The CPU must support AVX and `V`'s instruction set.
     #[inline(always)]
     pub(super) unsafe fn corners<V: Transpose, L: Lanes>(
-        x: &[[f64; 3]],
-        tets: &[[u32; 4]],
+        nodes: &TetNodes,
+        first: usize,
         wrap: impl Fn(V) -> L,
     ) -> [[L; 3]; 4] {
-        assert!(tets.len() >= V::ROWS);
+        let tets = &nodes.tets[first..first + V::ROWS];
+        let x = nodes.x.as_ptr();
         let mut corners = [[L::splat(0.0); 3]; 4];
-        // each row reads the three f64 of x[n] only (the mask drops the fourth), and
-        // n < x.len() is asserted first
+        // each row reads the three f64 of x[n] only (the mask drops the fourth), and every
+        // n < x.len() was checked by `TetNodes::new`
         let xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
         for (a, corner) in corners.iter_mut().enumerate() {
-            let largest = tets[..V::ROWS].iter().fold(0, |m, t| m.max(t[a]));
-            assert!((largest as usize) < x.len(), "node id beyond the positions");
-            let [cx, cy, cz, _] = V::columns(|l| {
-                _mm256_maskload_pd(x.as_ptr().add(tets[l][a] as usize) as *const f64, xyz)
-            });
+            let [cx, cy, cz, _] =
+                V::columns(|l| _mm256_maskload_pd(x.add(tets[l][a] as usize) as *const f64, xyz));
             *corner = [wrap(cx), wrap(cy), wrap(cz)];
         }
         corners
@@ -207,7 +290,7 @@ mod rows {
 #[cfg(target_arch = "x86_64")]
 mod avx {
     use super::rows::{self, Transpose};
-    use super::Lanes;
+    use super::{Lanes, TetNodes};
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -257,9 +340,9 @@ mod avx {
             }
         }
         #[inline(always)]
-        fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
+        fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {
             // SAFETY: see the type's documentation (AVX2 is present where this runs)
-            unsafe { rows::corners::<__m256d, _>(x, tets, Self) }
+            unsafe { rows::corners::<__m256d, _>(tets, first, Self) }
         }
         #[inline(always)]
         fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
@@ -326,14 +409,14 @@ mod avx {
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
     use super::rows::{self, Transpose};
-    use super::Lanes;
+    use super::{Lanes, TetNodes};
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Neg, Sub};
 
     /// Eight f64 lanes in one AVX-512 register.
     ///
-    /// Every operation executes an AVX-512F instruction: use this type only in code that
-    /// runs after the CPU has been found to support AVX-512F (`solver::forces::KernelPath`),
+    /// Every operation executes an AVX-512F (or, on 256-bit rows, AVX-512VL) instruction: use this type only in code that
+    /// runs after the CPU has been found to support AVX-512F and VL (`solver::forces::KernelPath`),
     /// and compiled with that feature enabled, so that the operations inline to single
     /// instructions.
     #[derive(Clone, Copy, Debug)]
@@ -375,9 +458,47 @@ mod avx512 {
             }
         }
         #[inline(always)]
-        fn gather_corners(x: &[[f64; 3]], tets: &[[u32; 4]]) -> [[Self; 3]; 4] {
+        fn all_positive(self) -> bool {
+            // SAFETY: see the type's documentation
+            unsafe { _mm512_cmp_pd_mask::<_CMP_GT_OQ>(self.0, _mm512_setzero_pd()) == 0xff }
+        }
+        #[inline(always)]
+        fn all_finite(self) -> bool {
+            // SAFETY: see the type's documentation
+            unsafe {
+                let difference = _mm512_sub_pd(self.0, self.0);
+                _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(difference, _mm512_setzero_pd()) == 0xff
+            }
+        }
+        #[inline(always)]
+        unsafe fn add_corner_forces(
+            nodal: &[[Self; 3]; 4],
+            tets: &TetNodes,
+            first: usize,
+            force: *mut [f64; 3],
+        ) {
+            let tets = &tets.tets[first..first + 8];
+            // no closure here: a closure does not inherit the caller's target features,
+            // and its intrinsics would become calls
+            let mut rows = [[_mm256_setzero_pd(); 8]; 4];
+            for (a, r) in rows.iter_mut().enumerate() {
+                *r = rows8x4([nodal[a][0].0, nodal[a][1].0, nodal[a][2].0]);
+            }
+            for (l, t) in tets.iter().enumerate() {
+                for (a, &n) in t.iter().enumerate() {
+                    let p = force.add(n as usize) as *mut f64;
+                    let row = rows[a][l];
+                    let xy = _mm_add_pd(_mm_loadu_pd(p), _mm256_castpd256_pd128(row));
+                    _mm_storeu_pd(p, xy);
+                    let z = _mm_add_sd(_mm_load_sd(p.add(2)), _mm256_extractf128_pd::<1>(row));
+                    _mm_store_sd(p.add(2), z);
+                }
+            }
+        }
+        #[inline(always)]
+        fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {
             // SAFETY: see the type's documentation (AVX-512F is present where this runs)
-            unsafe { rows::corners::<__m512d, _>(x, tets, Self) }
+            unsafe { rows::corners::<__m512d, _>(tets, first, Self) }
         }
         #[inline(always)]
         fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
@@ -416,6 +537,40 @@ mod avx512 {
             _mm512_permutex2var_pd(t1, even, t3),
             _mm512_permutex2var_pd(t0, odd, t2),
             _mm512_permutex2var_pd(t1, odd, t3),
+        ]
+    }
+
+    /// Rows of three columns of eight f64: `[cx, cy, cz]` → eight `[cx[l], cy[l], cz[l], 0]`,
+    /// the inverse of [`transpose8x4`].
+    ///
+    /// # Safety
+    /// AVX-512F must be present.
+    #[inline(always)]
+    unsafe fn rows8x4(c: [__m512d; 3]) -> [__m256d; 8] {
+        let zero = _mm512_setzero_pd();
+        // t0 = [cx[0], cy[0], cx[2], cy[2] | cx[4], cy[4], cx[6], cy[6]], and so on
+        let t0 = _mm512_unpacklo_pd(c[0], c[1]);
+        let t1 = _mm512_unpackhi_pd(c[0], c[1]);
+        let t2 = _mm512_unpacklo_pd(c[2], zero);
+        let t3 = _mm512_unpackhi_pd(c[2], zero);
+        let low = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11);
+        let high = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
+        // [row 0 | row 2], [row 1 | row 3], [row 4 | row 6], [row 5 | row 7]
+        let pairs = [
+            _mm512_permutex2var_pd(t0, low, t2),
+            _mm512_permutex2var_pd(t1, low, t3),
+            _mm512_permutex2var_pd(t0, high, t2),
+            _mm512_permutex2var_pd(t1, high, t3),
+        ];
+        [
+            _mm512_castpd512_pd256(pairs[0]),
+            _mm512_castpd512_pd256(pairs[1]),
+            _mm512_extractf64x4_pd::<1>(pairs[0]),
+            _mm512_extractf64x4_pd::<1>(pairs[1]),
+            _mm512_castpd512_pd256(pairs[2]),
+            _mm512_castpd512_pd256(pairs[3]),
+            _mm512_extractf64x4_pd::<1>(pairs[2]),
+            _mm512_extractf64x4_pd::<1>(pairs[3]),
         ]
     }
 
@@ -485,7 +640,7 @@ mod tests {
         let records: Vec<[f64; 10]> = (0..8)
             .map(|e| build(0.0, |k| (10 * e + k) as f64 + 0.25))
             .collect();
-        let corners = T::gather_corners(&x, &tets);
+        let corners = T::gather_corners(&TetNodes::new(&x, &tets), 0);
         let fields: [T; 10] = T::gather_records(&records);
         for l in 0..T::WIDTH {
             for a in 0..4 {
@@ -520,7 +675,7 @@ mod tests {
         let x = vec![[0.0; 3]; 10];
         let mut tets = vec![[0u32, 1, 2, 3]; 8];
         tets[T::WIDTH - 1][2] = 10;
-        let outcome = std::panic::catch_unwind(|| T::gather_corners(&x, &tets));
+        let outcome = std::panic::catch_unwind(|| T::gather_corners(&TetNodes::new(&x, &tets), 0));
         assert!(outcome.is_err(), "node 10 of 10 positions was gathered");
     }
 
@@ -536,8 +691,10 @@ mod tests {
 
     #[test]
     fn avx512_lanes_compute_what_scalars_compute() {
-        if !std::arch::is_x86_feature_detected!("avx512f") {
-            println!("no AVX-512F on this CPU: the eight-lane path is never taken here");
+        if !(std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl"))
+        {
+            println!("no AVX-512F and VL on this CPU: the eight-lane path is never taken here");
             return;
         }
         lanes_compute_what_scalars_compute::<F64x8>();

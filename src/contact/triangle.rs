@@ -121,8 +121,10 @@ pub fn nearest_candidate(
     let count = candidates.len();
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F (checked above)
+        if std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl")
+        {
+            // SAFETY: the CPU supports AVX-512F and VL (checked above)
             return Some(unsafe { nearest_avx512(p, count, corners) });
         }
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -148,9 +150,9 @@ fn nearest_scalar(p: [f64; 3], count: usize, corners: impl Fn(usize) -> [[f64; 3
 }
 
 /// # Safety
-/// The CPU must support AVX-512F.
+/// The CPU must support AVX-512F and VL.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f")]
+#[target_feature(enable = "avx2,avx512f,avx512vl")]
 unsafe fn nearest_avx512(
     p: [f64; 3],
     count: usize,
@@ -477,16 +479,18 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx512_lanes_give_the_scalar_distance() {
-        if !std::arch::is_x86_feature_detected!("avx512f") {
-            println!("no AVX-512F on this CPU: the eight-lane path is never taken here");
+        if !(std::arch::is_x86_feature_detected!("avx512f")
+            && std::arch::is_x86_feature_detected!("avx512vl"))
+        {
+            println!("no AVX-512F and VL on this CPU: the eight-lane path is never taken here");
             return;
         }
-        #[target_feature(enable = "avx2,avx512f")]
+        #[target_feature(enable = "avx2,avx512f,avx512vl")]
         unsafe fn run() {
             lanes_give_the_scalar_distance::<crate::lanes::F64x8>();
             lanes_pick_the_scalar_candidate::<crate::lanes::F64x8>();
         }
-        // SAFETY: AVX-512F is present (checked above)
+        // SAFETY: AVX-512F and VL are present (checked above)
         unsafe { run() }
     }
 }

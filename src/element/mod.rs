@@ -6,7 +6,7 @@
 //! that could drift. Dm⁻¹ and the reference volume are the only per-element data the force
 //! kernel needs (80 bytes), plus the plastic state of elements of plastic materials.
 
-use crate::lanes::{build, Lanes};
+use crate::lanes::{build, Lanes, TetNodes};
 use crate::material::elastic::{
     biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym,
 };
@@ -164,17 +164,17 @@ pub struct ElementLanes<T> {
     pub jacobian: T,
 }
 
-/// [`tet_forces_elastic`] of `T::WIDTH` elements, one per lane of `T` and bitwise equal to
-/// it in each: `tets` (node ids into the positions `x`) and `references` hold (at least)
-/// one entry per lane.
+/// [`tet_forces_elastic`] of elements `first..first + T::WIDTH` of `tets`, one per lane of
+/// `T` and bitwise equal to it in each; `references` are the same elements' (from
+/// `first`).
 #[inline(always)]
 pub fn tet_forces_elastic_lanes<L: HyperelasticLaw, T: Lanes>(
-    x: &[[f64; 3]],
-    tets: &[[u32; 4]],
+    tets: &TetNodes,
+    first: usize,
     references: &[TetReference],
     law: &L,
 ) -> ElementLanes<T> {
-    let (f, d, v) = deformation_lanes::<T>(x, tets, references);
+    let (f, d, v) = deformation_lanes::<T>(tets, first, references);
     let (p, w) = law.first_piola_and_energy_lanes(&f);
     ElementLanes {
         nodal: nodal_forces(&p, &d, v),
@@ -184,18 +184,19 @@ pub fn tet_forces_elastic_lanes<L: HyperelasticLaw, T: Lanes>(
     }
 }
 
-/// [`tet_forces`] of `T::WIDTH` elements of a J2 material, one per lane of `T` (bitwise
-/// equal to [`tet_forces`] in each), from their committed plastic states `old` (one per
-/// lane). Returns the forces and energies and the states after the step.
+/// [`tet_forces`] of elements `first..first + T::WIDTH` of `tets`, of a J2 material, one
+/// per lane of `T` (bitwise equal to [`tet_forces`] in each), from their committed plastic
+/// states `old` (one per lane; `references` and `old` from `first`). Returns the forces and
+/// energies and the states after the step.
 #[inline(always)]
 pub fn tet_forces_plastic_lanes<T: Lanes>(
-    x: &[[f64; 3]],
-    tets: &[[u32; 4]],
+    tets: &TetNodes,
+    first: usize,
     references: &[TetReference],
     j2: &J2,
     old: &[PlasticPoint],
 ) -> (ElementLanes<T>, PlasticLanes<T>) {
-    let (f, d, v) = deformation_lanes::<T>(x, tets, references);
+    let (f, d, v) = deformation_lanes::<T>(tets, first, references);
     let e = green_lagrange_sym(&f);
     let eps = biot_strain_from_green(&e);
     let old_record: [T; 7] = T::gather_records(PlasticPoint::as_records(&old[..T::WIDTH]));
@@ -247,16 +248,16 @@ impl<T: Lanes> PlasticLanes<T> {
 }
 
 /// F = Ds·Dm⁻¹, Dm⁻¹ and V0 of `T::WIDTH` elements, one per lane, gathered straight from
-/// `x` and `references` ([`Lanes::gather_corners`], [`Lanes::gather_records`]): no
+/// the positions and `references` ([`Lanes::gather_corners`], [`Lanes::gather_records`]): no
 /// per-element copy in between, which the vector loads would stall on.
 #[inline(always)]
 fn deformation_lanes<T: Lanes>(
-    x: &[[f64; 3]],
-    tets: &[[u32; 4]],
+    tets: &TetNodes,
+    first: usize,
     references: &[TetReference],
 ) -> ([T; 9], [T; 9], T) {
-    let (tets, references) = (&tets[..T::WIDTH], &references[..T::WIDTH]);
-    let xl = T::gather_corners(x, tets);
+    let references = &references[..T::WIDTH];
+    let xl = T::gather_corners(tets, first);
     let record: [T; 10] = T::gather_records(TetReference::as_records(references));
     let mut d = [T::splat(0.0); 9];
     d.copy_from_slice(&record[..9]);

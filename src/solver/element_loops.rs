@@ -15,7 +15,7 @@ use crate::element::{
     ElementForces, ElementLanes, PlasticLanes,
 };
 use crate::error::InputError;
-use crate::lanes::{build, Lanes};
+use crate::lanes::{build, Lanes, TetNodes};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::{F64x4, F64x8};
 use crate::material::{
@@ -97,6 +97,7 @@ impl KernelPath {
             #[cfg(target_arch = "x86_64")]
             Self::Avx512 => {
                 std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx2")
             }
             #[cfg(not(target_arch = "x86_64"))]
@@ -185,6 +186,17 @@ impl<T> Disjoint<T> {
     pub(super) unsafe fn slice_mut(&self, first: usize, len: usize) -> &mut [T] {
         debug_assert!(first + len <= self.len);
         std::slice::from_raw_parts_mut(self.ptr.add(first), len)
+    }
+
+    /// The first entry, for writes at indices below `len` that no other task accesses.
+    #[inline(always)]
+    pub(super) fn as_mut_ptr(&self) -> *mut T {
+        self.ptr
+    }
+
+    /// Number of entries.
+    pub(super) fn len(&self) -> usize {
+        self.len
     }
 
     /// # Safety
@@ -281,16 +293,6 @@ pub(super) unsafe fn evaluate_chunk(
     }
 }
 
-#[inline(always)]
-fn element_positions(x: &[[f64; 3]], t: &[u32; 4]) -> [[f64; 3]; 4] {
-    [
-        x[t[0] as usize],
-        x[t[1] as usize],
-        x[t[2] as usize],
-        x[t[3] as usize],
-    ]
-}
-
 /// The forces of lane `l` of an evaluation over lanes, given its nodal forces as arrays.
 #[inline(always)]
 fn nodal_of_lane<T: Lanes>(nodal: &[[T::Array; 3]; 4], l: usize) -> [[f64; 3]; 4] {
@@ -333,12 +335,10 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
 ) -> ChunkResult {
     let range = chunk.elements.clone();
     let tets = &pass.model.tets[range.clone()];
+    let nodes = TetNodes::new(pass.x, tets);
+    assert!(pass.x.len() <= pass.force.len());
     let references = &pass.model.tet_reference[range.clone()];
     let mut tally = Tally::new(range.start);
-    let mut record = |k: usize, nodal: &[[f64; 3]; 4], strain_energy: f64, jacobian: f64| {
-        add_nodal_forces(&pass.force, &tets[k], nodal);
-        tally.record(k, strain_energy, 0.0, jacobian, 0.0);
-    };
     let width = T::WIDTH;
     let groups = if L::VECTORISES && width > 1 {
         tets.len() / width
@@ -347,23 +347,28 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     };
     for g in 0..groups {
         let first = g * width;
-        let out =
-            tet_forces_elastic_lanes::<L, T>(pass.x, &tets[first..], &references[first..], law);
-        let nodal = nodal_arrays(&out);
-        let (energy, jacobian) = (out.strain_energy.to_array(), out.jacobian.to_array());
-        for l in 0..width {
-            record(
-                first + l,
-                &nodal_of_lane::<T>(&nodal, l),
-                energy[l],
-                jacobian[l],
-            );
+        let out = tet_forces_elastic_lanes::<L, T>(&nodes, first, &references[first..], law);
+        // SAFETY: the nodes were checked against x, no longer than the forces; this
+        // chunk's nodes are its task's alone (`Pass`)
+        T::add_corner_forces(&out.nodal, &nodes, first, pass.force.as_mut_ptr());
+        let energy = out.strain_energy.to_array();
+        if out.jacobian.all_positive() && out.strain_energy.all_finite() {
+            // the common case: no element to report, only the energy to sum in order
+            for l in 0..width {
+                tally.result.strain_energy += energy[l];
+            }
+        } else {
+            let jacobian = out.jacobian.to_array();
+            for l in 0..width {
+                tally.record(first + l, energy[l], 0.0, jacobian[l], 0.0);
+            }
         }
     }
     for k in groups * width..tets.len() {
         let (nodal, energy, jacobian) =
-            tet_forces_elastic(&element_positions(pass.x, &tets[k]), &references[k], law);
-        record(k, &nodal, energy, jacobian);
+            tet_forces_elastic(&nodes.corners_of(k), &references[k], law);
+        add_nodal_forces(&pass.force, &tets[k], &nodal);
+        tally.record(k, energy, 0.0, jacobian, 0.0);
     }
     tally.result
 }
@@ -384,6 +389,7 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
 ) -> ChunkResult {
     let range = chunk.elements.clone();
     let tets = &pass.model.tets[range.clone()];
+    let nodes = TetNodes::new(pass.x, tets);
     let references = &pass.model.tet_reference[range.clone()];
     let mut tally = Tally::new(range.start);
     let mut record = |k: usize, forces: ElementForces| {
@@ -407,7 +413,7 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
         let first = g * width;
         let old = pass.plastic.slice(first_slot + first, width);
         let (out, state) =
-            tet_forces_plastic_lanes::<T>(pass.x, &tets[first..], &references[first..], j2, old);
+            tet_forces_plastic_lanes::<T>(&nodes, first, &references[first..], j2, old);
         let nodal = nodal_arrays(&out);
         let states = state.to_arrays();
         let strain_energy = out.strain_energy.to_array();
@@ -426,8 +432,10 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     }
     for k in groups * width..tets.len() {
         let point = *pass.plastic.get(first_slot + k);
-        let xe = element_positions(pass.x, &tets[k]);
-        record(k, tet_forces(&xe, &references[k], law, Some(&point)));
+        record(
+            k,
+            tet_forces(&nodes.corners_of(k), &references[k], law, Some(&point)),
+        );
     }
     tally.result
 }
@@ -465,9 +473,9 @@ unsafe fn evaluate_plastic_chunk_avx2(
 /// [`evaluate_elastic_chunk`] compiled for AVX-512, eight elements per instruction.
 ///
 /// # Safety
-/// As [`evaluate_chunk`], and the CPU must support AVX-512F ([`KernelPath::detect`]).
+/// As [`evaluate_chunk`], and the CPU must support AVX-512F and VL ([`KernelPath::detect`]).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f")]
+#[target_feature(enable = "avx2,avx512f,avx512vl")]
 unsafe fn evaluate_elastic_chunk_avx512<L: HyperelasticLaw>(
     pass: &Pass,
     chunk: &ElementChunk,
@@ -479,9 +487,9 @@ unsafe fn evaluate_elastic_chunk_avx512<L: HyperelasticLaw>(
 /// [`evaluate_plastic_chunk`] compiled for AVX-512, eight elements per instruction.
 ///
 /// # Safety
-/// As [`evaluate_chunk`], and the CPU must support AVX-512F ([`KernelPath::detect`]).
+/// As [`evaluate_chunk`], and the CPU must support AVX-512F and VL ([`KernelPath::detect`]).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f")]
+#[target_feature(enable = "avx2,avx512f,avx512vl")]
 unsafe fn evaluate_plastic_chunk_avx512(
     pass: &Pass,
     chunk: &ElementChunk,
