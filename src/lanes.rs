@@ -3,8 +3,9 @@
 //! The element laws are written once, generic over [`Lanes`]: with `f64` they evaluate one
 //! element, with [`F64x4`] four elements side by side in one AVX register per quantity and
 //! with [`F64x8`] eight in one AVX-512 register, each lane holding one element's value.
-//! The lane operations are plain IEEE arithmetic (no fused multiply–add, no
-//! reassociation), so every lane computes bit for bit what the `f64` code computes for
+//! The lane operations are plain IEEE arithmetic, with fused multiply–adds only where the
+//! code asks for one ([`Lanes::mul_add`], correctly rounded on every path) and no
+//! reassociation, so every lane computes bit for bit what the `f64` code computes for
 //! that element: the vector kernel changes the speed, never the result.
 //!
 //! The element data reach the lanes ([`Lanes::gather_corners`], [`Lanes::gather_records`])
@@ -39,6 +40,9 @@ pub trait Lanes:
     fn to_array(self) -> Self::Array;
     /// Correctly rounded square root, per lane.
     fn sqrt(self) -> Self;
+    /// `self · a + b` rounded once (fused multiply–add), per lane: the same bits on every
+    /// path (`f64::mul_add` is the correctly rounded FMA too).
+    fn mul_add(self, a: Self, b: Self) -> Self;
     /// Per lane: `then` where `self > 0`, else `otherwise` (NaN is not > 0).
     fn where_positive(self, then: Self, otherwise: Self) -> Self;
     /// Whether every lane is > 0 (NaN is not).
@@ -121,6 +125,10 @@ impl Lanes for f64 {
         f64::sqrt(self)
     }
     #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        f64::mul_add(self, a, b)
+    }
+    #[inline(always)]
     fn where_positive(self, then: Self, otherwise: Self) -> Self {
         if self > 0.0 {
             then
@@ -144,6 +152,13 @@ pub fn build<T: Copy, const N: usize>(zero: T, mut f: impl FnMut(usize) -> T) ->
         *v = f(k);
     }
     out
+}
+
+/// a₀b₀ + a₁b₁ + a₂b₂ by two fused multiply–adds: fewer instructions and roundings than
+/// three products and two sums, and the same bits on every path.
+#[inline(always)]
+pub fn dot3<T: Lanes>(a0: T, b0: T, a1: T, b1: T, a2: T, b2: T) -> T {
+    a2.mul_add(b2, a1.mul_add(b1, a0 * b0))
 }
 
 /// Node positions and tetrahedra whose node ids were all checked, once, to be below
@@ -332,6 +347,11 @@ mod avx {
             Self(unsafe { _mm256_sqrt_pd(self.0) })
         }
         #[inline(always)]
+        fn mul_add(self, a: Self, b: Self) -> Self {
+            // SAFETY: see the type's documentation (FMA comes with AVX2 where this runs)
+            Self(unsafe { _mm256_fmadd_pd(self.0, a.0, b.0) })
+        }
+        #[inline(always)]
         fn where_positive(self, then: Self, otherwise: Self) -> Self {
             // SAFETY: see the type's documentation
             unsafe {
@@ -450,6 +470,11 @@ mod avx512 {
             Self(unsafe { _mm512_sqrt_pd(self.0) })
         }
         #[inline(always)]
+        fn mul_add(self, a: Self, b: Self) -> Self {
+            // SAFETY: see the type's documentation
+            Self(unsafe { _mm512_fmadd_pd(self.0, a.0, b.0) })
+        }
+        #[inline(always)]
         fn where_positive(self, then: Self, otherwise: Self) -> Self {
             // SAFETY: see the type's documentation
             unsafe {
@@ -478,22 +503,48 @@ mod avx512 {
             force: *mut [f64; 3],
         ) {
             let tets = &tets.tets[first..first + 8];
-            // no closure here: a closure does not inherit the caller's target features,
-            // and its intrinsics would become calls
-            let mut rows = [[_mm256_setzero_pd(); 8]; 4];
-            for (a, r) in rows.iter_mut().enumerate() {
-                *r = rows8x4([nodal[a][0].0, nodal[a][1].0, nodal[a][2].0]);
+            // Node a's (x, y) of elements 0, 2, 4, 6 in `even[a]` and of 1, 3, 5, 7 in
+            // `odd[a]`, a 128-bit pair each; z stays in its column. Every element and
+            // corner is written out (no loop, no array indexed by a variable), so that
+            // nothing goes through the stack: a row stored as 256 bits and read back as a
+            // scalar stalled store forwarding.
+            let mut even = [_mm512_setzero_pd(); 4];
+            let mut odd = [_mm512_setzero_pd(); 4];
+            let mut z = [_mm512_setzero_pd(); 4];
+            for a in 0..4 {
+                even[a] = _mm512_unpacklo_pd(nodal[a][0].0, nodal[a][1].0);
+                odd[a] = _mm512_unpackhi_pd(nodal[a][0].0, nodal[a][1].0);
+                z[a] = nodal[a][2].0;
             }
-            for (l, t) in tets.iter().enumerate() {
-                for (a, &n) in t.iter().enumerate() {
-                    let p = force.add(n as usize) as *mut f64;
-                    let row = rows[a][l];
-                    let xy = _mm_add_pd(_mm_loadu_pd(p), _mm256_castpd256_pd128(row));
-                    _mm_storeu_pd(p, xy);
-                    let z = _mm_add_sd(_mm_load_sd(p.add(2)), _mm256_extractf128_pd::<1>(row));
-                    _mm_store_sd(p.add(2), z);
-                }
+            macro_rules! corner {
+                ($l:literal, $pairs:ident, $q:literal, $a:literal) => {
+                    let p = force.add(tets[$l][$a] as usize) as *mut f64;
+                    let xy = _mm512_extractf32x4_ps::<$q>(_mm512_castpd_ps($pairs[$a]));
+                    let sum = _mm_add_pd(_mm_loadu_pd(p), _mm_castps_pd(xy));
+                    _mm_storeu_pd(p, sum);
+                    let lane = _mm512_castpd_si512(z[$a]);
+                    let zl = _mm512_castpd512_pd128(_mm512_castsi512_pd(
+                        _mm512_alignr_epi64::<$l>(lane, lane),
+                    ));
+                    _mm_store_sd(p.add(2), _mm_add_sd(_mm_load_sd(p.add(2)), zl));
+                };
             }
+            macro_rules! element {
+                ($l:literal, $pairs:ident, $q:literal) => {
+                    corner!($l, $pairs, $q, 0);
+                    corner!($l, $pairs, $q, 1);
+                    corner!($l, $pairs, $q, 2);
+                    corner!($l, $pairs, $q, 3);
+                };
+            }
+            element!(0, even, 0);
+            element!(1, odd, 0);
+            element!(2, even, 1);
+            element!(3, odd, 1);
+            element!(4, even, 2);
+            element!(5, odd, 2);
+            element!(6, even, 3);
+            element!(7, odd, 3);
         }
         #[inline(always)]
         fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {
@@ -537,40 +588,6 @@ mod avx512 {
             _mm512_permutex2var_pd(t1, even, t3),
             _mm512_permutex2var_pd(t0, odd, t2),
             _mm512_permutex2var_pd(t1, odd, t3),
-        ]
-    }
-
-    /// Rows of three columns of eight f64: `[cx, cy, cz]` → eight `[cx[l], cy[l], cz[l], 0]`,
-    /// the inverse of [`transpose8x4`].
-    ///
-    /// # Safety
-    /// AVX-512F must be present.
-    #[inline(always)]
-    unsafe fn rows8x4(c: [__m512d; 3]) -> [__m256d; 8] {
-        let zero = _mm512_setzero_pd();
-        // t0 = [cx[0], cy[0], cx[2], cy[2] | cx[4], cy[4], cx[6], cy[6]], and so on
-        let t0 = _mm512_unpacklo_pd(c[0], c[1]);
-        let t1 = _mm512_unpackhi_pd(c[0], c[1]);
-        let t2 = _mm512_unpacklo_pd(c[2], zero);
-        let t3 = _mm512_unpackhi_pd(c[2], zero);
-        let low = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11);
-        let high = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
-        // [row 0 | row 2], [row 1 | row 3], [row 4 | row 6], [row 5 | row 7]
-        let pairs = [
-            _mm512_permutex2var_pd(t0, low, t2),
-            _mm512_permutex2var_pd(t1, low, t3),
-            _mm512_permutex2var_pd(t0, high, t2),
-            _mm512_permutex2var_pd(t1, high, t3),
-        ];
-        [
-            _mm512_castpd512_pd256(pairs[0]),
-            _mm512_castpd512_pd256(pairs[1]),
-            _mm512_extractf64x4_pd::<1>(pairs[0]),
-            _mm512_extractf64x4_pd::<1>(pairs[1]),
-            _mm512_castpd512_pd256(pairs[2]),
-            _mm512_castpd512_pd256(pairs[3]),
-            _mm512_extractf64x4_pd::<1>(pairs[2]),
-            _mm512_extractf64x4_pd::<1>(pairs[3]),
         ]
     }
 
@@ -655,6 +672,34 @@ mod tests {
             }
             for (k, field) in fields.iter().enumerate() {
                 assert_eq!(field.to_array()[l], records[l][k], "record field {k}");
+            }
+        }
+        // forces added into the nodes in the order of the one-element loop: lane after
+        // lane, corner after corner (nodes shared between lanes, and node 7 twice in lane 1)
+        let nodal: [[T; 3]; 4] = build([T::splat(0.0); 3], |a| {
+            build(T::splat(0.0), |i| {
+                gather(|l| ((a * 3 + i) as f64 + 0.1) / (l as f64 + 3.0))
+            })
+        });
+        let mut added = vec![[1.0 / 3.0; 3]; x.len()];
+        let mut expected = added.clone();
+        let nodes = TetNodes::new(&x, &tets);
+        // SAFETY: `added` has one entry per position; nothing else touches it
+        unsafe { T::add_corner_forces(&nodal, &nodes, 0, added.as_mut_ptr()) };
+        for (l, t) in tets.iter().take(T::WIDTH).enumerate() {
+            for (a, &n) in t.iter().enumerate() {
+                for i in 0..3 {
+                    expected[n as usize][i] += nodal[a][i].to_array()[l];
+                }
+            }
+        }
+        for (n, (got, want)) in added.iter().zip(&expected).enumerate() {
+            for i in 0..3 {
+                assert_eq!(
+                    got[i].to_bits(),
+                    want[i].to_bits(),
+                    "node {n}, component {i}"
+                );
             }
         }
         // records whose length is not a multiple of four (the J2 state has seven fields):

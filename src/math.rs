@@ -2,7 +2,7 @@
 //! elements, contact, prescribed motions). Vectors are `[f64; 3]`; 3×3 matrices are
 //! `[f64; 9]` in row-major order, so `m[3 * i + j]` is row i, column j.
 
-use crate::lanes::Lanes;
+use crate::lanes::{dot3, Lanes};
 
 #[inline]
 pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -45,6 +45,20 @@ pub fn mat_mul<T: Lanes>(a: &[T; 9], b: &[T; 9]) -> [T; 9] {
     for i in 0..3 {
         for j in 0..3 {
             c[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
+        }
+    }
+    c
+}
+
+/// Row-major 3×3 product a·b, each entry by two fused multiply–adds ([`dot3`]): the
+/// element kernel's form.
+#[inline(always)]
+pub fn mat_mul_fused<T: Lanes>(a: &[T; 9], b: &[T; 9]) -> [T; 9] {
+    let mut c = [T::splat(0.0); 9];
+    for i in 0..3 {
+        for j in 0..3 {
+            let (r, k) = (3 * i, j);
+            c[3 * i + j] = dot3(a[r], b[k], a[r + 1], b[3 + k], a[r + 2], b[6 + k]);
         }
     }
     c

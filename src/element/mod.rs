@@ -6,7 +6,7 @@
 //! that could drift. Dm⁻¹ and the reference volume are the only per-element data the force
 //! kernel needs (80 bytes), plus the plastic state of elements of plastic materials.
 
-use crate::lanes::{build, Lanes, TetNodes};
+use crate::lanes::{build, dot3, Lanes, TetNodes};
 use crate::material::elastic::{
     biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym,
 };
@@ -95,7 +95,7 @@ pub fn inverse3(m: &[f64; 9], det: f64) -> [f64; 9] {
 #[inline(always)]
 pub fn deformation_gradient(x: &[[f64; 3]; 4], dm_inv: &[f64; 9]) -> [f64; 9] {
     let ds = edge_matrix(x);
-    crate::math::mat_mul(&ds, dm_inv)
+    crate::math::mat_mul_fused(&ds, dm_inv)
 }
 
 /// Outcome of one element force evaluation.
@@ -262,7 +262,7 @@ fn deformation_lanes<T: Lanes>(
     let mut d = [T::splat(0.0); 9];
     d.copy_from_slice(&record[..9]);
     let v = record[9];
-    (crate::math::mat_mul(&edge_matrix(&xl), &d), d, v)
+    (crate::math::mat_mul_fused(&edge_matrix(&xl), &d), d, v)
 }
 
 /// f_{1,2,3} = columns of H = −V0 P Dm⁻ᵀ, f_0 = −(f_1 + f_2 + f_3) (N).
@@ -272,8 +272,8 @@ fn nodal_forces<T: Lanes>(p: &[T; 9], d: &[T; 9], v: T) -> [[T; 3]; 4] {
     let mut nodal = [[T::splat(0.0); 3]; 4];
     for j in 0..3 {
         for i in 0..3 {
-            nodal[j + 1][i] = -v
-                * (p[3 * i] * d[3 * j] + p[3 * i + 1] * d[3 * j + 1] + p[3 * i + 2] * d[3 * j + 2]);
+            let (r, c) = (3 * i, 3 * j);
+            nodal[j + 1][i] = -v * dot3(p[r], d[c], p[r + 1], d[c + 1], p[r + 2], d[c + 2]);
         }
     }
     for i in 0..3 {

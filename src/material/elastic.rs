@@ -2,8 +2,8 @@
 //! hyperelastic (P = ∂W/∂F) and objective for rotations of any size.
 
 use super::ElasticParameters;
-use crate::lanes::{build, Lanes};
-use crate::math::{det3, mat_mul};
+use crate::lanes::{build, dot3, Lanes};
+use crate::math::{det3, mat_mul, mat_mul_fused};
 
 /// An elastic law without state, P = ∂W/∂F: what the force kernel is compiled for once per
 /// law (no per-element dispatch).
@@ -100,10 +100,10 @@ impl StVenantKirchhoff {
         let tr = e[0] + e[4] + e[8];
         let mut ee = e[0] * e[0];
         for v in &e[1..] {
-            ee = ee + *v * *v;
+            ee = v.mul_add(*v, ee);
         }
-        let w = T::splat(0.5 * self.lambda) * tr * tr + T::splat(self.mu) * ee;
-        (mat_mul(f, &s), w)
+        let w = T::splat(self.mu).mul_add(ee, T::splat(0.5 * self.lambda) * tr * tr);
+        (mat_mul_fused(f, &s), w)
     }
 
     /// S = λ tr(E) I + 2μ E (Pa).
@@ -113,9 +113,9 @@ impl StVenantKirchhoff {
         let two_mu = T::splat(2.0 * self.mu);
         let lambda_tr = T::splat(self.lambda) * tr;
         let mut s = build(T::splat(0.0), |k| two_mu * e[k]);
-        s[0] = s[0] + lambda_tr;
-        s[4] = s[4] + lambda_tr;
-        s[8] = s[8] + lambda_tr;
+        s[0] = two_mu.mul_add(e[0], lambda_tr);
+        s[4] = two_mu.mul_add(e[4], lambda_tr);
+        s[8] = two_mu.mul_add(e[8], lambda_tr);
         s
     }
 }
@@ -170,7 +170,7 @@ impl SecondOrderBiot {
 /// Green–Lagrange strain E = ½(FᵀF − I) of a row-major F, as [`Sym`].
 #[inline(always)]
 pub fn green_lagrange_sym<T: Lanes>(f: &[T; 9]) -> Sym<T> {
-    let c = |i: usize, j: usize| f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j];
+    let c = |i: usize, j: usize| dot3(f[i], f[j], f[3 + i], f[3 + j], f[6 + i], f[6 + j]);
     let (half, one) = (T::splat(0.5), T::splat(1.0));
     [
         half * (c(0, 0) - one),
@@ -186,7 +186,7 @@ pub fn green_lagrange_sym<T: Lanes>(f: &[T; 9]) -> Sym<T> {
 #[inline(always)]
 pub fn biot_strain_from_green<T: Lanes>(e: &Sym<T>) -> Sym<T> {
     let e2 = sym_square(e);
-    build(T::splat(0.0), |k| e[k] - T::splat(0.5) * e2[k])
+    build(T::splat(0.0), |k| e2[k].mul_add(T::splat(-0.5), e[k]))
 }
 
 /// A² of a symmetric tensor: 30 operations where `sym_product_sum(a, a)` = 2A² takes 51
@@ -195,12 +195,12 @@ pub fn biot_strain_from_green<T: Lanes>(e: &Sym<T>) -> Sym<T> {
 pub fn sym_square<T: Lanes>(a: &Sym<T>) -> Sym<T> {
     let [a00, a11, a22, a12, a02, a01] = *a;
     [
-        a00 * a00 + a01 * a01 + a02 * a02,
-        a01 * a01 + a11 * a11 + a12 * a12,
-        a02 * a02 + a12 * a12 + a22 * a22,
-        a01 * a02 + a11 * a12 + a12 * a22,
-        a00 * a02 + a01 * a12 + a02 * a22,
-        a00 * a01 + a01 * a11 + a02 * a12,
+        dot3(a00, a00, a01, a01, a02, a02),
+        dot3(a01, a01, a11, a11, a12, a12),
+        dot3(a02, a02, a12, a12, a22, a22),
+        dot3(a01, a02, a11, a12, a12, a22),
+        dot3(a00, a02, a01, a12, a02, a22),
+        dot3(a00, a01, a01, a11, a02, a12),
     ]
 }
 
@@ -211,10 +211,10 @@ pub fn hooke<T: Lanes>(lambda: f64, mu: f64, eps: &Sym<T>) -> (Sym<T>, T) {
     let two_mu = T::splat(2.0 * mu);
     let lambda_tr = T::splat(lambda) * tr;
     let mut t = build(T::splat(0.0), |k| two_mu * eps[k]);
-    for v in t.iter_mut().take(3) {
-        *v = *v + lambda_tr;
+    for (v, e) in t.iter_mut().zip(eps).take(3) {
+        *v = two_mu.mul_add(*e, lambda_tr);
     }
-    let w = T::splat(0.5 * lambda) * tr * tr + T::splat(mu) * sym_contract(eps, eps);
+    let w = T::splat(mu).mul_add(sym_contract(eps, eps), T::splat(0.5 * lambda) * tr * tr);
     (t, w)
 }
 
@@ -223,13 +223,13 @@ pub fn hooke<T: Lanes>(lambda: f64, mu: f64, eps: &Sym<T>) -> (Sym<T>, T) {
 #[inline(always)]
 pub fn first_piola_from_biot_stress<T: Lanes>(f: &[T; 9], e: &Sym<T>, t: &Sym<T>) -> [T; 9] {
     let et = sym_product_sum(e, t);
-    let s: Sym<T> = build(T::splat(0.0), |k| t[k] - T::splat(0.5) * et[k]);
+    let s: Sym<T> = build(T::splat(0.0), |k| et[k].mul_add(T::splat(-0.5), t[k]));
     let mut p = [T::splat(0.0); 9];
     for i in 0..3 {
         let (a, b, c) = (f[3 * i], f[3 * i + 1], f[3 * i + 2]);
-        p[3 * i] = a * s[0] + b * s[5] + c * s[4];
-        p[3 * i + 1] = a * s[5] + b * s[1] + c * s[3];
-        p[3 * i + 2] = a * s[4] + b * s[3] + c * s[2];
+        p[3 * i] = dot3(a, s[0], b, s[5], c, s[4]);
+        p[3 * i + 1] = dot3(a, s[5], b, s[1], c, s[3]);
+        p[3 * i + 2] = dot3(a, s[4], b, s[3], c, s[2]);
     }
     p
 }
@@ -240,23 +240,25 @@ pub fn sym_product_sum<T: Lanes>(a: &Sym<T>, b: &Sym<T>) -> Sym<T> {
     let [a00, a11, a22, a12, a02, a01] = *a;
     let [b00, b11, b22, b12, b02, b01] = *b;
     let two = T::splat(2.0);
+    // six-term sums as two fused three-term sums
+    let dot6 = |x: T, y: T, z: T, u: T, v: T, w: T, p: T, q: T, r: T, s: T, t: T, o: T| {
+        dot3(x, y, z, u, v, w) + dot3(p, q, r, s, t, o)
+    };
     [
-        two * (a00 * b00 + a01 * b01 + a02 * b02),
-        two * (a01 * b01 + a11 * b11 + a12 * b12),
-        two * (a02 * b02 + a12 * b12 + a22 * b22),
-        a01 * b02 + a11 * b12 + a12 * b22 + b01 * a02 + b11 * a12 + b12 * a22,
-        a00 * b02 + a01 * b12 + a02 * b22 + b00 * a02 + b01 * a12 + b02 * a22,
-        a00 * b01 + a01 * b11 + a02 * b12 + b00 * a01 + b01 * a11 + b02 * a12,
+        two * dot3(a00, b00, a01, b01, a02, b02),
+        two * dot3(a01, b01, a11, b11, a12, b12),
+        two * dot3(a02, b02, a12, b12, a22, b22),
+        dot6(a01, b02, a11, b12, a12, b22, b01, a02, b11, a12, b12, a22),
+        dot6(a00, b02, a01, b12, a02, b22, b00, a02, b01, a12, b02, a22),
+        dot6(a00, b01, a01, b11, a02, b12, b00, a01, b01, a11, b02, a12),
     ]
 }
 
 /// A:B of two symmetric tensors.
 #[inline(always)]
 pub fn sym_contract<T: Lanes>(a: &Sym<T>, b: &Sym<T>) -> T {
-    a[0] * b[0]
-        + a[1] * b[1]
-        + a[2] * b[2]
-        + T::splat(2.0) * (a[3] * b[3] + a[4] * b[4] + a[5] * b[5])
+    let shear = dot3(a[3], b[3], a[4], b[4], a[5], b[5]);
+    T::splat(2.0).mul_add(shear, dot3(a[0], b[0], a[1], b[1], a[2], b[2]))
 }
 
 /// Corotational linear elasticity in Biot form: F = R·U (polar decomposition),
@@ -363,7 +365,7 @@ pub fn green_lagrange_strain<T: Lanes>(f: &[T; 9]) -> [T; 9] {
     let mut e = [T::splat(0.0); 9];
     for i in 0..3 {
         for j in i..3 {
-            let c = f[i] * f[j] + f[3 + i] * f[3 + j] + f[6 + i] * f[6 + j];
+            let c = dot3(f[i], f[j], f[3 + i], f[3 + j], f[6 + i], f[6 + j]);
             let v = T::splat(0.5) * (c - T::splat(if i == j { 1.0 } else { 0.0 }));
             e[3 * i + j] = v;
             e[3 * j + i] = v;

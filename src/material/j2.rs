@@ -19,7 +19,7 @@
 //! (as in the reference solver it includes the part locked in by hardening).
 
 use super::elastic::{hooke, Sym};
-use crate::lanes::{build, Lanes};
+use crate::lanes::{build, dot3, Lanes};
 use serde::{Deserialize, Serialize};
 
 /// Plastic state of one element (the only per-element material state in mufe).
@@ -113,24 +113,22 @@ impl J2 {
             trial[4],
             trial[5],
         ];
-        let ss = dev[0] * dev[0]
-            + dev[1] * dev[1]
-            + dev[2] * dev[2]
-            + T::splat(2.0) * (dev[3] * dev[3] + dev[4] * dev[4] + dev[5] * dev[5]);
+        let shear = dot3(dev[3], dev[3], dev[4], dev[4], dev[5], dev[5]);
+        let ss = T::splat(2.0).mul_add(shear, dot3(dev[0], dev[0], dev[1], dev[1], dev[2], dev[2]));
         let q = (T::splat(1.5) * ss).sqrt();
         let flow_stress =
-            |alpha: T| T::splat(self.yield_stress) + T::splat(self.hardening_modulus) * alpha;
+            |alpha: T| T::splat(self.hardening_modulus).mul_add(alpha, T::splat(self.yield_stress));
         let excess = q - flow_stress(old_equivalent);
         // the plastic branch (its values are discarded where `excess` ≤ 0)
         let d_alpha = excess / T::splat(3.0 * self.mu + self.hardening_modulus);
         let flow = T::splat(1.5) * d_alpha / q;
-        let shrink = T::splat(1.0) - T::splat(3.0 * self.mu) * d_alpha / q;
+        let shrink = T::splat(-3.0 * self.mu).mul_add(d_alpha / q, T::splat(1.0));
         let mut strain = *old_strain;
         let mut returned_elastic = elastic;
         let mut stress: Sym<T> = [T::splat(0.0); 6];
         for k in 0..6 {
-            strain[k] = strain[k] + flow * dev[k];
-            returned_elastic[k] = returned_elastic[k] - flow * dev[k];
+            strain[k] = flow.mul_add(dev[k], strain[k]);
+            returned_elastic[k] = (-flow).mul_add(dev[k], returned_elastic[k]);
             stress[k] = shrink * dev[k];
         }
         for v in stress.iter_mut().take(3) {

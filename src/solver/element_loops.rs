@@ -93,12 +93,16 @@ impl KernelPath {
         match self {
             Self::Portable => true,
             #[cfg(target_arch = "x86_64")]
-            Self::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            Self::Avx2 => {
+                std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+            }
             #[cfg(target_arch = "x86_64")]
             Self::Avx512 => {
                 std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
             }
             #[cfg(not(target_arch = "x86_64"))]
             _ => false,
@@ -443,9 +447,9 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
 /// [`evaluate_elastic_chunk`] compiled for AVX2, four elements per instruction.
 ///
 /// # Safety
-/// As [`evaluate_chunk`], and the CPU must support AVX2 ([`KernelPath::detect`]).
+/// As [`evaluate_chunk`], and the CPU must support AVX2 and FMA ([`KernelPath::detect`]).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn evaluate_elastic_chunk_avx2<L: HyperelasticLaw>(
     pass: &Pass,
     chunk: &ElementChunk,
@@ -457,9 +461,9 @@ unsafe fn evaluate_elastic_chunk_avx2<L: HyperelasticLaw>(
 /// [`evaluate_plastic_chunk`] compiled for AVX2, four elements per instruction.
 ///
 /// # Safety
-/// As [`evaluate_chunk`], and the CPU must support AVX2 ([`KernelPath::detect`]).
+/// As [`evaluate_chunk`], and the CPU must support AVX2 and FMA ([`KernelPath::detect`]).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 unsafe fn evaluate_plastic_chunk_avx2(
     pass: &Pass,
     chunk: &ElementChunk,
@@ -475,7 +479,7 @@ unsafe fn evaluate_plastic_chunk_avx2(
 /// # Safety
 /// As [`evaluate_chunk`], and the CPU must support AVX-512F and VL ([`KernelPath::detect`]).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f,avx512vl")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 unsafe fn evaluate_elastic_chunk_avx512<L: HyperelasticLaw>(
     pass: &Pass,
     chunk: &ElementChunk,
@@ -489,7 +493,7 @@ unsafe fn evaluate_elastic_chunk_avx512<L: HyperelasticLaw>(
 /// # Safety
 /// As [`evaluate_chunk`], and the CPU must support AVX-512F and VL ([`KernelPath::detect`]).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f,avx512vl")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 unsafe fn evaluate_plastic_chunk_avx512(
     pass: &Pass,
     chunk: &ElementChunk,
