@@ -214,6 +214,7 @@ pub fn tet_forces_plastic_lanes<T: Lanes>(
     let state = PlasticLanes {
         strain: r.strain,
         equivalent: r.equivalent,
+        yielding: r.excess,
     };
     (forces, state)
 }
@@ -225,6 +226,8 @@ pub struct PlasticLanes<T> {
     pub strain: [T; 6],
     /// Equivalent plastic strain (–).
     pub equivalent: T,
+    /// > 0 where the lane yielded; the other lanes' states are their old ones, bit for bit.
+    pub yielding: T,
 }
 
 impl<T: Lanes> PlasticLanes<T> {

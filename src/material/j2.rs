@@ -104,7 +104,9 @@ impl J2 {
     ) -> ReturnLanes<T> {
         let elastic: Sym<T> = build(T::splat(0.0), |k| eps[k] - old_strain[k]);
         let (trial, trial_energy) = hooke(self.lambda, self.mu, &elastic);
-        let mean = (trial[0] + trial[1] + trial[2]) / T::splat(3.0);
+        // products by constants, not divisions: a division costs the eight-lane kernel
+        // several multiplies' worth of time
+        let mean = (trial[0] + trial[1] + trial[2]) * T::splat(1.0 / 3.0);
         let dev = [
             trial[0] - mean,
             trial[1] - mean,
@@ -120,9 +122,10 @@ impl J2 {
             |alpha: T| T::splat(self.hardening_modulus).mul_add(alpha, T::splat(self.yield_stress));
         let excess = q - flow_stress(old_equivalent);
         // the plastic branch (its values are discarded where `excess` ≤ 0)
-        let d_alpha = excess / T::splat(3.0 * self.mu + self.hardening_modulus);
-        let flow = T::splat(1.5) * d_alpha / q;
-        let shrink = T::splat(-3.0 * self.mu).mul_add(d_alpha / q, T::splat(1.0));
+        let d_alpha = excess * T::splat(1.0 / (3.0 * self.mu + self.hardening_modulus));
+        let per_q = d_alpha / q;
+        let flow = T::splat(1.5) * per_q;
+        let shrink = T::splat(-3.0 * self.mu).mul_add(per_q, T::splat(1.0));
         let mut strain = *old_strain;
         let mut returned_elastic = elastic;
         let mut stress: Sym<T> = [T::splat(0.0); 6];
@@ -145,6 +148,7 @@ impl J2 {
             dissipation: pick(dissipation, T::splat(0.0)),
             strain: build(T::splat(0.0), |k| pick(strain[k], old_strain[k])),
             equivalent: pick(equivalent, old_equivalent),
+            excess,
         }
     }
 }
@@ -157,6 +161,9 @@ pub struct ReturnLanes<T> {
     pub dissipation: T,
     pub strain: Sym<T>,
     pub equivalent: T,
+    /// q − (σy + Hα) of the trial stress: > 0 where the lane took the plastic branch; the
+    /// other lanes returned their old state exactly.
+    pub excess: T,
 }
 
 #[cfg(test)]

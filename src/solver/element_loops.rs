@@ -12,12 +12,12 @@
 use super::element_schedule::ElementChunk;
 use crate::element::{
     tet_forces, tet_forces_elastic, tet_forces_elastic_lanes, tet_forces_plastic_lanes,
-    ElementForces, ElementLanes, PlasticLanes,
+    PlasticLanes,
 };
 use crate::error::InputError;
-use crate::lanes::{build, Lanes, TetNodes};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::{F64x4, F64x8};
+use crate::lanes::{Lanes, TetNodes};
 use crate::material::{
     CorotationalLinear, ElasticLawKind, HyperelasticLaw, MaterialLaw, PlasticPoint,
     SecondOrderBiot, StVenantKirchhoff, J2,
@@ -297,22 +297,6 @@ pub(super) unsafe fn evaluate_chunk(
     }
 }
 
-/// The forces of lane `l` of an evaluation over lanes, given its nodal forces as arrays.
-#[inline(always)]
-fn nodal_of_lane<T: Lanes>(nodal: &[[T::Array; 3]; 4], l: usize) -> [[f64; 3]; 4] {
-    build([0.0; 3], |a| {
-        [nodal[a][0][l], nodal[a][1][l], nodal[a][2][l]]
-    })
-}
-
-/// The nodal forces of an evaluation over lanes as one array per component.
-#[inline(always)]
-fn nodal_arrays<T: Lanes>(forces: &ElementLanes<T>) -> [[T::Array; 3]; 4] {
-    build([T::Array::default(); 3], |a| {
-        build(T::Array::default(), |i| forces.nodal[a][i].to_array())
-    })
-}
-
 /// # Safety
 /// As [`evaluate_chunk`].
 #[inline(always)]
@@ -394,22 +378,19 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     let range = chunk.elements.clone();
     let tets = &pass.model.tets[range.clone()];
     let nodes = TetNodes::new(pass.x, tets);
+    assert!(pass.x.len() <= pass.force.len());
     let references = &pass.model.tet_reference[range.clone()];
     let mut tally = Tally::new(range.start);
-    let mut record = |k: usize, forces: ElementForces| {
-        add_nodal_forces(&pass.force, &tets[k], &forces.nodal);
+    // the state after the step into slot `k`, and the equivalent plastic strain it gained
+    let commit = |k: usize, p: PlasticPoint| {
         let point = pass.plastic.get(first_slot + k);
-        let mut plastic_increment = 0.0;
-        if let Some(p) = forces.point {
-            plastic_increment = p.equivalent - point.equivalent;
-            // an elastic step returns the state unchanged: not writing it back saves the
-            // memory traffic of a dirty cache line
-            if p != *point {
-                *point = p;
-            }
+        let plastic_increment = p.equivalent - point.equivalent;
+        // an elastic step returns the state unchanged: not writing it back saves the
+        // memory traffic of a dirty cache line
+        if p != *point {
+            *point = p;
         }
-        let (energy, work, jacobian) = (forces.strain_energy, forces.plastic_work, forces.jacobian);
-        tally.record(k, energy, work, jacobian, plastic_increment);
+        plastic_increment
     };
     let width = T::WIDTH;
     let groups = if width > 1 { tets.len() / width } else { 0 };
@@ -418,28 +399,36 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
         let old = pass.plastic.slice(first_slot + first, width);
         let (out, state) =
             tet_forces_plastic_lanes::<T>(&nodes, first, &references[first..], j2, old);
-        let nodal = nodal_arrays(&out);
-        let states = state.to_arrays();
+        // SAFETY: as in `evaluate_elastic_chunk`
+        T::add_corner_forces(&out.nodal, &nodes, first, pass.force.as_mut_ptr());
         let strain_energy = out.strain_energy.to_array();
-        let plastic_work = out.plastic_work.to_array();
-        let jacobian = out.jacobian.to_array();
-        for l in 0..width {
-            let forces = ElementForces {
-                nodal: nodal_of_lane::<T>(&nodal, l),
-                strain_energy: strain_energy[l],
-                plastic_work: plastic_work[l],
-                jacobian: jacobian[l],
-                point: Some(PlasticLanes::<T>::point(&states, l)),
-            };
-            record(first + l, forces);
+        if (-state.yielding).all_positive()
+            && out.jacobian.all_positive()
+            && out.strain_energy.all_finite()
+        {
+            // the common case: no lane yielded (each state is its old one, bit for bit,
+            // its plastic work and increment zero) and none failed: only the energy to sum
+            for l in 0..width {
+                tally.result.strain_energy += strain_energy[l];
+            }
+        } else {
+            let states = state.to_arrays();
+            let plastic_work = out.plastic_work.to_array();
+            let jacobian = out.jacobian.to_array();
+            for l in 0..width {
+                let increment = commit(first + l, PlasticLanes::<T>::point(&states, l));
+                let energy = strain_energy[l];
+                tally.record(first + l, energy, plastic_work[l], jacobian[l], increment);
+            }
         }
     }
     for k in groups * width..tets.len() {
         let point = *pass.plastic.get(first_slot + k);
-        record(
-            k,
-            tet_forces(&nodes.corners_of(k), &references[k], law, Some(&point)),
-        );
+        let forces = tet_forces(&nodes.corners_of(k), &references[k], law, Some(&point));
+        add_nodal_forces(&pass.force, &tets[k], &forces.nodal);
+        let increment = forces.point.map_or(0.0, |p| commit(k, p));
+        let (energy, work, jacobian) = (forces.strain_energy, forces.plastic_work, forces.jacobian);
+        tally.record(k, energy, work, jacobian, increment);
     }
     tally.result
 }
