@@ -872,7 +872,11 @@ velocity = {{ times = [0.0], values = [[0.0, 0.0, {vw}]] }}
                 w.displacement
             );
             impulse += w.force[2] * dt;
-            worst_balance = worst_balance.max(s.state.energy.relative_balance_error());
+            // before the wall first does work every energy is round-off (≈ 10⁻³² J, the
+            // stress of F = I to the last bit), and a ratio of round-offs means nothing
+            if s.state.energy.external_work() > 0.0 {
+                worst_balance = worst_balance.max(s.state.energy.relative_balance_error());
+            }
             let wall_z = -1.0e-6 + vw * s.state.time;
             let lowest = s.state.x.iter().map(|x| x[2]).fold(f64::INFINITY, f64::min);
             assert!(lowest >= wall_z - 1e-15, "node behind the moving wall");
