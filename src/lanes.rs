@@ -360,6 +360,26 @@ mod avx {
             }
         }
         #[inline(always)]
+        fn all_positive(self) -> bool {
+            // SAFETY: see the type's documentation
+            unsafe {
+                let positive = _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, _mm256_setzero_pd());
+                _mm256_movemask_pd(positive) == 0b1111
+            }
+        }
+        #[inline(always)]
+        fn all_finite(self) -> bool {
+            // SAFETY: see the type's documentation
+            unsafe {
+                let difference = _mm256_sub_pd(self.0, self.0);
+                let zero = _mm256_cmp_pd::<_CMP_EQ_OQ>(difference, _mm256_setzero_pd());
+                _mm256_movemask_pd(zero) == 0b1111
+            }
+        }
+        // `add_corner_forces`: the trait's, through the stack. Keeping the rows in
+        // registers, as eight lanes do, needs more than AVX2's sixteen; the spills made
+        // the kernel 0.77× as fast (docs/BENCHMARKS.md, session 32).
+        #[inline(always)]
         fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {
             // SAFETY: see the type's documentation (AVX2 is present where this runs)
             unsafe { rows::corners::<__m256d, _>(tets, first, Self) }
