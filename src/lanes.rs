@@ -161,6 +161,26 @@ pub fn dot3<T: Lanes>(a0: T, b0: T, a1: T, b1: T, a2: T, b2: T) -> T {
     a2.mul_add(b2, a1.mul_add(b1, a0 * b0))
 }
 
+/// Hints the cache lines holding `count` values from `start` into L1: a prefetch, so
+/// nothing is read, nothing can fault (`start` need not even be valid) and results cannot
+/// change.
+#[inline(always)]
+pub fn prefetch<T>(start: *const T, count: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let start = start.cast::<i8>();
+        for offset in (0..count * std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch never faults; the address is only computed (wrapping)
+            unsafe {
+                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+                _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset));
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (start, count);
+}
+
 /// Node positions and tetrahedra whose node ids were all checked, once, to be below
 /// `x.len()`: the row loads of [`Lanes::gather_corners`] then need no check per load (a
 /// check per load, a compare and a conditional move for every corner, was an eighth of
