@@ -51,11 +51,11 @@ pub trait Lanes:
         let v = self.to_array();
         (0..Self::WIDTH).all(|l| v[l] > 0.0)
     }
-    /// Whether every lane is finite (x − x is 0 for finite x, NaN for ±∞ and NaN).
+    /// Whether every lane is finite.
     #[inline(always)]
     fn all_finite(self) -> bool {
-        let v = (self - self).to_array();
-        (0..Self::WIDTH).all(|l| v[l] == 0.0)
+        let v = self.to_array();
+        (0..Self::WIDTH).all(|l| v[l].is_finite())
     }
 
     /// Adds lane `l`'s `nodal[a]` into `force[n]` for node n = `tets[first + l][a]`, lane
@@ -390,6 +390,7 @@ mod avx {
         #[inline(always)]
         fn all_finite(self) -> bool {
             // SAFETY: see the type's documentation
+            // x − x is 0 for finite x, NaN for ±∞ and NaN
             unsafe {
                 let difference = _mm256_sub_pd(self.0, self.0);
                 let zero = _mm256_cmp_pd::<_CMP_EQ_OQ>(difference, _mm256_setzero_pd());
@@ -530,6 +531,7 @@ mod avx512 {
         #[inline(always)]
         fn all_finite(self) -> bool {
             // SAFETY: see the type's documentation
+            // x − x is 0 for finite x, NaN for ±∞ and NaN
             unsafe {
                 let difference = _mm512_sub_pd(self.0, self.0);
                 _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(difference, _mm512_setzero_pd()) == 0xff

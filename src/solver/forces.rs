@@ -92,6 +92,8 @@ pub fn compute_internal_forces_into(
         .for_each(|(g, nodes)| {
             // SAFETY: a grain's nodes are its task's alone
             unsafe { pass.force.slice_mut(nodes.start, nodes.len()) }.fill([0.0; 3]);
+            // the elements read these positions in no order a hardware prefetcher follows
+            crate::lanes::prefetch(x[nodes.clone()].as_ptr(), nodes.len());
             tasks.whole_chunks[g.clone()].iter().for_each(|&k| run(k));
         });
     for colour in &tasks.large_colours {
