@@ -6,7 +6,10 @@
 //! The lane operations are plain IEEE arithmetic, with fused multiply–adds only where the
 //! code asks for one ([`Lanes::mul_add`], correctly rounded on every path) and no
 //! reassociation, so every lane computes bit for bit what the `f64` code computes for
-//! that element: the vector kernel changes the speed, never the result.
+//! that element: the vector kernel changes the speed, never the result. (On x86-64 the
+//! one-lane build assumes no FMA instruction, so there `f64::mul_add` calls the C
+//! library's `fma`: exact but slower. That build is the fallback for CPUs without AVX2
+//! and FMA; the vector builds' scalar tails are compiled with FMA.)
 //!
 //! The element data reach the lanes ([`Lanes::gather_corners`], [`Lanes::gather_records`])
 //! not by scalar loads and inserts, which took a third of the kernel's time and all of it
