@@ -1,0 +1,199 @@
+//! Eight f64 lanes in one AVX-512 register ([`F64x8`]).
+
+use super::rows::{self, Transpose};
+use super::{Lanes, TetNodes};
+use std::arch::x86_64::*;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// Eight f64 lanes in one AVX-512 register.
+///
+/// Every operation executes an AVX-512F (or, on 256-bit rows, AVX-512VL) instruction: use this type only in code that
+/// runs after the CPU has been found to support AVX-512F and VL (`solver::forces::KernelPath`),
+/// and compiled with that feature enabled, so that the operations inline to single
+/// instructions.
+#[derive(Clone, Copy, Debug)]
+#[repr(transparent)]
+pub struct F64x8(__m512d);
+
+impl Lanes for F64x8 {
+    const WIDTH: usize = 8;
+    type Array = [f64; 8];
+    #[inline(always)]
+    fn splat(v: f64) -> Self {
+        // SAFETY: see the type's documentation (AVX-512F is present where this runs)
+        Self(unsafe { _mm512_set1_pd(v) })
+    }
+    #[inline(always)]
+    fn from_array(v: [f64; 8]) -> Self {
+        // from registers, not through memory (store forwarding, as for F64x4)
+        // SAFETY: as `splat`
+        Self(unsafe { _mm512_set_pd(v[7], v[6], v[5], v[4], v[3], v[2], v[1], v[0]) })
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f64; 8] {
+        let mut v = [0.0; 8];
+        // SAFETY: as `splat`; the store writes exactly the eight values of `v`
+        unsafe { _mm512_storeu_pd(v.as_mut_ptr(), self.0) };
+        v
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        // SAFETY: see the type's documentation
+        Self(unsafe { _mm512_sqrt_pd(self.0) })
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        // SAFETY: see the type's documentation
+        Self(unsafe { _mm512_fmadd_pd(self.0, a.0, b.0) })
+    }
+    #[inline(always)]
+    fn where_positive(self, then: Self, otherwise: Self) -> Self {
+        // SAFETY: see the type's documentation
+        unsafe {
+            let positive = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(self.0, _mm512_setzero_pd());
+            Self(_mm512_mask_blend_pd(positive, otherwise.0, then.0))
+        }
+    }
+    #[inline(always)]
+    fn all_positive(self) -> bool {
+        // SAFETY: see the type's documentation
+        unsafe { _mm512_cmp_pd_mask::<_CMP_GT_OQ>(self.0, _mm512_setzero_pd()) == 0xff }
+    }
+    #[inline(always)]
+    fn all_finite(self) -> bool {
+        // SAFETY: see the type's documentation
+        // x − x is 0 for finite x, NaN for ±∞ and NaN
+        unsafe {
+            let difference = _mm512_sub_pd(self.0, self.0);
+            _mm512_cmp_pd_mask::<_CMP_EQ_OQ>(difference, _mm512_setzero_pd()) == 0xff
+        }
+    }
+    #[inline(always)]
+    unsafe fn add_corner_forces(
+        nodal: &[[Self; 3]; 4],
+        tets: &TetNodes,
+        first: usize,
+        force: *mut [f64; 3],
+    ) {
+        let tets = &tets.tets[first..first + 8];
+        // Node a's (x, y) of elements 0, 2, 4, 6 in `even[a]` and of 1, 3, 5, 7 in
+        // `odd[a]`, a 128-bit pair each; z stays in its column. Every element and
+        // corner is written out (no loop, no array indexed by a variable), so that
+        // nothing goes through the stack: a row stored as 256 bits and read back as a
+        // scalar stalled store forwarding.
+        let mut even = [_mm512_setzero_pd(); 4];
+        let mut odd = [_mm512_setzero_pd(); 4];
+        let mut z = [_mm512_setzero_pd(); 4];
+        for a in 0..4 {
+            even[a] = _mm512_unpacklo_pd(nodal[a][0].0, nodal[a][1].0);
+            odd[a] = _mm512_unpackhi_pd(nodal[a][0].0, nodal[a][1].0);
+            z[a] = nodal[a][2].0;
+        }
+        macro_rules! corner {
+            ($l:literal, $pairs:ident, $q:literal, $a:literal) => {
+                let p = force.add(tets[$l][$a] as usize) as *mut f64;
+                let xy = _mm512_extractf32x4_ps::<$q>(_mm512_castpd_ps($pairs[$a]));
+                let sum = _mm_add_pd(_mm_loadu_pd(p), _mm_castps_pd(xy));
+                _mm_storeu_pd(p, sum);
+                let lane = _mm512_castpd_si512(z[$a]);
+                let zl = _mm512_castpd512_pd128(_mm512_castsi512_pd(
+                    _mm512_alignr_epi64::<$l>(lane, lane),
+                ));
+                _mm_store_sd(p.add(2), _mm_add_sd(_mm_load_sd(p.add(2)), zl));
+            };
+        }
+        macro_rules! element {
+            ($l:literal, $pairs:ident, $q:literal) => {
+                corner!($l, $pairs, $q, 0);
+                corner!($l, $pairs, $q, 1);
+                corner!($l, $pairs, $q, 2);
+                corner!($l, $pairs, $q, 3);
+            };
+        }
+        element!(0, even, 0);
+        element!(1, odd, 0);
+        element!(2, even, 1);
+        element!(3, odd, 1);
+        element!(4, even, 2);
+        element!(5, odd, 2);
+        element!(6, even, 3);
+        element!(7, odd, 3);
+    }
+    #[inline(always)]
+    fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {
+        // SAFETY: see the type's documentation (AVX-512F is present where this runs)
+        unsafe { rows::corners::<__m512d, _>(tets, first, Self) }
+    }
+    #[inline(always)]
+    fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+        // SAFETY: as `gather_corners`
+        unsafe { rows::records::<__m512d, _, N>(records, Self) }
+    }
+}
+
+impl Transpose for __m512d {
+    const ROWS: usize = 8;
+    #[inline(always)]
+    unsafe fn columns(row: impl Fn(usize) -> __m256d) -> [Self; 4] {
+        transpose8x4(row)
+    }
+}
+
+/// Columns of eight rows of four f64: `row(l)` for l in 0..8 → `[c0, c1, c2, c3]` with
+/// lane l of c_k equal to lane k of row l. Rows l and l + 4 share a register, so one
+/// in-lane unpack and one two-source permute per column do the transpose.
+///
+/// # Safety
+/// AVX-512F must be present.
+#[inline(always)]
+unsafe fn transpose8x4(row: impl Fn(usize) -> __m256d) -> [__m512d; 4] {
+    let pair = |l: usize| _mm512_insertf64x4::<1>(_mm512_castpd256_pd512(row(l)), row(l + 4));
+    let [z0, z1, z2, z3] = [pair(0), pair(1), pair(2), pair(3)];
+    // t0 = [r0[0], r1[0], r0[2], r1[2] | r4[0], r5[0], r4[2], r5[2]], and so on
+    let t0 = _mm512_unpacklo_pd(z0, z1);
+    let t1 = _mm512_unpackhi_pd(z0, z1);
+    let t2 = _mm512_unpacklo_pd(z2, z3);
+    let t3 = _mm512_unpackhi_pd(z2, z3);
+    let even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13);
+    let odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
+    [
+        _mm512_permutex2var_pd(t0, even, t2),
+        _mm512_permutex2var_pd(t1, even, t3),
+        _mm512_permutex2var_pd(t0, odd, t2),
+        _mm512_permutex2var_pd(t1, odd, t3),
+    ]
+}
+
+macro_rules! lane_wise {
+    ($trait:ident, $method:ident, $intrinsic:ident) => {
+        impl $trait for F64x8 {
+            type Output = Self;
+            #[inline(always)]
+            fn $method(self, o: Self) -> Self {
+                // SAFETY: see the type's documentation
+                Self(unsafe { $intrinsic(self.0, o.0) })
+            }
+        }
+    };
+}
+lane_wise!(Add, add, _mm512_add_pd);
+lane_wise!(Sub, sub, _mm512_sub_pd);
+lane_wise!(Mul, mul, _mm512_mul_pd);
+lane_wise!(Div, div, _mm512_div_pd);
+
+impl Neg for F64x8 {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        // flipping the sign bit is exactly IEEE negation, as for f64 (an integer xor:
+        // the f64 xor of AVX-512 needs the DQ extension)
+        // SAFETY: see the type's documentation
+        unsafe {
+            let sign = _mm512_set1_epi64(i64::MIN);
+            Self(_mm512_castsi512_pd(_mm512_xor_si512(
+                _mm512_castpd_si512(self.0),
+                sign,
+            )))
+        }
+    }
+}

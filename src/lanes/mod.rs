@@ -1,0 +1,256 @@
+//! f64 arithmetic on one element or on four or eight elements at once.
+//!
+//! The element laws are written once, generic over [`Lanes`]: with `f64` they evaluate one
+//! element, with [`F64x4`] four elements side by side in one AVX register per quantity and
+//! with [`F64x8`] eight in one AVX-512 register, each lane holding one element's value.
+//! The lane operations are plain IEEE arithmetic, with fused multiply–adds only where the
+//! code asks for one ([`Lanes::mul_add`], correctly rounded on every path) and no
+//! reassociation, so every lane computes bit for bit what the `f64` code computes for
+//! that element: the vector kernel changes the speed, never the result. (On x86-64 the
+//! one-lane build assumes no FMA instruction, so there `f64::mul_add` calls the C
+//! library's `fma`: exact but slower. That build is the fallback for CPUs without AVX2
+//! and FMA; the vector builds' scalar tails are compiled with FMA.)
+//!
+//! The element data reach the lanes ([`Lanes::gather_corners`], [`Lanes::gather_records`])
+//! not by scalar loads and inserts, which took a third of the kernel's time and all of it
+//! on the shuffle port the arithmetic also needs (docs/BENCHMARKS.md, session 27), and not
+//! by hardware gathers (`vgatherdpd`), which on AMD cores cost more than the loads they
+//! stand for, but by row loads and a transpose: one row of four f64 per element and
+//! quantity block, turned into columns by unpacks and permutes (4×4 on four lanes, 8×4 on
+//! eight). This made the AVX2 kernel 1.9× faster on AMD (session 29) and the AVX-512 one
+//! 1.4–2× faster there (session 31).
+
+use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
+
+/// A value per lane: `f64` (one lane), [`F64x4`] (four) or [`F64x8`] (eight).
+pub trait Lanes:
+    Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    /// Number of lanes (1, 4 or 8).
+    const WIDTH: usize;
+    /// One value per lane, `[f64; WIDTH]`.
+    type Array: Copy + Default + IndexMut<usize, Output = f64>;
+    /// The same constant in every lane.
+    fn splat(v: f64) -> Self;
+    /// Lanes from one value per lane.
+    fn from_array(v: Self::Array) -> Self;
+    /// The lanes as one value per lane.
+    fn to_array(self) -> Self::Array;
+    /// Correctly rounded square root, per lane.
+    fn sqrt(self) -> Self;
+    /// `self · a + b` rounded once (fused multiply–add), per lane: the same bits on every
+    /// path (`f64::mul_add` is the correctly rounded FMA too).
+    fn mul_add(self, a: Self, b: Self) -> Self;
+    /// Per lane: `then` where `self > 0`, else `otherwise` (NaN is not > 0).
+    fn where_positive(self, then: Self, otherwise: Self) -> Self;
+    /// Whether every lane is > 0 (NaN is not).
+    #[inline(always)]
+    fn all_positive(self) -> bool {
+        let v = self.to_array();
+        (0..Self::WIDTH).all(|l| v[l] > 0.0)
+    }
+    /// Whether every lane is finite.
+    #[inline(always)]
+    fn all_finite(self) -> bool {
+        let v = self.to_array();
+        (0..Self::WIDTH).all(|l| v[l].is_finite())
+    }
+
+    /// Adds lane `l`'s `nodal[a]` into `force[n]` for node n = `tets[first + l][a]`, lane
+    /// after lane and corner after corner: the order of the one-element loop, so every
+    /// node's sum is bitwise the same.
+    ///
+    /// # Safety
+    /// `force` points to at least as many entries as the positions `tets` was checked
+    /// against, and no other thread accesses the entries these elements add to.
+    #[inline(always)]
+    unsafe fn add_corner_forces(
+        nodal: &[[Self; 3]; 4],
+        tets: &TetNodes,
+        first: usize,
+        force: *mut [f64; 3],
+    ) {
+        let tets = &tets.tets[first..first + Self::WIDTH];
+        let nodal: [[Self::Array; 3]; 4] = build([Self::Array::default(); 3], |a| {
+            build(Self::Array::default(), |i| nodal[a][i].to_array())
+        });
+        for (l, t) in tets.iter().enumerate() {
+            for (a, &n) in t.iter().enumerate() {
+                let out = &mut *force.add(n as usize);
+                out[0] += nodal[a][0][l];
+                out[1] += nodal[a][1][l];
+                out[2] += nodal[a][2][l];
+            }
+        }
+    }
+
+    /// The corner positions of tetrahedra `first..first + WIDTH` of `tets`, one per
+    /// lane: lane `l` of `[a][i]` is `x[tets[first + l][a]][i]`.
+    #[inline(always)]
+    fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {
+        let (x, tets) = (tets.x, &tets.tets[first..first + Self::WIDTH]);
+        let mut corners = [[Self::splat(0.0); 3]; 4];
+        for (a, corner) in corners.iter_mut().enumerate() {
+            for (i, c) in corner.iter_mut().enumerate() {
+                *c = gather(|l| x[tets[l][a] as usize][i]);
+            }
+        }
+        corners
+    }
+
+    /// The first `WIDTH` records of `records`, one per lane: lane `l` of `[k]` is
+    /// `records[l][k]`.
+    fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N];
+}
+
+impl Lanes for f64 {
+    const WIDTH: usize = 1;
+    type Array = [f64; 1];
+    #[inline(always)]
+    fn splat(v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn from_array(v: [f64; 1]) -> Self {
+        v[0]
+    }
+    #[inline(always)]
+    fn to_array(self) -> [f64; 1] {
+        [self]
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn mul_add(self, a: Self, b: Self) -> Self {
+        f64::mul_add(self, a, b)
+    }
+    #[inline(always)]
+    fn where_positive(self, then: Self, otherwise: Self) -> Self {
+        if self > 0.0 {
+            then
+        } else {
+            otherwise
+        }
+    }
+    #[inline(always)]
+    fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
+        records[0]
+    }
+}
+
+/// `[f(0), f(1), …]`, like `std::array::from_fn` but always inlined: the vector kernel
+/// is compiled for AVX2 only where every step of it inlines into the AVX2 function, and
+/// `from_fn` and `map` may be left as calls (each lane operation then becomes a call).
+#[inline(always)]
+pub fn build<T: Copy, const N: usize>(zero: T, mut f: impl FnMut(usize) -> T) -> [T; N] {
+    let mut out = [zero; N];
+    for (k, v) in out.iter_mut().enumerate() {
+        *v = f(k);
+    }
+    out
+}
+
+/// a₀b₀ + a₁b₁ + a₂b₂ by two fused multiply–adds: fewer instructions and roundings than
+/// three products and two sums, and the same bits on every path.
+#[inline(always)]
+pub fn dot3<T: Lanes>(a0: T, b0: T, a1: T, b1: T, a2: T, b2: T) -> T {
+    a2.mul_add(b2, a1.mul_add(b1, a0 * b0))
+}
+
+/// Hints the cache lines holding `count` values from `start` into L1: a prefetch, so
+/// nothing is read, nothing can fault (`start` need not even be valid) and results cannot
+/// change.
+#[inline(always)]
+pub fn prefetch<T>(start: *const T, count: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        let start = start.cast::<i8>();
+        for offset in (0..count * std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch never faults; the address is only computed (wrapping)
+            unsafe {
+                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+                _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset));
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (start, count);
+}
+
+/// Node positions and tetrahedra whose node ids were all checked, once, to be below
+/// `x.len()`: the row loads of [`Lanes::gather_corners`] then need no check per load (a
+/// check per load, a compare and a conditional move for every corner, was an eighth of
+/// the eight-lane kernel's instructions and kept every node id live in a register).
+#[derive(Debug, Clone, Copy)]
+pub struct TetNodes<'a> {
+    x: &'a [[f64; 3]],
+    tets: &'a [[u32; 4]],
+}
+
+impl<'a> TetNodes<'a> {
+    /// Checks every node id of `tets` against `x.len()`.
+    pub fn new(x: &'a [[f64; 3]], tets: &'a [[u32; 4]]) -> Self {
+        // a plain max over the ids vectorises; it costs a fraction of one element
+        let largest = tets.iter().flatten().fold(0u32, |m, &n| m.max(n));
+        assert!(
+            tets.is_empty() || (largest as usize) < x.len(),
+            "node id {largest} beyond the {} positions",
+            x.len()
+        );
+        Self { x, tets }
+    }
+
+    /// The positions of the four corners of tetrahedron `k`.
+    #[inline(always)]
+    pub fn corners_of(&self, k: usize) -> [[f64; 3]; 4] {
+        let t = &self.tets[k];
+        // SAFETY: every id was checked against x.len() in `new`
+        build([0.0; 3], |a| unsafe {
+            *self.x.get_unchecked(t[a] as usize)
+        })
+    }
+
+    /// Number of tetrahedra.
+    pub fn len(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.tets.is_empty()
+    }
+}
+
+/// One value per lane from `value(lane)`: how the kernel gathers element data into lanes.
+#[inline(always)]
+pub fn gather<T: Lanes>(mut value: impl FnMut(usize) -> f64) -> T {
+    let mut v = T::Array::default();
+    for l in 0..T::WIDTH {
+        v[l] = value(l);
+    }
+    T::from_array(v)
+}
+
+#[cfg(target_arch = "x86_64")]
+pub use avx::F64x4;
+#[cfg(target_arch = "x86_64")]
+pub use avx512::F64x8;
+
+#[cfg(target_arch = "x86_64")]
+mod rows;
+
+#[cfg(target_arch = "x86_64")]
+mod avx;
+
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests;
