@@ -25,14 +25,8 @@ pub const WARM_BATCH: usize = 16;
 /// Hints the cache line holding `r` into L1.
 #[inline(always)]
 fn touch<T>(r: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch never faults and `r` is a valid reference.
-    unsafe {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>((r as *const T).cast::<i8>());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = r;
+    // one line, at r's first byte
+    crate::lanes::prefetch((r as *const T).cast::<u8>(), 1);
 }
 
 /// Prefetches, link by link, what finding the nearest candidate facet of the entries

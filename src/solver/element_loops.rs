@@ -313,18 +313,6 @@ fn prefetch_records<R>(start: *const R, len: usize, range: std::ops::Range<usize
     }
 }
 
-/// # Safety
-/// As [`evaluate_chunk`].
-#[inline(always)]
-unsafe fn add_nodal_forces(force: &Disjoint<[f64; 3]>, t: &[u32; 4], nodal: &[[f64; 3]; 4]) {
-    for (n, f) in t.iter().zip(nodal) {
-        let out = force.get(*n as usize);
-        out[0] += f[0];
-        out[1] += f[1];
-        out[2] += f[2];
-    }
-}
-
 /// The element loop of an elastic law: with lanes `T` wider than one (and a law that
 /// vectorises) `T::WIDTH` elements per pass ([`tet_forces_elastic_lanes`]), the last few
 /// one by one.
@@ -375,7 +363,8 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     for k in groups * width..tets.len() {
         let (nodal, energy, jacobian) =
             tet_forces_elastic(&nodes.corners_of(k), &references[k], law);
-        add_nodal_forces(&pass.force, &tets[k], &nodal);
+        // SAFETY: as for the groups above
+        f64::add_corner_forces(&nodal, &nodes, k, pass.force.as_mut_ptr());
         tally.record(k, energy, 0.0, jacobian, 0.0);
     }
     tally.result
@@ -456,7 +445,8 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     for k in groups * width..tets.len() {
         let point = *pass.plastic.get(first_slot + k);
         let forces = tet_forces(&nodes.corners_of(k), &references[k], law, Some(&point));
-        add_nodal_forces(&pass.force, &tets[k], &forces.nodal);
+        // SAFETY: as for the groups above
+        f64::add_corner_forces(&forces.nodal, &nodes, k, pass.force.as_mut_ptr());
         let increment = forces.point.map_or(0.0, |p| commit(k, p));
         let (energy, work, jacobian) = (forces.strain_energy, forces.plastic_work, forces.jacobian);
         tally.record(k, energy, work, jacobian, increment);
