@@ -15,7 +15,7 @@
 //! keeps every node that can reach the plane within the next step in the list.
 //!
 //! The work per step is one pass over the cached entries (which slave nodes can have
-//! reached their master since the rebuild: `Entry::may_touch`) and the narrow phase over
+//! reached their master since the rebuild: `CandidateLists::within_reach`) and the narrow phase over
 //! those within reach, i.e. over the surface nodes near contact, not grain pairs × facets.
 
 use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
@@ -70,11 +70,27 @@ pub struct BroadPhase {
 pub struct CandidateLists {
     pub passes: Vec<Pass>,
     pub entries: Vec<Entry>,
+    /// Per entry: the slave node's distance to the master surface at the rebuild (m), 0 if
+    /// it was inside. While no node has moved by more than half of it since, the node
+    /// cannot penetrate and is skipped. Kept apart from the entries because every step
+    /// scans all of them and reads the few entries within reach only.
+    pub gap_at_rebuild: Vec<f64>,
     pub candidates: Vec<u32>,
     /// (wall index, flat surface node index), ordered by wall then node.
     pub wall_nodes: Vec<(u32, u32)>,
     pub bvh: Vec<Bvh>,
     query: Vec<u32>,
+}
+
+impl CandidateLists {
+    /// Indices of the entries whose slave node can have reached its master surface when no
+    /// node has moved more than `moved` since the rebuild (each side closes the gap by at
+    /// most `moved`), ascending.
+    pub fn within_reach(&self, moved: f64) -> impl Iterator<Item = u32> + '_ {
+        (self.gap_at_rebuild.iter().enumerate())
+            .filter(move |&(_, &d0)| d0 <= 2.0 * moved)
+            .map(|(i, _)| i as u32)
+    }
 }
 
 impl BroadPhase {
@@ -255,6 +271,7 @@ impl BroadPhase {
             (s.global_id, m.global_id, s.image, m.image)
         });
         lists.entries.clear();
+        lists.gap_at_rebuild.clear();
         lists.candidates.clear();
         for (pi, pass) in lists.passes.iter().enumerate() {
             let (s, m) = (pass.slave as usize, pass.master as usize);
@@ -279,8 +296,8 @@ impl BroadPhase {
                     pass: pi as u32,
                     start,
                     end: lists.candidates.len() as u32,
-                    d0,
                 });
+                lists.gap_at_rebuild.push(d0);
             }
         }
 

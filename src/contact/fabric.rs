@@ -115,11 +115,11 @@ pub fn pair_partials(
     out.clear();
     let cm = &model.contact;
     let lists = &scratch.lists;
-    for (e, r) in scratch.evaluated_results() {
+    for r in &scratch.results {
         if !r.active {
             continue;
         }
-        let pass = lists.passes[e.pass as usize];
+        let pass = lists.passes[r.pass as usize];
         let (slave, master) = (
             &cm.surfaces[pass.slave as usize],
             &cm.surfaces[pass.master as usize],

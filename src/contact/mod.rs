@@ -114,7 +114,7 @@ use crate::math::dot;
 use crate::model::Model;
 pub use broad::DetectionReference;
 use broad::{BroadPhase, CandidateLists};
-use narrow::{evaluate_entry_on, nearest_facet, Entry, EvalContext, PointResult};
+use narrow::{evaluate_entry_on, nearest_facet, EvalContext, PointResult};
 use prefetch::{warm_rings, warm_up, WARM_BATCH};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -368,11 +368,7 @@ pub fn evaluate_with(
     // Only entries within reach are evaluated; in a dense packing they are a few % of the
     // cached ones, so neither the evaluation nor the passes over its results touch the rest.
     scratch.evaluated.clear();
-    scratch.evaluated.extend(
-        (lists.entries.iter().enumerate())
-            .filter(|(_, e)| e.may_touch(moved))
-            .map(|(i, _)| i as u32),
-    );
+    scratch.evaluated.extend(lists.within_reach(moved));
     scratch
         .results
         .resize(scratch.evaluated.len(), PointResult::default());
@@ -411,11 +407,11 @@ pub fn evaluate_with(
     stats.max_penetration = 0.0;
     stats.energy = 0.0;
     let mut dissipation = 0.0;
-    for (e, r) in scratch.evaluated_results() {
+    for (&i, r) in scratch.evaluated.iter().zip(&scratch.results) {
         if !r.active {
             continue;
         }
-        let pass = lists.passes[e.pass as usize];
+        let pass = lists.passes[r.pass as usize];
         if r.tunnel {
             let (sg, mg) = (
                 &model.grains[pass.slave as usize],
@@ -427,7 +423,7 @@ pub fn evaluate_with(
                 sg.name,
                 r.gap,
                 mg.name,
-                cm.node_h[e.slave as usize]
+                cm.node_h[lists.entries[i as usize].slave as usize]
             )));
         }
         if cm.surfaces[pass.slave as usize].owned {
@@ -455,15 +451,6 @@ pub fn evaluate_with(
     Ok(())
 }
 
-impl ContactScratch {
-    /// The entries evaluated at the last step with their results, in entry order.
-    pub fn evaluated_results(&self) -> impl Iterator<Item = (&Entry, &PointResult)> {
-        (self.evaluated.iter())
-            .map(|&i| &self.lists.entries[i as usize])
-            .zip(&self.results)
-    }
-}
-
 /// Stage 2: adds the grain–grain contact forces of the last [`evaluate`] to `force` (serially,
 /// in entry order) and records the resultant contact force on each grain.
 pub fn add_forces(
@@ -480,13 +467,13 @@ pub fn add_forces(
     gf.clear();
     gf.resize(model.grains.len(), [0.0; 3]);
     let lists = &scratch.lists;
-    for (e, r) in scratch.evaluated_results() {
+    for r in &scratch.results {
         if !r.active {
             continue;
         }
         add_point_force(r, force);
         let f = r.force;
-        let pass = lists.passes[e.pass as usize];
+        let pass = lists.passes[r.pass as usize];
         for i in 0..3 {
             gf[pass.slave as usize][i] += f[i];
             gf[pass.master as usize][i] -= f[i];

@@ -237,19 +237,6 @@ pub struct Entry {
     /// Range into the candidate facet list.
     pub start: u32,
     pub end: u32,
-    /// Distance from the node to the master surface at the rebuild (m), 0 if it was inside:
-    /// while every node has moved by less than d0/2 since, the node cannot penetrate and is
-    /// skipped.
-    pub d0: f64,
-}
-
-impl Entry {
-    /// Whether the slave node can have reached the master surface when no node has moved
-    /// more than `moved` since the rebuild (each side closes the gap by at most `moved`).
-    #[inline]
-    pub fn may_touch(&self, moved: f64) -> bool {
-        self.d0 <= 2.0 * moved
-    }
 }
 
 /// Result of one entry at one step.
@@ -259,6 +246,9 @@ pub struct PointResult {
     pub active: bool,
     /// Penetration deeper than half the local edge: detection can no longer be trusted.
     pub tunnel: bool,
+    /// Index into the pass list (the entry's), so that the passes over the results need
+    /// not reach back into the entries.
+    pub pass: u32,
     /// Model node ids of the slave node and of the master facet corners.
     pub slave: u32,
     pub masters: [u32; 3],
@@ -460,7 +450,7 @@ fn locate_on_patch(
 
 /// Evaluates one slave node against its candidate facets (see module docs). Pure function
 /// of its inputs: safe to run in parallel, results independent of scheduling. Callers
-/// evaluate only the entries that [`Entry::may_touch`].
+/// evaluate only the entries that [`super::broad::CandidateLists::within_reach`] lists.
 pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
     evaluate_entry_on(ctx, entry, nearest_facet(ctx, entry))
 }
@@ -482,6 +472,7 @@ pub fn evaluate_entry_on(ctx: &EvalContext, entry: &Entry, nearest: Option<u32>)
     let s = cm.node[s_flat];
     let mut r = PointResult {
         slave: s,
+        pass: entry.pass,
         ..Default::default()
     };
     let xs = x[s as usize];

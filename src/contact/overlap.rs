@@ -40,7 +40,8 @@ pub fn check_initial_overlap(model: &Model, file: &str) -> Result<(), InputError
         friction: false,
     };
     let mut worst: Option<(f64, usize, usize)> = None;
-    for e in lists.entries.iter().filter(|e| e.may_touch(0.0)) {
+    for i in lists.within_reach(0.0) {
+        let e = &lists.entries[i as usize];
         let r = evaluate_entry(&ctx, e);
         if !r.active {
             continue;

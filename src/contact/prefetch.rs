@@ -47,6 +47,9 @@ pub fn warm_up(ctx: &EvalContext, entries: &[Entry], batch: &[u32]) {
         let (k, s) = (e.slave as usize, cm.node[e.slave as usize] as usize);
         touch(&ctx.x[s]);
         touch(&ctx.v[s]);
+        if let Some(m) = ctx.mass.get(s) {
+            touch(m);
+        }
         touch(&cm.node_h[k]);
         touch(&cm.node_area[k]);
         for &f in candidates(e) {

@@ -127,8 +127,8 @@ pub fn cell_contact_sums(
     per_grain.resize(9 * grains, 0.0);
     let mut sums = CellContactSums::default();
     let lists = &contact.lists;
-    for (e, r) in contact.evaluated_results() {
-        let pass = lists.passes[e.pass as usize];
+    for r in &contact.results {
+        let pass = lists.passes[r.pass as usize];
         let (s, m) = (pass.slave as usize, pass.master as usize);
         if !r.active || !cm.surfaces[s].owned {
             continue;
