@@ -13,10 +13,11 @@
 //! (the curved patch's vertex normals), so a batch is fetched in two rounds, [`warm_up`]
 //! for the candidates, then, once the nearest facets are found, [`warm_rings`] for the
 //! rings (session 28: fetching every candidate corner's ring head, as before, left the
-//! rings themselves to miss one link at a time).
+//! rings themselves to miss one link at a time). A ring is read as its fan of corner
+//! pairs (`ContactModel::vertex_fans`), not through its facets: one link fewer.
 
 use super::narrow::{Entry, EvalContext};
-use super::vertex_normals::facets_around;
+use super::vertex_normals::fan_around;
 
 /// Entries whose data is fetched together: enough misses in flight to fill the core's
 /// miss buffers, few enough that the batch's lines (≈ 100 each) stay in L2 until used.
@@ -70,8 +71,8 @@ fn touch_corner_positions<'a>(ctx: &EvalContext, facets: impl Iterator<Item = &'
 
 /// Prefetches, link by link, what the rest of an evaluation reads around each entry's
 /// nearest facet (`nearest`, from [`super::narrow::nearest_facet`]): its neighbours, its
-/// corners' velocities and sizes, and for each corner the ring of facets around it with
-/// their corners' positions (the smooth vertex normals of the curved patch).
+/// corners' velocities and sizes, and for each corner the fan of corners around it with
+/// their positions (the smooth vertex normals of the curved patch).
 pub fn warm_rings(ctx: &EvalContext, nearest: &[Option<u32>]) {
     let cm = ctx.cm;
     let corners = || nearest.iter().flatten().flat_map(|&f| cm.facet[f as usize]);
@@ -87,16 +88,29 @@ pub fn warm_rings(ctx: &EvalContext, nearest: &[Option<u32>]) {
         touch(&cm.vertex_facet_offsets[s]);
         touch(&cm.node_h[s]);
     }
-    let rings = || corners().flat_map(|n| facets_around(cm, n));
     for n in corners() {
-        let ring = facets_around(cm, n);
-        if let (Some(first), Some(last)) = (ring.first(), ring.last()) {
+        let fan = fan_around(cm, n);
+        if let (Some(first), Some(last)) = (fan.first(), fan.last()) {
             touch(first);
             touch(last);
         }
     }
-    for &f in rings() {
-        touch(&cm.facet[f as usize]);
+    // the neighbour across the edge a patch point may be clamped to
+    for &f in nearest.iter().flatten() {
+        for o in cm.facet_adjacent[f as usize] {
+            if let Some(facet) = cm.facet.get(o as usize) {
+                touch(facet);
+            }
+        }
     }
-    touch_corner_positions(ctx, rings());
+    // around a closed surface's vertex every fan corner comes first in one pair
+    for n in corners() {
+        let fan = fan_around(cm, n);
+        for &[a, _] in fan {
+            touch(&ctx.x[a as usize]);
+        }
+        if let Some(&[_, b]) = fan.last() {
+            touch(&ctx.x[b as usize]);
+        }
+    }
 }

@@ -46,38 +46,47 @@ pub fn facet_normal(cm: &ContactModel, x: &[[f64; 3]], f: usize) -> [f64; 3] {
     triangle_normal(a, b, c)
 }
 
+/// The range of `vertex_facets` and `vertex_fans` that holds the surface vertex at model
+/// node `vnode`.
+#[inline]
+fn around(cm: &ContactModel, vnode: u32) -> std::ops::Range<usize> {
+    let s = cm.surface_index[vnode as usize] as usize;
+    cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize
+}
+
 /// The facets around the surface vertex at model node `vnode`.
 #[inline]
-pub(super) fn facets_around(cm: &ContactModel, vnode: u32) -> &[u32] {
-    let s = cm.surface_index[vnode as usize] as usize;
-    &cm.vertex_facets[cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize]
+fn facets_around(cm: &ContactModel, vnode: u32) -> &[u32] {
+    &cm.vertex_facets[around(cm, vnode)]
+}
+
+/// For each facet around the surface vertex at model node `vnode`, its other two corners
+/// in orientation order (see `ContactModel::vertex_fans`).
+#[inline]
+pub(super) fn fan_around(cm: &ContactModel, vnode: u32) -> &[[u32; 2]] {
+    &cm.vertex_fans[around(cm, vnode)]
 }
 
 /// Facets around a vertex whose area normals [`smooth_normal`] keeps on the stack for the
 /// crease test; a vertex of higher valence computes the rest twice.
 const KEPT_NORMALS: usize = 16;
 
-/// The edges e₁, e₂ of facet `f` from its corner at model node `vnode`, in the facet's
-/// orientation order (e₁ × e₂ is its outward area normal, twice its area long).
+/// The edges e₁, e₂ of a facet from its corner `p` to its other corners `fan` (in the
+/// facet's orientation order: e₁ × e₂ is its outward area normal, twice its area long).
 #[inline(always)]
-fn edges_from(cm: &ContactModel, x: &[[f64; 3]], vnode: u32, f: usize) -> ([f64; 3], [f64; 3]) {
-    let tri = cm.facet[f];
-    let j = tri.iter().position(|&v| v == vnode).unwrap_or(0);
-    let p = x[tri[j] as usize];
-    (
-        sub(x[tri[(j + 1) % 3] as usize], p),
-        sub(x[tri[(j + 2) % 3] as usize], p),
-    )
+fn edges_from(x: &[[f64; 3]], p: [f64; 3], fan: [u32; 2]) -> ([f64; 3], [f64; 3]) {
+    (sub(x[fan[0] as usize], p), sub(x[fan[1] as usize], p))
 }
 
 /// The smooth unit normal at model node `vnode` (Max's weights, module docs), or `None`
 /// at a crease or a degenerate facet (see [`smooth_vertex_normal`]).
 pub fn smooth_normal(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> Option<[f64; 3]> {
-    let around = facets_around(cm, vnode);
+    let fan = fan_around(cm, vnode);
+    let p = x[vnode as usize];
     let mut kept = [[0.0; 3]; KEPT_NORMALS];
     let mut sum = [0.0; 3];
-    for (i, &f) in around.iter().enumerate() {
-        let (e1, e2) = edges_from(cm, x, vnode, f as usize);
+    for (i, &corners) in fan.iter().enumerate() {
+        let (e1, e2) = edges_from(x, p, corners);
         let weight = dot(e1, e1) * dot(e2, e2);
         if weight == 0.0 {
             return None;
@@ -88,15 +97,15 @@ pub fn smooth_normal(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> Option<[f
             kept[i] = area_normal;
         }
     }
-    let area_normal_of = |(i, &f): (usize, &u32)| {
+    let area_normal_of = |(i, &corners): (usize, &[u32; 2])| {
         if i < KEPT_NORMALS {
             kept[i]
         } else {
-            let (e1, e2) = edges_from(cm, x, vnode, f as usize);
+            let (e1, e2) = edges_from(x, p, corners);
             cross(e1, e2)
         }
     };
-    smooth_vertex_normal(sum, around.iter().enumerate().map(area_normal_of))
+    smooth_vertex_normal(sum, fan.iter().enumerate().map(area_normal_of))
 }
 
 /// The angle-weighted pseudo-normal Σ θ_f n_f at model node `vnode` (θ_f the angle of
@@ -104,8 +113,9 @@ pub fn smooth_normal(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> Option<[f
 /// the vertex adds nothing.
 pub fn pseudo_normal_at_vertex(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> [f64; 3] {
     let mut pseudo = [0.0; 3];
-    for &f in facets_around(cm, vnode) {
-        let (e1, e2) = edges_from(cm, x, vnode, f as usize);
+    let p = x[vnode as usize];
+    for (&f, &corners) in facets_around(cm, vnode).iter().zip(fan_around(cm, vnode)) {
+        let (e1, e2) = edges_from(x, p, corners);
         let (l1, l2) = (norm(e1), norm(e2));
         if l1 == 0.0 || l2 == 0.0 {
             continue;

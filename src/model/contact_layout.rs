@@ -91,6 +91,11 @@ pub struct ContactModel {
     /// Facets around each flat surface node (CSR).
     pub vertex_facet_offsets: Vec<u32>,
     pub vertex_facets: Vec<u32>,
+    /// Aligned with `vertex_facets`: the facet's other two corners (model node ids) in its
+    /// orientation order after the vertex. The vertex normals read their edges from here,
+    /// one dependent load shorter than through the facet (the contact stage waits on
+    /// exactly such chains of misses).
+    pub vertex_fans: Vec<[u32; 2]>,
     /// Model node → flat surface index, or [`NONE`].
     pub surface_index: Vec<u32>,
     pub walls: Vec<Wall>,
@@ -188,15 +193,20 @@ impl ContactModel {
         }
         let mut fill = offsets.clone();
         let mut entries = vec![0u32; offsets[n] as usize];
+        let mut fans = vec![[0u32; 2]; offsets[n] as usize];
         for (fi, f) in cm.facet.iter().enumerate() {
             for &v in f {
+                // the first corner that is v, as for a facet that repeats a node
+                let j = f.iter().position(|&c| c == v).unwrap_or(0);
                 let s = cm.surface_index[v as usize] as usize;
                 entries[fill[s] as usize] = fi as u32;
+                fans[fill[s] as usize] = [f[(j + 1) % 3], f[(j + 2) % 3]];
                 fill[s] += 1;
             }
         }
         cm.vertex_facet_offsets = offsets;
         cm.vertex_facets = entries;
+        cm.vertex_fans = fans;
         if !cm.min_edge.is_finite() {
             cm.min_edge = 0.0;
         }
