@@ -121,6 +121,18 @@ impl J2 {
         let flow_stress =
             |alpha: T| T::splat(self.hardening_modulus).mul_add(alpha, T::splat(self.yield_stress));
         let excess = q - flow_stress(old_equivalent);
+        if (-excess).all_positive() {
+            // every lane elastic (the common group): what the picks below would give, bit
+            // for bit, without the plastic branch's division and second energy
+            return ReturnLanes {
+                stress: trial,
+                stored_energy: trial_energy,
+                dissipation: T::splat(0.0),
+                strain: *old_strain,
+                equivalent: old_equivalent,
+                excess,
+            };
+        }
         // the plastic branch (its values are discarded where `excess` ≤ 0)
         let d_alpha = excess * T::splat(1.0 / (3.0 * self.mu + self.hardening_modulus));
         let per_q = d_alpha / q;
