@@ -214,6 +214,7 @@ pub fn tet_forces_plastic_lanes<T: Lanes>(
     let state = PlasticLanes {
         strain: r.strain,
         equivalent: r.equivalent,
+        increment: r.equivalent - old_equivalent,
         yielding: r.excess,
     };
     (forces, state)
@@ -226,11 +227,20 @@ pub struct PlasticLanes<T> {
     pub strain: [T; 6],
     /// Equivalent plastic strain (–).
     pub equivalent: T,
+    /// What the equivalent plastic strain gained in the step (–).
+    pub increment: T,
     /// > 0 where the lane yielded; the other lanes' states are their old ones, bit for bit.
     pub yielding: T,
 }
 
 impl<T: Lanes> PlasticLanes<T> {
+    /// The states as records of seven f64 ([`PlasticPoint::as_records`]), one per lane.
+    #[inline(always)]
+    pub fn rows(&self) -> [T; 7] {
+        let s = &self.strain;
+        [s[0], s[1], s[2], s[3], s[4], s[5], self.equivalent]
+    }
+
     /// The state of lane `l`, given the lanes as arrays ([`Self::to_arrays`]).
     #[inline(always)]
     pub fn point(arrays: &([T::Array; 6], T::Array), l: usize) -> PlasticPoint {

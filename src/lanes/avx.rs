@@ -86,6 +86,11 @@ impl Lanes for F64x4 {
         // SAFETY: as `gather_corners`
         unsafe { rows::records::<__m256d, _, N>(records, Self) }
     }
+    #[inline(always)]
+    fn scatter_records<const N: usize>(values: &[Self; N], records: &mut [[f64; N]]) {
+        // SAFETY: as `gather_corners`
+        unsafe { rows::scatter_records::<__m256d, _, N>(values, records, |v| v.0) }
+    }
 }
 
 impl Transpose for __m256d {
@@ -93,6 +98,13 @@ impl Transpose for __m256d {
     #[inline(always)]
     unsafe fn columns(row: impl Fn(usize) -> __m256d) -> [Self; 4] {
         transpose4([row(0), row(1), row(2), row(3)])
+    }
+    #[inline(always)]
+    unsafe fn rows(columns: [Self; 4], mut row: impl FnMut(usize, __m256d)) {
+        // a 4×4 transpose is its own inverse
+        for (l, r) in transpose4(columns).into_iter().enumerate() {
+            row(l, r);
+        }
     }
 }
 

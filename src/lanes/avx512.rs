@@ -129,6 +129,11 @@ impl Lanes for F64x8 {
         // SAFETY: as `gather_corners`
         unsafe { rows::records::<__m512d, _, N>(records, Self) }
     }
+    #[inline(always)]
+    fn scatter_records<const N: usize>(values: &[Self; N], records: &mut [[f64; N]]) {
+        // SAFETY: as `gather_corners`
+        unsafe { rows::scatter_records::<__m512d, _, N>(values, records, |v| v.0) }
+    }
 }
 
 impl Transpose for __m512d {
@@ -136,6 +141,27 @@ impl Transpose for __m512d {
     #[inline(always)]
     unsafe fn columns(row: impl Fn(usize) -> __m256d) -> [Self; 4] {
         transpose8x4(row)
+    }
+    #[inline(always)]
+    unsafe fn rows(columns: [Self; 4], mut row: impl FnMut(usize, __m256d)) {
+        // t0 = [c0[0], c1[0], c0[2], c1[2] | c0[4], c1[4], c0[6], c1[6]], and so on; one
+        // two-source permute then holds two rows, one per half
+        let [c0, c1, c2, c3] = columns;
+        let t0 = _mm512_unpacklo_pd(c0, c1);
+        let t1 = _mm512_unpackhi_pd(c0, c1);
+        let t2 = _mm512_unpacklo_pd(c2, c3);
+        let t3 = _mm512_unpackhi_pd(c2, c3);
+        let low = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11);
+        let high = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
+        for (first, pair) in [
+            (0, _mm512_permutex2var_pd(t0, low, t2)),
+            (1, _mm512_permutex2var_pd(t1, low, t3)),
+            (4, _mm512_permutex2var_pd(t0, high, t2)),
+            (5, _mm512_permutex2var_pd(t1, high, t3)),
+        ] {
+            row(first, _mm512_castpd512_pd256(pair));
+            row(first + 2, _mm512_extractf64x4_pd::<1>(pair));
+        }
     }
 }
 

@@ -106,6 +106,18 @@ pub trait Lanes:
     /// The first `WIDTH` records of `records`, one per lane: lane `l` of `[k]` is
     /// `records[l][k]`.
     fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N];
+    /// The inverse of [`Lanes::gather_records`]: lane l of `values[k]` into
+    /// `records[l][k]`, for the first `WIDTH` records.
+    #[inline(always)]
+    fn scatter_records<const N: usize>(values: &[Self; N], records: &mut [[f64; N]]) {
+        let records = &mut records[..Self::WIDTH];
+        for (k, v) in values.iter().enumerate() {
+            let v = v.to_array();
+            for (l, record) in records.iter_mut().enumerate() {
+                record[k] = v[l];
+            }
+        }
+    }
 }
 
 impl Lanes for f64 {

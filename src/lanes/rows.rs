@@ -16,6 +16,12 @@ pub(super) trait Transpose: Copy {
     /// # Safety
     /// The CPU must support the register's instruction set.
     unsafe fn columns(row: impl Fn(usize) -> __m256d) -> [Self; 4];
+    /// The inverse: `row(l, r)` for l < `ROWS` with lane k of r equal to lane l of
+    /// `columns[k]`.
+    ///
+    /// # Safety
+    /// As [`Transpose::columns`].
+    unsafe fn rows(columns: [Self; 4], row: impl FnMut(usize, __m256d));
 }
 
 /// [`Lanes::gather_corners`] for lanes `L` wrapping registers `V`.
@@ -57,12 +63,7 @@ pub(super) unsafe fn records<V: Transpose, L: Lanes, const N: usize>(
         // row l of block j reads records[l][4j..min(4j + 4, N)] only (the mask drops
         // fields ≥ N)
         let fields = (N - 4 * j).min(4);
-        let mask = _mm256_setr_epi64x(
-            -1,
-            if fields > 1 { -1 } else { 0 },
-            if fields > 2 { -1 } else { 0 },
-            if fields > 3 { -1 } else { 0 },
-        );
+        let mask = block_mask(fields);
         let columns = V::columns(|l| {
             let p = (records.as_ptr().add(l) as *const f64).add(4 * j);
             if fields == 4 {
@@ -76,4 +77,44 @@ pub(super) unsafe fn records<V: Transpose, L: Lanes, const N: usize>(
         }
     }
     out
+}
+
+/// [`Lanes::scatter_records`] for lanes `L` wrapping registers `V`.
+///
+/// # Safety
+/// As [`corners`].
+#[inline(always)]
+pub(super) unsafe fn scatter_records<V: Transpose, L: Lanes, const N: usize>(
+    values: &[L; N],
+    records: &mut [[f64; N]],
+    unwrap: impl Fn(L) -> V,
+) {
+    assert!(records.len() >= V::ROWS);
+    for j in 0..N.div_ceil(4) {
+        // row l of block j writes records[l][4j..min(4j + 4, N)] only
+        let fields = (N - 4 * j).min(4);
+        let mask = block_mask(fields);
+        // a block's columns past the last field are repeats, written nowhere
+        let first = unwrap(values[4 * j]);
+        let columns: [V; 4] = super::build(first, |k| unwrap(values[(4 * j + k).min(N - 1)]));
+        V::rows(columns, |l, row| {
+            let p = (records.as_mut_ptr().add(l) as *mut f64).add(4 * j);
+            if fields == 4 {
+                _mm256_storeu_pd(p, row);
+            } else {
+                _mm256_maskstore_pd(p, mask, row);
+            }
+        });
+    }
+}
+
+/// The mask of the first `fields` of four f64.
+#[inline(always)]
+unsafe fn block_mask(fields: usize) -> __m256i {
+    _mm256_setr_epi64x(
+        -1,
+        if fields > 1 { -1 } else { 0 },
+        if fields > 2 { -1 } else { 0 },
+        if fields > 3 { -1 } else { 0 },
+    )
 }

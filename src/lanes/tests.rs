@@ -83,6 +83,28 @@ fn lanes_compute_what_scalars_compute<T: Lanes>() {
             assert_eq!(field.to_array()[l], states[l][k], "state field {k}");
         }
     }
+    // and back: the lanes' records written, the record after them untouched
+    let mut written = vec![[f64::NAN; 7]; T::WIDTH + 1];
+    T::scatter_records(&fields, &mut written);
+    for (l, record) in written.iter().enumerate().take(T::WIDTH) {
+        assert_eq!(
+            record.map(f64::to_bits),
+            states[l].map(f64::to_bits),
+            "record {l}"
+        );
+    }
+    assert!(
+        written[T::WIDTH].iter().all(|v| v.is_nan()),
+        "a record past the lanes was written"
+    );
+    let mut written = vec![[0.0; 10]; T::WIDTH + 1];
+    T::scatter_records(&T::gather_records(&records[..T::WIDTH]), &mut written);
+    assert_eq!(
+        written[..T::WIDTH],
+        records[..T::WIDTH],
+        "ten-field records"
+    );
+    assert_eq!(written[T::WIDTH], [0.0; 10]);
 }
 
 /// A node id beyond the positions stops the gather (an index check, not a stray read).

@@ -40,6 +40,15 @@ impl PlasticPoint {
         // SAFETY: `PlasticPoint` is `repr(C)` of [f64; 6] and f64: seven f64, no padding
         unsafe { std::slice::from_raw_parts(points.as_ptr() as *const [f64; 7], points.len()) }
     }
+
+    /// [`PlasticPoint::as_records`] for writing: how the vector kernel stores eight.
+    #[inline(always)]
+    pub fn as_records_mut(points: &mut [Self]) -> &mut [[f64; 7]] {
+        // SAFETY: as `as_records`
+        unsafe {
+            std::slice::from_raw_parts_mut(points.as_mut_ptr() as *mut [f64; 7], points.len())
+        }
+    }
 }
 
 /// J2 parameters with the elastic constants they return against.

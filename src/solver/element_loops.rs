@@ -431,6 +431,20 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
             for l in 0..width {
                 tally.result.strain_energy += strain_energy[l];
             }
+        } else if state.yielding.all_positive()
+            && out.jacobian.all_positive()
+            && out.strain_energy.all_finite()
+            && (T::splat(MAX_PLASTIC_INCREMENT) - state.increment).all_positive()
+        {
+            // the common plastic group: every lane yielded (so every state changed) and none
+            // failed: the states stored as rows, what the per-lane commit below would store
+            let states = pass.plastic.slice_mut(first_slot + first, width);
+            T::scatter_records(&state.rows(), PlasticPoint::as_records_mut(states));
+            let plastic_work = out.plastic_work.to_array();
+            for l in 0..width {
+                tally.result.strain_energy += strain_energy[l];
+                tally.result.plastic_work += plastic_work[l];
+            }
         } else {
             let states = state.to_arrays();
             let plastic_work = out.plastic_work.to_array();
