@@ -89,7 +89,7 @@ fn the_kernel_assembles_what_element_by_element_assembly_gives() {
         let law = &model.laws[model.tet_law[e] as usize];
         let f = tet_forces(
             &t.map(|n| x[n as usize]),
-            &model.tet_reference[e],
+            &model.tet_reference.get(e),
             law,
             point.as_ref(),
         );

@@ -462,7 +462,7 @@ fn push_periodic_values(
         let (f, r) = crate::solver::element_response(m, &s.x, &s.plastic, e);
         let sigma = crate::material::cauchy_from_first_piola(&r.first_piola, &f);
         let jacobian = crate::math::det3(&f);
-        let v = jacobian * m.tet_reference[e].volume;
+        let v = jacobian * m.tet_reference.get(e).volume;
         for i in 0..9 {
             grains[i] -= v * sigma[i] / volume;
         }

@@ -13,6 +13,9 @@ use crate::material::elastic::{
 use crate::material::{HyperelasticLaw, MaterialLaw, PlasticPoint, J2};
 use crate::math::det3;
 
+pub mod references;
+pub use references::{ReferenceBlock, TetReferences};
+
 /// Reference data of one tetrahedron needed by the force kernel.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[repr(C)]
@@ -24,15 +27,6 @@ pub struct TetReference {
 }
 
 impl TetReference {
-    /// The references as records of ten f64: Dm⁻¹ (row-major), then V0.
-    #[inline(always)]
-    pub fn as_records(references: &[Self]) -> &[[f64; 10]] {
-        // SAFETY: `TetReference` is `repr(C)` of [f64; 9] and f64: ten f64, no padding
-        unsafe {
-            std::slice::from_raw_parts(references.as_ptr() as *const [f64; 10], references.len())
-        }
-    }
-
     /// Returns `None` if the tetrahedron is inverted or degenerate (V0 ≤ 0).
     pub fn new(x: [[f64; 3]; 4]) -> Option<Self> {
         let dm = edge_matrix(&x);
@@ -165,16 +159,17 @@ pub struct ElementLanes<T> {
 }
 
 /// [`tet_forces_elastic`] of elements `first..first + T::WIDTH` of `tets`, one per lane of
-/// `T` and bitwise equal to it in each; `references` are the same elements' (from
-/// `first`).
+/// `T` and bitwise equal to it in each; their reference data are lanes `lane0..` of
+/// `reference`.
 #[inline(always)]
 pub fn tet_forces_elastic_lanes<L: HyperelasticLaw, T: Lanes>(
     tets: &TetNodes,
     first: usize,
-    references: &[TetReference],
+    reference: &ReferenceBlock,
+    lane0: usize,
     law: &L,
 ) -> ElementLanes<T> {
-    let (f, d, v) = deformation_lanes::<T>(tets, first, references);
+    let (f, d, v) = deformation_lanes::<T>(tets, first, reference, lane0);
     let (p, w) = law.first_piola_and_energy_lanes(&f);
     ElementLanes {
         nodal: nodal_forces(&p, &d, v),
@@ -186,17 +181,19 @@ pub fn tet_forces_elastic_lanes<L: HyperelasticLaw, T: Lanes>(
 
 /// [`tet_forces`] of elements `first..first + T::WIDTH` of `tets`, of a J2 material, one
 /// per lane of `T` (bitwise equal to [`tet_forces`] in each), from their committed plastic
-/// states `old` (one per lane; `references` and `old` from `first`). Returns the forces and
+/// states `old` (one per lane, from `first`; the reference data are lanes `lane0..` of
+/// `reference`). Returns the forces and
 /// energies and the states after the step.
 #[inline(always)]
 pub fn tet_forces_plastic_lanes<T: Lanes>(
     tets: &TetNodes,
     first: usize,
-    references: &[TetReference],
+    reference: &ReferenceBlock,
+    lane0: usize,
     j2: &J2,
     old: &[PlasticPoint],
 ) -> (ElementLanes<T>, PlasticLanes<T>) {
-    let (f, d, v) = deformation_lanes::<T>(tets, first, references);
+    let (f, d, v) = deformation_lanes::<T>(tets, first, reference, lane0);
     let e = green_lagrange_sym(&f);
     let eps = biot_strain_from_green(&e);
     let old_record: [T; 7] = T::gather_records(PlasticPoint::as_records(&old[..T::WIDTH]));
@@ -261,17 +258,18 @@ impl<T: Lanes> PlasticLanes<T> {
 }
 
 /// F = Ds·Dm⁻¹, Dm⁻¹ and V0 of `T::WIDTH` elements, one per lane, gathered straight from
-/// the positions and `references` ([`Lanes::gather_corners`], [`Lanes::gather_records`]): no
-/// per-element copy in between, which the vector loads would stall on.
+/// the positions ([`Lanes::gather_corners`]) and loaded from the lane-blocked reference
+/// data ([`Lanes::load_rows`]): no per-element copy in between, which the vector loads
+/// would stall on.
 #[inline(always)]
 fn deformation_lanes<T: Lanes>(
     tets: &TetNodes,
     first: usize,
-    references: &[TetReference],
+    reference: &ReferenceBlock,
+    lane0: usize,
 ) -> ([T; 9], [T; 9], T) {
-    let references = &references[..T::WIDTH];
     let xl = T::gather_corners(tets, first);
-    let record: [T; 10] = T::gather_records(TetReference::as_records(references));
+    let record: [T; 10] = T::load_rows(&reference.fields, lane0);
     let mut d = [T::splat(0.0); 9];
     d.copy_from_slice(&record[..9]);
     let v = record[9];

@@ -87,6 +87,15 @@ impl Lanes for F64x4 {
         unsafe { rows::records::<__m256d, _, N>(records, Self) }
     }
     #[inline(always)]
+    fn load_rows<const N: usize>(rows: &[[f64; 8]; N], lane0: usize) -> [Self; N] {
+        assert!(lane0 <= 4);
+        // SAFETY: AVX is present (see the type's documentation); lanes lane0..lane0 + 4 of
+        // each row exist
+        super::build(Self::splat(0.0), |k| unsafe {
+            Self(_mm256_loadu_pd(rows[k].as_ptr().add(lane0)))
+        })
+    }
+    #[inline(always)]
     fn scatter_records<const N: usize>(values: &[Self; N], records: &mut [[f64; N]]) {
         // SAFETY: as `gather_corners`
         unsafe { rows::scatter_records::<__m256d, _, N>(values, records, |v| v.0) }

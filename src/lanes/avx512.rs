@@ -130,6 +130,14 @@ impl Lanes for F64x8 {
         unsafe { rows::records::<__m512d, _, N>(records, Self) }
     }
     #[inline(always)]
+    fn load_rows<const N: usize>(rows: &[[f64; 8]; N], lane0: usize) -> [Self; N] {
+        assert_eq!(lane0, 0);
+        // SAFETY: AVX-512F is present (see the type's documentation); a row is eight f64
+        super::build(Self::splat(0.0), |k| unsafe {
+            Self(_mm512_loadu_pd(rows[k].as_ptr()))
+        })
+    }
+    #[inline(always)]
     fn scatter_records<const N: usize>(values: &[Self; N], records: &mut [[f64; N]]) {
         // SAFETY: as `gather_corners`
         unsafe { rows::scatter_records::<__m512d, _, N>(values, records, |v| v.0) }

@@ -106,6 +106,10 @@ pub trait Lanes:
     /// The first `WIDTH` records of `records`, one per lane: lane `l` of `[k]` is
     /// `records[l][k]`.
     fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N];
+    /// Fields stored lane-blocked (`rows[k][l]`: field k of element l of a block of eight,
+    /// see `element::references`): field k of elements `lane0..lane0 + WIDTH` into lane
+    /// k of the result, one row load each. `lane0` is a multiple of `WIDTH`.
+    fn load_rows<const N: usize>(rows: &[[f64; 8]; N], lane0: usize) -> [Self; N];
     /// The inverse of [`Lanes::gather_records`]: lane l of `values[k]` into
     /// `records[l][k]`, for the first `WIDTH` records.
     #[inline(always)]
@@ -154,6 +158,10 @@ impl Lanes for f64 {
     #[inline(always)]
     fn gather_records<const N: usize>(records: &[[f64; N]]) -> [Self; N] {
         records[0]
+    }
+    #[inline(always)]
+    fn load_rows<const N: usize>(rows: &[[f64; 8]; N], lane0: usize) -> [Self; N] {
+        build(0.0, |k| rows[k][lane0])
     }
 }
 

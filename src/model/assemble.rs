@@ -9,7 +9,7 @@ use super::decomposition::GhostRef;
 use super::periodic::{PeriodicCell, NO_IMAGE};
 use super::{GrainBlock, Model};
 use crate::boundary::{PrescribedMotion, Translation};
-use crate::element::TetReference;
+use crate::element::{TetReference, TetReferences};
 use crate::error::InputError;
 use crate::material::{ElasticParameters, MaterialLaw, PlasticParameters};
 use crate::mesh::{self, SurfaceMesh, TetMesh};
@@ -342,6 +342,8 @@ pub fn build_model_with_ghosts(
     }
 
     let local_images = local_images(&grains, owned.len());
+    let tet_reference =
+        TetReferences::new(&tet_reference, grains.iter().map(|g| g.elements.clone()));
     Ok((
         Model {
             grains,

@@ -21,7 +21,7 @@ pub use assemble::{build_model_with_ghosts, mesh_shape};
 pub use contact_layout::{ContactModel, NONE};
 pub use global::{serial_images, GlobalMesh};
 
-use crate::element::TetReference;
+use crate::element::TetReferences;
 use crate::material::{ElasticParameters, MaterialLaw};
 use crate::mesh::{self, SurfaceMesh};
 use std::ops::Range;
@@ -56,7 +56,8 @@ pub struct Model {
     /// Reference node positions (m).
     pub x0: Vec<[f64; 3]>,
     pub tets: Vec<[u32; 4]>,
-    pub tet_reference: Vec<TetReference>,
+    /// Dm⁻¹ and V0 of every element, lane-blocked for the force kernel.
+    pub tet_reference: TetReferences,
     /// Material law index per element.
     pub tet_law: Vec<u16>,
     /// Index into `State::plastic` of each owned element of a plastic material, [`NONE`]

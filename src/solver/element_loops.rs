@@ -10,9 +10,10 @@
 //! guards the speed-up.
 
 use super::element_schedule::ElementChunk;
+use crate::element::references::BLOCK;
 use crate::element::{
     tet_forces, tet_forces_elastic, tet_forces_elastic_lanes, tet_forces_plastic_lanes,
-    PlasticLanes,
+    PlasticLanes, ReferenceBlock, TetReferences,
 };
 use crate::error::InputError;
 use crate::lanes::{prefetch, Lanes, TetNodes};
@@ -304,6 +305,40 @@ pub(super) unsafe fn evaluate_chunk(
 /// session 32), because a chunk is too short for the hardware prefetcher to lock on.
 const PREFETCH_GROUPS: usize = 4;
 
+/// A chunk's reference blocks: its element k is lane k mod 8 of its block k / 8 (a chunk
+/// starts a block: `element::references`).
+struct ChunkBlocks<'a> {
+    blocks: &'a [ReferenceBlock],
+}
+
+impl<'a> ChunkBlocks<'a> {
+    fn of(references: &'a TetReferences, elements: std::ops::Range<usize>) -> Self {
+        if elements.is_empty() {
+            return Self { blocks: &[] };
+        }
+        let (first, lane) = references.slot(elements.start);
+        assert_eq!(lane, 0, "a chunk starts a reference block");
+        let count = elements.len().div_ceil(BLOCK);
+        Self {
+            blocks: &references.blocks()[first..first + count],
+        }
+    }
+
+    /// The block of chunk element `k` and its lane.
+    #[inline(always)]
+    fn at(&self, k: usize) -> (&'a ReferenceBlock, usize) {
+        (&self.blocks[k / BLOCK], k % BLOCK)
+    }
+
+    /// Prefetches the blocks whose first element lies in `elements` (chunk indices): over
+    /// consecutive ranges, every block once.
+    #[inline(always)]
+    fn prefetch_starting_in(&self, elements: std::ops::Range<usize>) {
+        let blocks = elements.start.div_ceil(BLOCK)..elements.end.div_ceil(BLOCK);
+        prefetch_records(self.blocks.as_ptr(), self.blocks.len(), blocks);
+    }
+}
+
 /// Prefetches entries `range` of the `len` entries from `start`, clamped to them.
 #[inline(always)]
 fn prefetch_records<R>(start: *const R, len: usize, range: std::ops::Range<usize>) {
@@ -329,7 +364,8 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     let tets = &pass.model.tets[range.clone()];
     let nodes = TetNodes::new(pass.x, tets);
     assert!(pass.x.len() <= pass.force.len());
-    let references = &pass.model.tet_reference[range.clone()];
+    let references = &pass.model.tet_reference;
+    let blocks = ChunkBlocks::of(references, range.clone());
     let mut tally = Tally::new(range.start);
     let width = T::WIDTH;
     let groups = if L::VECTORISES && width > 1 {
@@ -338,12 +374,12 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
         0
     };
     let ahead = PREFETCH_GROUPS * width;
-    let (records, count) = (references.as_ptr(), references.len());
-    prefetch_records(records, count, 0..ahead);
+    blocks.prefetch_starting_in(0..ahead);
     for g in 0..groups {
         let first = g * width;
-        prefetch_records(records, count, first + ahead..first + ahead + width);
-        let out = tet_forces_elastic_lanes::<L, T>(&nodes, first, &references[first..], law);
+        blocks.prefetch_starting_in(first + ahead..first + ahead + width);
+        let (block, lane0) = blocks.at(first);
+        let out = tet_forces_elastic_lanes::<L, T>(&nodes, first, block, lane0, law);
         // SAFETY: the nodes were checked against x, no longer than the forces; this
         // chunk's nodes are its task's alone (`Pass`)
         T::add_corner_forces(&out.nodal, &nodes, first, pass.force.as_mut_ptr());
@@ -361,8 +397,8 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
         }
     }
     for k in groups * width..tets.len() {
-        let (nodal, energy, jacobian) =
-            tet_forces_elastic(&nodes.corners_of(k), &references[k], law);
+        let reference = references.get(range.start + k);
+        let (nodal, energy, jacobian) = tet_forces_elastic(&nodes.corners_of(k), &reference, law);
         // SAFETY: as for the groups above
         f64::add_corner_forces(&nodal, &nodes, k, pass.force.as_mut_ptr());
         tally.record(k, energy, 0.0, jacobian, 0.0);
@@ -388,7 +424,8 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     let tets = &pass.model.tets[range.clone()];
     let nodes = TetNodes::new(pass.x, tets);
     assert!(pass.x.len() <= pass.force.len());
-    let references = &pass.model.tet_reference[range.clone()];
+    let references = &pass.model.tet_reference;
+    let blocks = ChunkBlocks::of(references, range.clone());
     let mut tally = Tally::new(range.start);
     // the state after the step into slot `k`, and the equivalent plastic strain it gained
     let commit = |k: usize, p: PlasticPoint| {
@@ -404,21 +441,21 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     let width = T::WIDTH;
     let groups = if width > 1 { tets.len() / width } else { 0 };
     let ahead = PREFETCH_GROUPS * width;
-    let (records, count) = (references.as_ptr(), references.len());
+    let count = tets.len();
     let states = pass
         .plastic
         .as_mut_ptr()
         .wrapping_add(first_slot)
         .cast_const();
-    prefetch_records(records, count, 0..ahead);
+    blocks.prefetch_starting_in(0..ahead);
     prefetch_records(states, count, 0..ahead);
     for g in 0..groups {
         let first = g * width;
-        prefetch_records(records, count, first + ahead..first + ahead + width);
+        blocks.prefetch_starting_in(first + ahead..first + ahead + width);
         prefetch_records(states, count, first + ahead..first + ahead + width);
         let old = pass.plastic.slice(first_slot + first, width);
-        let (out, state) =
-            tet_forces_plastic_lanes::<T>(&nodes, first, &references[first..], j2, old);
+        let (block, lane0) = blocks.at(first);
+        let (out, state) = tet_forces_plastic_lanes::<T>(&nodes, first, block, lane0, j2, old);
         // SAFETY: as in `evaluate_elastic_chunk`
         T::add_corner_forces(&out.nodal, &nodes, first, pass.force.as_mut_ptr());
         let strain_energy = out.strain_energy.to_array();
@@ -458,7 +495,8 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     }
     for k in groups * width..tets.len() {
         let point = *pass.plastic.get(first_slot + k);
-        let forces = tet_forces(&nodes.corners_of(k), &references[k], law, Some(&point));
+        let reference = references.get(range.start + k);
+        let forces = tet_forces(&nodes.corners_of(k), &reference, law, Some(&point));
         // SAFETY: as for the groups above
         f64::add_corner_forces(&forces.nodal, &nodes, k, pass.force.as_mut_ptr());
         let increment = forces.point.map_or(0.0, |p| commit(k, p));

@@ -151,7 +151,7 @@ pub fn element_response(
     e: usize,
 ) -> ([f64; 9], Response) {
     let xe = model.tets[e].map(|n| x[n as usize]);
-    let f = deformation_gradient(&xe, &model.tet_reference[e].dm_inv);
+    let f = deformation_gradient(&xe, &model.tet_reference.get(e).dm_inv);
     let point = model
         .plastic_slot
         .get(e)

@@ -29,7 +29,7 @@ pub fn set_time_step_and_mass_scaling(
         .zip(&model.tet_law)
         .map(|(r, &l)| {
             let law = &model.laws[l as usize];
-            let k = max_stiffness_eigenvalue(r, law.lambda, law.mu);
+            let k = max_stiffness_eigenvalue(&r, law.lambda, law.mu);
             let m = model.materials[l as usize].density * r.volume / 4.0;
             2.0 / (k / m).sqrt()
         })
@@ -48,7 +48,7 @@ pub fn set_time_step_and_mass_scaling(
     let mut elem_scale = vec![1.0; model.num_elements()];
     for (e, t) in model.tets.iter().enumerate() {
         let rho = model.materials[model.tet_law[e] as usize].density;
-        let m_phys = rho * model.tet_reference[e].volume / 4.0;
+        let m_phys = rho * model.tet_reference.get(e).volume / 4.0;
         let scale = match target {
             Some(tgt) if elem_dt[e] < tgt => (tgt / elem_dt[e]).powi(2),
             _ => 1.0,
