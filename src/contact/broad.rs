@@ -25,9 +25,6 @@ use crate::model::periodic::NO_IMAGE;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Surface nodes per parallel chunk of the displacement check.
-const NODE_CHUNK: usize = 4096;
-
 /// Where the surfaces were when the candidate lists were last rebuilt: part of the run's
 /// state, because the rebuild schedule and the narrow phase's "moved since the rebuild"
 /// bound depend on it. A restored run rebuilds its lists at these positions and so
@@ -58,11 +55,46 @@ pub struct BroadPhase {
     /// this rank's nodes after [`BroadPhase::needs_rebuild`], every rank's once the step has
     /// taken the maximum over ranks (before the narrow phase uses it).
     pub moved: f64,
+    /// How each surface (aligned with `ContactModel::surfaces`) has moved since the last
+    /// rebuild: this rank's surfaces after [`BroadPhase::needs_rebuild`], a plain ghost's
+    /// once the step has taken its owner's ([`SurfaceMotion::UNKNOWN`] until then).
+    pub motion: Vec<SurfaceMotion>,
     order: Vec<u32>,
-    chunk_max: Vec<f64>,
-    /// Whether each flat surface node counts in [`BroadPhase::max_displacement`].
-    counted: Vec<bool>,
     bvh_built: Vec<bool>,
+}
+
+/// A surface's motion since the last rebuild: the displacement of its first node, and the
+/// farthest any of its nodes has moved from that displacement (rotation and deformation).
+/// Two surfaces then have closed a gap between them by at most
+/// |shift_a − shift_b| + spread_a + spread_b: a grain pair that moved together (the
+/// neighbours in a packing under homogeneous strain) closed little of it, however far
+/// both travelled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceMotion {
+    /// m.
+    pub shift: [f64; 3],
+    /// m; infinite when unknown.
+    pub spread: f64,
+}
+
+impl SurfaceMotion {
+    /// Not known on this rank: bounds nothing.
+    pub const UNKNOWN: Self = Self {
+        shift: [0.0; 3],
+        spread: f64::INFINITY,
+    };
+    /// At the reference positions.
+    pub const AT_REST: Self = Self {
+        shift: [0.0; 3],
+        spread: 0.0,
+    };
+
+    /// Bound of how much of a gap between the two surfaces has closed (m).
+    #[inline]
+    pub fn closing_with(&self, other: &Self) -> f64 {
+        let d = sub(self.shift, other.shift);
+        dot(d, d).sqrt() + self.spread + other.spread
+    }
 }
 
 /// Outputs of a rebuild that the narrow phase and walls consume.
@@ -75,6 +107,8 @@ pub struct CandidateLists {
     /// cannot penetrate and is skipped. Kept apart from the entries because every step
     /// scans all of them and reads the few entries within reach only.
     pub gap_at_rebuild: Vec<f64>,
+    /// The entries of each pass (entries are built pass by pass).
+    pub pass_entries: Vec<std::ops::Range<u32>>,
     pub candidates: Vec<u32>,
     /// (wall index, flat surface node index), ordered by wall then node.
     pub wall_nodes: Vec<(u32, u32)>,
@@ -83,53 +117,73 @@ pub struct CandidateLists {
 }
 
 impl CandidateLists {
-    /// Indices of the entries whose slave node can have reached its master surface when no
-    /// node has moved more than `moved` since the rebuild (each side closes the gap by at
-    /// most `moved`), ascending.
-    pub fn within_reach(&self, moved: f64) -> impl Iterator<Item = u32> + '_ {
-        (self.gap_at_rebuild.iter().enumerate())
-            .filter(move |&(_, &d0)| d0 <= 2.0 * moved)
-            .map(|(i, _)| i as u32)
+    /// Indices of the entries whose slave node can have reached its master surface since
+    /// the rebuild, ascending, into `out`: those whose gap then is at most what the pass's
+    /// two surfaces can have closed of it. That is at most 2 `moved` (no node has moved
+    /// more than `moved`; each side closes the gap by at most that), and at most
+    /// [`SurfaceMotion::closing_with`] of the two surfaces' `motion`.
+    pub fn within_reach(&self, moved: f64, motion: &[SurfaceMotion], out: &mut Vec<u32>) {
+        out.clear();
+        for (p, range) in self.passes.iter().zip(&self.pass_entries) {
+            let (s, m) = (p.slave as usize, p.master as usize);
+            let closing = match (motion.get(s), motion.get(m)) {
+                (Some(a), Some(b)) => a.closing_with(b).min(2.0 * moved),
+                _ => 2.0 * moved,
+            };
+            let (start, end) = (range.start as usize, range.end as usize);
+            out.extend(
+                (start..end)
+                    .zip(&self.gap_at_rebuild[start..end])
+                    .filter(|&(_, &d0)| d0 <= closing)
+                    .map(|(i, _)| i as u32),
+            );
+        }
     }
 }
 
 impl BroadPhase {
     /// Largest displacement of a surface node since the last rebuild (m), over the nodes
-    /// this rank moves or shifts: owned grains and periodic images. A plain ghost's nodes
-    /// are its owner's to count (the rebuild decision is a max over ranks), and with a
-    /// trimmed halo most of them are dormant copies. Deterministic (max is exact) and
-    /// parallel over fixed chunks.
+    /// this rank moves or shifts: owned grains and periodic images; and the [`motion`] of
+    /// those surfaces (the others' is unknown). A plain ghost's nodes are its owner's to
+    /// count (the rebuild decision is a max over ranks, its motion the owner's), and with
+    /// a trimmed halo most of them are dormant copies. Deterministic (max is exact) and
+    /// parallel over surfaces.
+    ///
+    /// [`motion`]: BroadPhase::motion
     pub fn max_displacement(
         &mut self,
         cm: &ContactModel,
         x: &[[f64; 3]],
         reference: &DetectionReference,
     ) -> f64 {
-        let n = cm.node.len();
-        if self.counted.len() != n {
-            self.counted.clear();
-            for g in &cm.surfaces {
-                let counts = g.owned || g.image != NO_IMAGE;
-                self.counted
-                    .extend(std::iter::repeat_n(counts, g.nodes.len()));
+        let x_ref = &reference.x_ref;
+        self.motion
+            .resize(cm.surfaces.len(), SurfaceMotion::UNKNOWN);
+        let largest = |m: &mut SurfaceMotion, g: &super::GrainSurface| -> f64 {
+            if !(g.owned || g.image != NO_IMAGE) {
+                *m = SurfaceMotion::UNKNOWN;
+                return 0.0;
             }
-        }
-        self.chunk_max.resize(n.div_ceil(NODE_CHUNK), 0.0);
-        let (x_ref, counted) = (&reference.x_ref, &self.counted);
-        self.chunk_max
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(c, out)| {
-                let mut m: f64 = 0.0;
-                for k in c * NODE_CHUNK..((c + 1) * NODE_CHUNK).min(n) {
-                    if counted[k] {
-                        let d = sub(x[cm.node[k] as usize], x_ref[k]);
-                        m = m.max(dot(d, d));
-                    }
-                }
-                *out = m;
-            });
-        self.chunk_max.iter().cloned().fold(0.0, f64::max).sqrt()
+            let displacement = |k: usize| sub(x[cm.node[k] as usize], x_ref[k]);
+            let shift = g.nodes.clone().next().map_or([0.0; 3], displacement);
+            let (mut largest, mut spread): (f64, f64) = (0.0, 0.0);
+            for k in g.nodes.clone() {
+                let d = displacement(k);
+                largest = largest.max(dot(d, d));
+                let r = sub(d, shift);
+                spread = spread.max(dot(r, r));
+            }
+            *m = SurfaceMotion {
+                shift,
+                spread: spread.sqrt(),
+            };
+            largest
+        };
+        (self.motion.par_iter_mut())
+            .zip(cm.surfaces.par_iter())
+            .map(|(m, g)| largest(m, g))
+            .reduce(|| 0.0, f64::max)
+            .sqrt()
     }
 
     /// True when lists built at `reference` may miss a contact at positions `x` and wall
@@ -174,6 +228,9 @@ impl BroadPhase {
         reference.wall_ref.clear();
         reference.wall_ref.extend_from_slice(wall_now);
         self.moved = 0.0;
+        self.motion.clear();
+        self.motion
+            .resize(cm.surfaces.len(), SurfaceMotion::AT_REST);
         self.build_lists(cm, x, wall_now, lists);
     }
 
@@ -271,9 +328,11 @@ impl BroadPhase {
             (s.global_id, m.global_id, s.image, m.image)
         });
         lists.entries.clear();
+        lists.pass_entries.clear();
         lists.gap_at_rebuild.clear();
         lists.candidates.clear();
         for (pi, pass) in lists.passes.iter().enumerate() {
+            let first_entry = lists.entries.len() as u32;
             let (s, m) = (pass.slave as usize, pass.master as usize);
             let zone = self.boxes[m].inflated(reach(s));
             for k in cm.surfaces[s].nodes.clone() {
@@ -299,6 +358,9 @@ impl BroadPhase {
                 });
                 lists.gap_at_rebuild.push(d0);
             }
+            lists
+                .pass_entries
+                .push(first_entry..lists.entries.len() as u32);
         }
 
         // Walls: surface nodes within 1.5 margin of the plane.

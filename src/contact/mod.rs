@@ -326,6 +326,50 @@ pub fn needs_rebuild(
         .needs_rebuild(cm, x, &scratch.wall_next, &state.detection)
 }
 
+/// Values per grain in [`share_surface_motion`]'s buffer.
+const MOTION_VALUES: usize = 4;
+
+/// Writes the motion of this rank's own surfaces (from [`needs_rebuild`]) into `buffer`,
+/// indexed by global grain id (`grains` of them), −∞ everywhere else: the element-wise
+/// maximum of every rank's buffer then holds each grain's motion as its owner measured it
+/// (the max with −∞ is exact), which [`take_surface_motion`] gives the ghosts.
+pub fn share_surface_motion(
+    model: &Model,
+    scratch: &ContactScratch,
+    grains: usize,
+    buffer: &mut Vec<f64>,
+) {
+    buffer.clear();
+    buffer.resize(MOTION_VALUES * grains, f64::NEG_INFINITY);
+    let cm = &model.contact;
+    for (g, m) in cm.surfaces.iter().zip(&scratch.broad.motion) {
+        if g.owned && g.image == crate::model::periodic::NO_IMAGE {
+            let at = MOTION_VALUES * g.global_id as usize;
+            buffer[at..at + 3].copy_from_slice(&m.shift);
+            buffer[at + 3] = m.spread;
+        }
+    }
+}
+
+/// The plain ghosts' motion from the maximum over ranks of [`share_surface_motion`]'s
+/// buffers.
+pub fn take_surface_motion(model: &Model, buffer: &[f64], scratch: &mut ContactScratch) {
+    let cm = &model.contact;
+    for (g, m) in cm.surfaces.iter().zip(&mut scratch.broad.motion) {
+        if !g.owned && g.image == crate::model::periodic::NO_IMAGE {
+            let at = MOTION_VALUES * g.global_id as usize;
+            let values = buffer.get(at..at + MOTION_VALUES);
+            *m = match values {
+                Some(&[a, b, c, spread]) if spread > f64::NEG_INFINITY => broad::SurfaceMotion {
+                    shift: [a, b, c],
+                    spread,
+                },
+                _ => broad::SurfaceMotion::UNKNOWN,
+            };
+        }
+    }
+}
+
 /// [`evaluate`] with the rebuild decision taken by the caller (see [`needs_rebuild`]).
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_with(
@@ -367,8 +411,7 @@ pub fn evaluate_with(
     let moved = scratch.broad.moved;
     // Only entries within reach are evaluated; in a dense packing they are a few % of the
     // cached ones, so neither the evaluation nor the passes over its results touch the rest.
-    scratch.evaluated.clear();
-    scratch.evaluated.extend(lists.within_reach(moved));
+    lists.within_reach(moved, &scratch.broad.motion, &mut scratch.evaluated);
     scratch
         .results
         .resize(scratch.evaluated.len(), PointResult::default());

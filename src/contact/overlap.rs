@@ -40,7 +40,9 @@ pub fn check_initial_overlap(model: &Model, file: &str) -> Result<(), InputError
         friction: false,
     };
     let mut worst: Option<(f64, usize, usize)> = None;
-    for i in lists.within_reach(0.0) {
+    let mut touching = Vec::new();
+    lists.within_reach(0.0, &[], &mut touching);
+    for i in touching {
         let e = &lists.entries[i as usize];
         let r = evaluate_entry(&ctx, e);
         if !r.active {

@@ -77,6 +77,10 @@ pub struct Scratch {
     grain_centres: Vec<[f64; 3]>,
     /// Σ f ⊗ l of each grain of the scene (9 per global id) for the cell's stress.
     cell_grain_sums: Vec<f64>,
+    /// What the contact check takes the maximum of over ranks: each grain's surface motion
+    /// (`crate::contact::share_surface_motion`), then the largest displacement and the
+    /// rebuild vote.
+    over_ranks: Vec<f64>,
 }
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -153,6 +157,7 @@ impl Solver {
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
             grain_centres: Vec::with_capacity(model.grains.len()),
             cell_grain_sums: Vec::new(),
+            over_ranks: Vec::new(),
         };
         Self {
             model,
@@ -255,10 +260,22 @@ impl Solver {
         // Every rank skips entries by the largest displacement of any surface node, ghosts
         // included (their owners count them): a rank whose own grains rest must still see
         // a ghost grain that comes at them.
-        let mut over_ranks = [scratch.contact.broad.moved, f64::from(u8::from(local))];
-        timers.time(Stage::Sync, || hooks.max(&mut over_ranks));
-        scratch.contact.broad.moved = over_ranks[0];
-        let rebuild = over_ranks[1] > 0.0;
+        // and a ghost's motion since the rebuild is its owner's
+        let over_ranks = &mut scratch.over_ranks;
+        timers.time(Stage::Contact, || {
+            let grains = state.partition.owner.len();
+            crate::contact::share_surface_motion(model, &scratch.contact, grains, over_ranks);
+            over_ranks.extend([scratch.contact.broad.moved, f64::from(u8::from(local))]);
+        });
+        timers.time(Stage::Sync, || hooks.max(over_ranks));
+        let [moved, rebuild] = over_ranks[over_ranks.len() - 2..] else {
+            unreachable!("two values were appended")
+        };
+        scratch.contact.broad.moved = moved;
+        let rebuild = rebuild > 0.0;
+        timers.time(Stage::Contact, || {
+            crate::contact::take_surface_motion(model, &scratch.over_ranks, &mut scratch.contact)
+        });
         timers.time(Stage::Contact, || {
             crate::contact::evaluate_with(
                 model,
