@@ -391,3 +391,69 @@ impl BroadPhase {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two passes over surfaces 0 and 1 whose entries had the gaps `gaps` at the rebuild.
+    fn lists(gaps: [&[f64]; 2]) -> CandidateLists {
+        let mut lists = CandidateLists::default();
+        for (p, g) in gaps.iter().enumerate() {
+            let first = lists.gap_at_rebuild.len() as u32;
+            lists.passes.push(Pass {
+                slave: p as u32,
+                master: 1 - p as u32,
+            });
+            lists.gap_at_rebuild.extend_from_slice(g);
+            lists
+                .pass_entries
+                .push(first..lists.gap_at_rebuild.len() as u32);
+        }
+        lists
+    }
+
+    fn reach(lists: &CandidateLists, moved: f64, motion: &[SurfaceMotion]) -> Vec<u32> {
+        let mut out = Vec::new();
+        lists.within_reach(moved, motion, &mut out);
+        out
+    }
+
+    #[test]
+    fn entries_in_reach_are_those_their_two_surfaces_can_have_closed() {
+        let (um, moved) = (1e-6, 3e-6);
+        let lists = lists([&[0.0, 0.2 * um, 0.5 * um, 5.0 * um, 7.0 * um], &[0.4 * um]]);
+        // no surface motion known: every gap within 2 × the largest displacement
+        assert_eq!(reach(&lists, moved, &[]), [0, 1, 2, 3, 5]);
+        let unknown = [SurfaceMotion::UNKNOWN; 2];
+        assert_eq!(reach(&lists, moved, &unknown), [0, 1, 2, 3, 5]);
+        // both grains carried 3 µm the same way, each turned or strained by ≤ 0.1–0.2 µm:
+        // together they closed at most 0.3 µm of any gap
+        let together = [
+            SurfaceMotion {
+                shift: [moved, 0.0, 0.0],
+                spread: 0.1 * um,
+            },
+            SurfaceMotion {
+                shift: [moved, 0.0, 0.0],
+                spread: 0.2 * um,
+            },
+        ];
+        assert_eq!(reach(&lists, moved, &together), [0, 1]);
+        // head-on, 2.5 µm each way: the relative bound (5.3 µm) is above 2 × moved, which
+        // then bounds
+        let head_on = [
+            SurfaceMotion {
+                shift: [2.5 * um, 0.0, 0.0],
+                ..together[0]
+            },
+            SurfaceMotion {
+                shift: [-2.5 * um, 0.0, 0.0],
+                ..together[1]
+            },
+        ];
+        assert_eq!(head_on[0].closing_with(&head_on[1]), 5.3 * um);
+        assert_eq!(reach(&lists, moved, &head_on), [0, 1, 2, 3, 5]);
+        assert_eq!(reach(&lists, 1.5 * um, &head_on), [0, 1, 2, 5]);
+    }
+}

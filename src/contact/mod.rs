@@ -741,6 +741,67 @@ density = 2500.0
         )
     }
 
+    /// The motion each surface reports since the rebuild: a translation is all shift, a
+    /// rotation about the grain's centre by θ spreads the nodes by up to 2θR from the
+    /// first node's displacement.
+    #[test]
+    fn surface_motion_separates_translation_from_rotation() {
+        let (radius, seeding) = (1.0e-3, 2.5e-4);
+        let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
+        let (ca, cb) = ([0.0; 3], [2.0 * radius + 1e-5, 0.0, 0.0]);
+        let mut s = solver(&pair_scene(("a", &sphere, ca), ("b", &sphere, cb)));
+        contact_forces(&mut s); // the first evaluation rebuilds: motion at rest
+        assert!(s
+            .scratch
+            .contact
+            .broad
+            .motion
+            .iter()
+            .all(|m| *m == broad::SurfaceMotion::AT_REST));
+        let (shift, theta) = ([3e-6, -1e-6, 2e-6], 1e-3_f64);
+        for n in s.model.grains[0].nodes.clone() {
+            s.state.x[n] = crate::math::add(s.state.x[n], shift);
+        }
+        for n in s.model.grains[1].nodes.clone() {
+            let [x, y, z] = sub(s.state.x[n], cb);
+            let (c, sn) = (theta.cos(), theta.sin());
+            s.state.x[n] = [cb[0] + c * x - sn * y, cb[1] + sn * x + c * y, cb[2] + z];
+        }
+        let dt = s.model.dt;
+        needs_rebuild(
+            &s.model,
+            &s.state.x,
+            0.0,
+            dt,
+            &s.state.contact,
+            &mut s.scratch.contact,
+        );
+        let [a, b] = [0, 1].map(|g| s.scratch.contact.broad.motion[g]);
+        for i in 0..3 {
+            assert!((a.shift[i] - shift[i]).abs() < 1e-18, "{:?}", a.shift);
+        }
+        assert!(
+            a.spread < 1e-18,
+            "a translation spreads nothing: {:e}",
+            a.spread
+        );
+        // the nodes move by θR at most (equator), their differences by up to 2θR
+        assert!(
+            norm(b.shift) <= theta * radius * (1.0 + 1e-9),
+            "{:?}",
+            b.shift
+        );
+        assert!(b.spread > theta * radius && b.spread <= 2.0 * theta * radius * (1.0 + 1e-9));
+        let moved = s.scratch.contact.broad.moved;
+        assert!(
+            (moved - norm(shift)).abs() < 1e-15,
+            "largest displacement {moved:e}"
+        );
+        // together they closed at most what each rule allows, and less than 2 × moved here
+        let closing = a.closing_with(&b);
+        assert!(closing < 2.0 * moved, "{closing:e} vs {:e}", 2.0 * moved);
+    }
+
     /// Swapping the order of two grains in the scene swaps master and slave roles of the
     /// passes: the contact forces on every node must stay the same (up to summation order).
     #[test]
