@@ -32,6 +32,7 @@ pub mod element;
 pub mod energy;
 pub mod image;
 pub mod io;
+pub mod kinematics;
 pub mod lanes;
 pub mod material;
 pub mod math;

@@ -110,6 +110,7 @@ use crate::boundary::servo::ServoState;
 use crate::boundary::stages::{StagePlan, StageProgress};
 use crate::energy::WorkAccumulator;
 use crate::error::MufeError;
+use crate::kinematics::{NextVelocity, Predictor};
 use crate::math::dot;
 use crate::model::Model;
 pub use broad::DetectionReference;
@@ -560,14 +561,15 @@ fn add_point_force(r: &PointResult, force: &mut [[f64; 3]]) {
 }
 
 /// Power sums of the contact damping forces of the last [`evaluate`] with the velocities
-/// `v_before` (v_{n−½}) and `v_after` (v_{n+½}), for the ledger's trapezoidal work rule
+/// v_{n−½} (`predictor.v`) and v_{n+½} (`v_after`), for the ledger's trapezoidal work rule
 /// (see `crate::energy`). Both are ≤ 0 when the damper only resists.
 pub fn damping_power(
     model: &Model,
-    v_before: &[[f64; 3]],
-    v_after: &[[f64; 3]],
+    predictor: &Predictor,
+    v_after: &NextVelocity,
     scratch: &ContactScratch,
 ) -> (f64, f64) {
+    let v_before = predictor.v;
     let (mut before, mut after) = (0.0, 0.0);
     if model.contact.damping == 0.0 {
         return (0.0, 0.0);
@@ -584,13 +586,13 @@ pub fn damping_power(
         let s = r.slave as usize;
         if s < owned {
             before += f * dot(v_before[s], r.normal);
-            after += f * dot(v_after[s], r.normal);
+            after += f * dot(v_after.get(s, predictor), r.normal);
         }
         for (k, &m) in r.masters.iter().enumerate() {
             let m = m as usize;
             if m < owned {
                 before -= f * r.weights[k] * dot(v_before[m], r.normal);
-                after -= f * r.weights[k] * dot(v_after[m], r.normal);
+                after -= f * r.weights[k] * dot(v_after.get(m, predictor), r.normal);
             }
         }
     }
@@ -602,8 +604,8 @@ pub fn damping_power(
 pub fn enforce_walls(
     model: &Model,
     x: &[[f64; 3]],
-    v: &[[f64; 3]],
-    v_next: &mut [[f64; 3]],
+    predictor: &Predictor,
+    v_next: &mut NextVelocity,
     t: f64,
     dt: f64,
     state: &mut ContactState,
@@ -618,7 +620,7 @@ pub fn enforce_walls(
         &model.mass,
         &model.driven,
         x,
-        v,
+        predictor,
         v_next,
         t,
         dt,

@@ -20,6 +20,7 @@
 //! two walls is corrected wall after wall, in scene order.
 
 use super::{ContactModel, ContactState, Wall, WallState};
+use crate::kinematics::{NextVelocity, Predictor};
 
 use crate::math::{add, dot, norm, scale, sub};
 
@@ -62,7 +63,8 @@ pub fn displacements(wall: &Wall, ws: &WallState, t: f64, dt: f64) -> [[f64; 3];
     }
 }
 
-/// Corrects `v_next` (v_{n+½}) of the candidate nodes `wall_nodes` (wall, flat surface
+/// Corrects `v_next` (v_{n+½}, where not stored `predictor`'s, whose `v` is v_{n−½}) of the
+/// candidate nodes `wall_nodes` (wall, flat surface
 /// index; ordered by wall) so that no node ends behind a wall at t_{n+1}; records each
 /// wall's force, displacement, contacts, work and friction work in `state`, and each
 /// contact's force on its node in `node_forces` (for the frames' nodal contact force); with
@@ -74,8 +76,8 @@ pub fn enforce(
     mass: &[f64],
     driven: &[u8],
     x: &[[f64; 3]],
-    v: &[[f64; 3]],
-    v_next: &mut [[f64; 3]],
+    predictor: &Predictor,
+    v_next: &mut NextVelocity,
     t: f64,
     dt: f64,
     wall_nodes: &[(u32, u32)],
@@ -83,6 +85,7 @@ pub fn enforce(
     node_forces: &mut Vec<(u32, [f64; 3])>,
     mut by_grain: Option<(&[u32], usize, &mut GrainWallForces)>,
 ) {
+    let v = predictor.v;
     node_forces.clear();
     if let Some((_, grains, f)) = &mut by_grain {
         f.clear(cm.walls.len(), *grains);
@@ -105,7 +108,7 @@ pub fn enforce(
             if driven[node] != 0 {
                 continue;
             }
-            let vn = v_next[node];
+            let vn = v_next.get(node, predictor);
             let gap = dot(sub(add(x[node], scale(vn, dt)), p_next), n);
             if gap >= 0.0 {
                 continue;
@@ -133,7 +136,7 @@ pub fn enforce(
             if let Some((node_grain, _, f)) = &mut by_grain {
                 f.values[w * f.grains + node_grain[node] as usize] += f_n;
             }
-            v_next[node] = v_new;
+            v_next.set(node, v_new);
             node_forces.push((node as u32, f));
             force = add(force, f);
             p_before += dot(f, v[node]);

@@ -4,6 +4,7 @@
 
 use super::forces::NODE_CHUNK;
 use super::state::State;
+use crate::kinematics::{predict, NextVelocity};
 use crate::model::Model;
 use rayon::prelude::*;
 
@@ -142,7 +143,8 @@ pub(super) fn damping_force(
 }
 
 /// f ← f_int + m_phys g − α m v_{n−½}; v_{n+½} ← v_{n−½} + Δt f/m for every node (driven
-/// components are overwritten by the motions afterwards). Gravity acts on the physical
+/// components are overwritten by the motions afterwards); without gravity and damping the
+/// prediction is left to its readers. Gravity acts on the physical
 /// mass only: mass added by scaling is numerical and must not weigh anything.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn apply_body_and_damping_forces(
@@ -152,40 +154,35 @@ pub(super) fn apply_body_and_damping_forces(
     state: &State,
     rigid: &mut [RigidVelocity],
     force: &mut [[f64; 3]],
-    v_next: &mut [[f64; 3]],
+    v_next: &mut NextVelocity,
     dt: f64,
 ) {
+    if !has_body_or_damping_force(model, alpha, g) {
+        // v_{n+½} is then the prediction from the internal and contact forces alone, up to
+        // the sign of a zero (adding ±0 changes no bit of a nonzero force): computed where
+        // read, not stored (`crate::kinematics`)
+        v_next.predict_where_read();
+        return;
+    }
     if model.deformation_damping > 0.0 {
         compute_grain_rigid_velocities(model, state, rigid);
     }
     let rigid = &*rigid;
     let owned = model.owned_nodes;
-    let undamped = !has_body_or_damping_force(model, alpha, g);
     force[..owned]
         .par_chunks_mut(NODE_CHUNK)
-        .zip(v_next[..owned].par_chunks_mut(NODE_CHUNK))
+        .zip(v_next.store_every_node()[..owned].par_chunks_mut(NODE_CHUNK))
         .enumerate()
         .for_each(|(chunk, (f, vn))| {
             let base = chunk * NODE_CHUNK;
-            if undamped {
-                // v_{n+½} as below up to the sign of a zero (adding ±0 changes no bit
-                // of a nonzero force), without reading the physical mass or writing f
-                for k in 0..f.len() {
-                    let (m, v) = (model.mass[base + k], state.v[base + k]);
-                    for i in 0..3 {
-                        vn[k][i] = v[i] + dt * f[k][i] / m;
-                    }
-                }
-                return;
-            }
             for k in 0..f.len() {
                 let n = base + k;
                 let (m, mp, v) = (model.mass[n], model.physical_mass[n], state.v[n]);
                 let fd = damping_force(model, alpha, rigid, n, &state.x[n], &v);
                 for i in 0..3 {
                     f[k][i] += mp * g[i] + fd[i];
-                    vn[k][i] = v[i] + dt * f[k][i] / m;
                 }
+                vn[k] = predict(v, f[k], m, dt);
             }
         });
 }

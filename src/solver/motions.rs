@@ -4,6 +4,7 @@
 
 use super::state::{Reaction, State};
 use crate::boundary::PrescribedMotion;
+use crate::kinematics::{NextVelocity, Predictor};
 use crate::model::Model;
 
 /// Overrides the driven components of v_{n+½} so that driven nodes land exactly on their
@@ -13,7 +14,7 @@ pub(super) fn drive_prescribed_motions(
     motions: &[PrescribedMotion],
     state: &mut State,
     force: &[[f64; 3]],
-    v_next: &mut [[f64; 3]],
+    v_next: &mut NextVelocity,
     dt: f64,
 ) {
     let t = state.time;
@@ -30,15 +31,23 @@ pub(super) fn drive_prescribed_motions(
             let x = state.x[n];
             let m = model.mass[n];
             let mut r = [0.0; 3];
+            let predictor = Predictor {
+                v: &state.v,
+                force,
+                mass: &model.mass,
+                dt,
+            };
+            let mut driven = v_next.get(n, &predictor);
             for i in 0..3 {
                 if working.components[i] {
                     let v_new = (target[i] - x[i]) / dt;
                     r[i] = m * (v_new - state.v[n][i]) / dt - force[n][i];
-                    v_next[n][i] = v_new;
+                    driven[i] = v_new;
                     p_before += r[i] * state.v[n][i];
                     p_after += r[i] * v_new;
                 }
             }
+            v_next.set(n, driven);
             let arm = [x[0] - c_now[0], x[1] - c_now[1], x[2] - c_now[2]];
             for i in 0..3 {
                 reaction.force[i] += r[i];

@@ -24,6 +24,7 @@ use crate::boundary::PrescribedMotion;
 use crate::contact::{ContactScratch, ContactState};
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::error::MufeError;
+use crate::kinematics::{predict, NextVelocity, Predictor};
 use crate::model::decomposition::Partition;
 use crate::model::periodic::CellKinematics;
 use crate::model::Model;
@@ -62,7 +63,7 @@ pub struct Scratch {
     /// Total force on each node at x_n (N).
     pub force: Vec<[f64; 3]>,
     /// v_{n+½} being built (m/s).
-    pub v_next: Vec<[f64; 3]>,
+    pub v_next: NextVelocity,
     pub elements: ElementScratch,
     /// Cached contact candidate lists and per-point results.
     pub contact: ContactScratch,
@@ -148,7 +149,7 @@ impl Solver {
         };
         let scratch = Scratch {
             force: vec![[0.0; 3]; n],
-            v_next: vec![[0.0; 3]; n],
+            v_next: NextVelocity::new(n),
             elements: ElementScratch::new(&model),
             contact: ContactScratch::default(),
             wall_grain_forces: Vec::new(),
@@ -329,11 +330,17 @@ impl Solver {
                 dt,
             );
         });
+        let predictor = Predictor {
+            v: &state.v,
+            force: &scratch.force,
+            mass: &model.mass,
+            dt,
+        };
         timers.time(Stage::Contact, || {
             crate::contact::enforce_walls(
                 model,
                 &state.x,
-                &state.v,
+                &predictor,
                 &mut scratch.v_next,
                 state.time,
                 dt,
@@ -416,8 +423,14 @@ impl Solver {
 
         // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
         // before integration overwrites v.
+        let predictor = Predictor {
+            v: &state.v,
+            force: &scratch.force,
+            mass: &model.mass,
+            dt,
+        };
         let contact_damping = timers.time(Stage::Contact, || {
-            crate::contact::damping_power(model, &state.v, &scratch.v_next, &scratch.contact)
+            crate::contact::damping_power(model, &predictor, &scratch.v_next, &scratch.contact)
         });
 
         let partials = timers.time(Stage::Integrate, || {
@@ -535,19 +548,22 @@ fn integrate_and_sum(
     let rigid = &scratch.grain_rigid;
     let owned = model.owned_nodes;
     let undamped = !has_body_or_damping_force(model, alpha, g);
+    let (next, force) = (&scratch.v_next, &scratch.force);
     state.x[..owned]
         .par_chunks_mut(NODE_CHUNK)
         .zip(state.v[..owned].par_chunks_mut(NODE_CHUNK))
-        .zip(scratch.v_next[..owned].par_chunks(NODE_CHUNK))
         .zip(scratch.node_partials.par_iter_mut())
         .enumerate()
-        .for_each(|(chunk, (((x, v), vn), out))| {
+        .for_each(|(chunk, ((x, v), out))| {
             let base = chunk * NODE_CHUNK;
             let mut p = NodePartials::default();
             for k in 0..x.len() {
                 let n = base + k;
                 let m = model.mass[n];
-                let (a, b) = (v[k], vn[k]);
+                let a = v[k];
+                let b = next
+                    .stored(n)
+                    .unwrap_or_else(|| predict(a, force[n], m, dt));
                 let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
                 p.kinetic += 0.5 * m * ab;
                 // without gravity and damping their powers are +0 whatever the node does
