@@ -22,7 +22,11 @@ pub struct Predictor<'a> {
     pub dt: f64,
 }
 
-impl Predictor<'_> {
+impl<'a> Predictor<'a> {
+    pub fn new(v: &'a [[f64; 3]], force: &'a [[f64; 3]], mass: &'a [f64], dt: f64) -> Self {
+        Self { v, force, mass, dt }
+    }
+
     /// v_{n−½} + Δt f/m of node `n`.
     #[inline(always)]
     pub fn at(&self, n: usize) -> [f64; 3] {
@@ -115,12 +119,7 @@ mod tests {
             vec![[0.5, -1.0, 2.0]; 3],
             vec![2.0; 3],
         );
-        let p = Predictor {
-            v: &v,
-            force: &f,
-            mass: &m,
-            dt: 0.1,
-        };
+        let p = Predictor::new(&v, &f, &m, 0.1);
         let mut next = NextVelocity::new(3);
         next.predict_where_read();
         let expect = [1.025, 1.95, 3.1];

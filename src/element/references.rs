@@ -29,6 +29,18 @@ pub struct ReferenceBlock {
     pub fields: [[f64; BLOCK]; FIELDS],
 }
 
+impl ReferenceBlock {
+    /// The reference data of the block's element `lane`.
+    #[inline]
+    pub fn element(&self, lane: usize) -> TetReference {
+        let f = &self.fields;
+        TetReference {
+            dm_inv: std::array::from_fn(|k| f[k][lane]),
+            volume: f[9][lane],
+        }
+    }
+}
+
 impl Default for ReferenceBlock {
     fn default() -> Self {
         Self {
@@ -100,15 +112,7 @@ impl TetReferences {
     /// The reference data of element `e`.
     pub fn get(&self, e: usize) -> TetReference {
         let (b, l) = self.slot(e);
-        self.at(b, l)
-    }
-
-    fn at(&self, block: usize, lane: usize) -> TetReference {
-        let f = &self.blocks[block].fields;
-        TetReference {
-            dm_inv: std::array::from_fn(|k| f[k][lane]),
-            volume: f[9][lane],
-        }
+        self.blocks[b].element(l)
     }
 
     /// Replaces the reference data of element `e`.
@@ -127,7 +131,7 @@ impl TetReferences {
             let end = self.grain_first_element.get(g + 1).copied();
             let len = end.unwrap_or(self.elements) - self.grain_first_element[g];
             let first = self.grain_first_block[g];
-            (0..len).map(move |i| self.at(first + i / BLOCK, i % BLOCK))
+            (0..len).map(move |i| self.blocks[first + i / BLOCK].element(i % BLOCK))
         })
     }
 

@@ -364,8 +364,7 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     let tets = &pass.model.tets[range.clone()];
     let nodes = TetNodes::new(pass.x, tets);
     assert!(pass.x.len() <= pass.force.len());
-    let references = &pass.model.tet_reference;
-    let blocks = ChunkBlocks::of(references, range.clone());
+    let blocks = ChunkBlocks::of(&pass.model.tet_reference, range.clone());
     let mut tally = Tally::new(range.start);
     let width = T::WIDTH;
     let groups = if L::VECTORISES && width > 1 {
@@ -397,7 +396,8 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
         }
     }
     for k in groups * width..tets.len() {
-        let reference = references.get(range.start + k);
+        let (block, lane) = blocks.at(k);
+        let reference = block.element(lane);
         let (nodal, energy, jacobian) = tet_forces_elastic(&nodes.corners_of(k), &reference, law);
         // SAFETY: as for the groups above
         f64::add_corner_forces(&nodal, &nodes, k, pass.force.as_mut_ptr());
@@ -424,8 +424,7 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     let tets = &pass.model.tets[range.clone()];
     let nodes = TetNodes::new(pass.x, tets);
     assert!(pass.x.len() <= pass.force.len());
-    let references = &pass.model.tet_reference;
-    let blocks = ChunkBlocks::of(references, range.clone());
+    let blocks = ChunkBlocks::of(&pass.model.tet_reference, range.clone());
     let mut tally = Tally::new(range.start);
     // the state after the step into slot `k`, and the equivalent plastic strain it gained
     let commit = |k: usize, p: PlasticPoint| {
@@ -495,7 +494,8 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     }
     for k in groups * width..tets.len() {
         let point = *pass.plastic.get(first_slot + k);
-        let reference = references.get(range.start + k);
+        let (block, lane) = blocks.at(k);
+        let reference = block.element(lane);
         let forces = tet_forces(&nodes.corners_of(k), &reference, law, Some(&point));
         // SAFETY: as for the groups above
         f64::add_corner_forces(&forces.nodal, &nodes, k, pass.force.as_mut_ptr());

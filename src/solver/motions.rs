@@ -31,12 +31,7 @@ pub(super) fn drive_prescribed_motions(
             let x = state.x[n];
             let m = model.mass[n];
             let mut r = [0.0; 3];
-            let predictor = Predictor {
-                v: &state.v,
-                force,
-                mass: &model.mass,
-                dt,
-            };
+            let predictor = Predictor::new(&state.v, force, &model.mass, dt);
             let mut driven = v_next.get(n, &predictor);
             for i in 0..3 {
                 if working.components[i] {

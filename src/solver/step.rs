@@ -260,8 +260,8 @@ impl Solver {
         });
         // Every rank skips entries by the largest displacement of any surface node, ghosts
         // included (their owners count them): a rank whose own grains rest must still see
-        // a ghost grain that comes at them.
-        // and a ghost's motion since the rebuild is its owner's
+        // a ghost grain that comes at them. The same reduction gives every ghost surface its
+        // owner's motion since the rebuild, which bounds the entries evaluated.
         let over_ranks = &mut scratch.over_ranks;
         timers.time(Stage::Contact, || {
             let grains = state.partition.owner.len();
@@ -330,12 +330,7 @@ impl Solver {
                 dt,
             );
         });
-        let predictor = Predictor {
-            v: &state.v,
-            force: &scratch.force,
-            mass: &model.mass,
-            dt,
-        };
+        let predictor = Predictor::new(&state.v, &scratch.force, &model.mass, dt);
         timers.time(Stage::Contact, || {
             crate::contact::enforce_walls(
                 model,
@@ -423,12 +418,7 @@ impl Solver {
 
         // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
         // before integration overwrites v.
-        let predictor = Predictor {
-            v: &state.v,
-            force: &scratch.force,
-            mass: &model.mass,
-            dt,
-        };
+        let predictor = Predictor::new(&state.v, &scratch.force, &model.mass, dt);
         let contact_damping = timers.time(Stage::Contact, || {
             crate::contact::damping_power(model, &predictor, &scratch.v_next, &scratch.contact)
         });
