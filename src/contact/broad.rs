@@ -21,7 +21,6 @@
 use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
 use super::ContactModel;
 use crate::math::{dot, sub};
-use crate::model::periodic::NO_IMAGE;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -160,7 +159,7 @@ impl BroadPhase {
         self.motion
             .resize(cm.surfaces.len(), SurfaceMotion::UNKNOWN);
         let largest = |m: &mut SurfaceMotion, g: &super::GrainSurface| -> f64 {
-            if !(g.owned || g.image != NO_IMAGE) {
+            if !g.moves_here() {
                 *m = SurfaceMotion::UNKNOWN;
                 return 0.0;
             }

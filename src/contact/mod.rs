@@ -357,7 +357,7 @@ pub fn share_surface_motion(
 pub fn take_surface_motion(model: &Model, buffer: &[f64], scratch: &mut ContactScratch) {
     let cm = &model.contact;
     for (g, m) in cm.surfaces.iter().zip(&mut scratch.broad.motion) {
-        if !g.owned && g.image == crate::model::periodic::NO_IMAGE {
+        if !g.moves_here() {
             let at = MOTION_VALUES * g.global_id as usize;
             let values = buffer.get(at..at + MOTION_VALUES);
             *m = match values {

@@ -154,11 +154,7 @@ impl Transpose for __m512d {
     unsafe fn rows(columns: [Self; 4], mut row: impl FnMut(usize, __m256d)) {
         // t0 = [c0[0], c1[0], c0[2], c1[2] | c0[4], c1[4], c0[6], c1[6]], and so on; one
         // two-source permute then holds two rows, one per half
-        let [c0, c1, c2, c3] = columns;
-        let t0 = _mm512_unpacklo_pd(c0, c1);
-        let t1 = _mm512_unpackhi_pd(c0, c1);
-        let t2 = _mm512_unpacklo_pd(c2, c3);
-        let t3 = _mm512_unpackhi_pd(c2, c3);
+        let [t0, t1, t2, t3] = interleave_pairs(columns);
         let low = _mm512_setr_epi64(0, 1, 8, 9, 2, 3, 10, 11);
         let high = _mm512_setr_epi64(4, 5, 12, 13, 6, 7, 14, 15);
         for (first, pair) in [
@@ -182,12 +178,8 @@ impl Transpose for __m512d {
 #[inline(always)]
 unsafe fn transpose8x4(row: impl Fn(usize) -> __m256d) -> [__m512d; 4] {
     let pair = |l: usize| _mm512_insertf64x4::<1>(_mm512_castpd256_pd512(row(l)), row(l + 4));
-    let [z0, z1, z2, z3] = [pair(0), pair(1), pair(2), pair(3)];
     // t0 = [r0[0], r1[0], r0[2], r1[2] | r4[0], r5[0], r4[2], r5[2]], and so on
-    let t0 = _mm512_unpacklo_pd(z0, z1);
-    let t1 = _mm512_unpackhi_pd(z0, z1);
-    let t2 = _mm512_unpacklo_pd(z2, z3);
-    let t3 = _mm512_unpackhi_pd(z2, z3);
+    let [t0, t1, t2, t3] = interleave_pairs([pair(0), pair(1), pair(2), pair(3)]);
     let even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13);
     let odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
     [
@@ -195,6 +187,21 @@ unsafe fn transpose8x4(row: impl Fn(usize) -> __m256d) -> [__m512d; 4] {
         _mm512_permutex2var_pd(t1, even, t3),
         _mm512_permutex2var_pd(t0, odd, t2),
         _mm512_permutex2var_pd(t1, odd, t3),
+    ]
+}
+
+/// The in-lane unpacks both transposes start with: `[lo(a, b), hi(a, b), lo(c, d), hi(c, d)]`
+/// (`lo(a, b)` = a[0], b[0], a[2], b[2], … across the register).
+///
+/// # Safety
+/// AVX-512F must be present.
+#[inline(always)]
+unsafe fn interleave_pairs([a, b, c, d]: [__m512d; 4]) -> [__m512d; 4] {
+    [
+        _mm512_unpacklo_pd(a, b),
+        _mm512_unpackhi_pd(a, b),
+        _mm512_unpacklo_pd(c, d),
+        _mm512_unpackhi_pd(c, d),
     ]
 }
 

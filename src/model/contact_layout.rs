@@ -49,6 +49,15 @@ pub struct GrainSurface {
     pub min_edge: f64,
 }
 
+impl GrainSurface {
+    /// This rank moves the surface's nodes: an owned grain, or a periodic image (shifted
+    /// here from its grain). A plain ghost's nodes are its owner's, and with a trimmed halo
+    /// most of them are dormant copies.
+    pub fn moves_here(&self) -> bool {
+        self.owned || self.image != super::periodic::NO_IMAGE
+    }
+}
+
 /// How contact changes the stable step (set up once).
 #[derive(Debug, Clone, Default)]
 pub struct StableStepReport {

@@ -25,13 +25,13 @@ pub(super) fn drive_prescribed_motions(
         let c_now = working.centre_at(t);
         let mut reaction = Reaction::default();
         let (mut p_before, mut p_after) = (0.0, 0.0);
+        let predictor = Predictor::new(&state.v, force, &model.mass, dt);
         for (j, &node) in working.nodes.iter().enumerate() {
             let n = node as usize;
             let target = working.position(j, &c_next, &q_next);
             let x = state.x[n];
             let m = model.mass[n];
             let mut r = [0.0; 3];
-            let predictor = Predictor::new(&state.v, force, &model.mass, dt);
             let mut driven = v_next.get(n, &predictor);
             for i in 0..3 {
                 if working.components[i] {
