@@ -58,8 +58,58 @@ pub struct BroadPhase {
     /// rebuild: this rank's surfaces after [`BroadPhase::needs_rebuild`], a plain ghost's
     /// once the step has taken its owner's ([`SurfaceMotion::UNKNOWN`] until then).
     pub motion: Vec<SurfaceMotion>,
+    /// The last exact measure of `moved` and `motion`, and how far the nodes can have
+    /// travelled since: what bounds them in the steps between measures.
+    measured: MeasuredMotion,
     order: Vec<u32>,
     bvh_built: Vec<bool>,
+}
+
+/// Steps between exact measures of the surface motion by default (see
+/// [`BroadPhase::note_travel`]).
+pub const MEASURE_MOTION_EVERY: u64 = 16;
+
+/// An exact measure of the surface motion and the travel bound accumulated since.
+///
+/// Why: the exact measure reads every surface node this rank moves (x and its reference),
+/// a pass over scattered memory that cost a tenth of the contact stage on the 2000-sphere
+/// block; between measures, `moved + travel` and each spread + 3 `travel` are upper bounds
+/// that cost nothing (docs/BENCHMARKS.md, session 34).
+#[derive(Debug, Clone)]
+struct MeasuredMotion {
+    /// Steps between exact measures; 1 measures every step.
+    every: u64,
+    /// Step of the last exact measure; `None` when the bound is broken (no measure yet,
+    /// a rebuild, a step whose travel was not noted).
+    at: Option<u64>,
+    /// The step whose positions the bound covers.
+    reaches: u64,
+    /// Σ over the steps since the measure of the farthest any node this rank moves went
+    /// in that step (m).
+    travel: f64,
+    /// Exact measures so far.
+    count: u64,
+    /// `moved` and `motion` at the measure.
+    moved: f64,
+    motion: Vec<SurfaceMotion>,
+    /// Largest coordinate magnitude of the surfaces at the rebuild (m): sets the rounding
+    /// slack of the bound (a measure rounds each displacement to a few ulps of it).
+    extent: f64,
+}
+
+impl Default for MeasuredMotion {
+    fn default() -> Self {
+        Self {
+            every: MEASURE_MOTION_EVERY,
+            at: None,
+            count: 0,
+            reaches: 0,
+            travel: 0.0,
+            moved: 0.0,
+            motion: Vec::new(),
+            extent: 0.0,
+        }
+    }
 }
 
 /// A surface's motion since the last rebuild: the displacement of its first node, and the
@@ -74,6 +124,19 @@ pub struct SurfaceMotion {
     pub shift: [f64; 3],
     /// m; infinite when unknown.
     pub spread: f64,
+}
+
+impl MeasuredMotion {
+    /// Keeps the exact measure of step `step`.
+    fn record(&mut self, step: u64, moved: f64, motion: &[SurfaceMotion]) {
+        self.count += 1;
+        self.at = Some(step);
+        self.reaches = step;
+        self.travel = 0.0;
+        self.moved = moved;
+        self.motion.clear();
+        self.motion.extend_from_slice(motion);
+    }
 }
 
 impl SurfaceMotion {
@@ -185,27 +248,92 @@ impl BroadPhase {
             .sqrt()
     }
 
-    /// True when lists built at `reference` may miss a contact at positions `x` and wall
-    /// displacements `wall_next` (those at t_{n+1}).
+    /// True when lists built at `reference` may miss a contact at positions `x` (those of
+    /// step `step`) and wall displacements `wall_next` (those at t_{n+1}). Sets `moved`
+    /// and `motion`: measured, or between measures bounded by the travel since the last
+    /// one; a rebuild is decided on measured values only, so the rebuild steps do not
+    /// depend on the measuring schedule.
     pub fn needs_rebuild(
         &mut self,
         cm: &ContactModel,
         x: &[[f64; 3]],
         wall_next: &[[f64; 3]],
         reference: &DetectionReference,
+        step: u64,
     ) -> bool {
         if !reference.built {
             return true;
         }
+        let due = |d: f64| {
+            2.0 * d >= cm.margin
+                || cm.walls.iter().enumerate().any(|(w, wall)| {
+                    let moved = dot(sub(wall_next[w], reference.wall_ref[w]), wall.normal).abs();
+                    d + moved >= 0.5 * cm.margin
+                })
+        };
+        if let Some(bound) = self.bounded_motion(cm, step) {
+            if !due(bound) {
+                self.moved = bound;
+                return false;
+            }
+        }
         let d = self.max_displacement(cm, x, reference);
         self.moved = d;
-        if 2.0 * d >= cm.margin {
-            return true;
+        self.measured.record(step, d, &self.motion);
+        due(d)
+    }
+
+    /// Records that no node this rank moves went farther than `travel` (m) in the step
+    /// that reached step `step` (the integrator's Δt max|v_{n+½}|). Without the note for
+    /// every step since the last exact measure, the next check measures again: a caller
+    /// that also moves nodes otherwise (a periodic cell shifts its images) does not note.
+    pub fn note_travel(&mut self, step: u64, travel: f64) {
+        let m = &mut self.measured;
+        if m.at.is_some() && m.reaches + 1 == step && travel.is_finite() {
+            m.reaches = step;
+            m.travel += travel;
+        } else {
+            m.at = None;
         }
-        cm.walls.iter().enumerate().any(|(w, wall)| {
-            let moved = dot(sub(wall_next[w], reference.wall_ref[w]), wall.normal).abs();
-            d + moved >= 0.5 * cm.margin
-        })
+    }
+
+    /// Measures the surface motion every `steps` steps (1: every step).
+    pub fn measure_motion_every(&mut self, steps: u64) {
+        self.measured.every = steps.max(1);
+        self.measured.at = None;
+    }
+
+    /// Exact measures of the surface motion taken so far.
+    pub fn motion_measures(&self) -> u64 {
+        self.measured.count
+    }
+
+    /// `moved` bounded by the last measure plus the travel since, with `motion` set to the
+    /// matching bounds, when the bound covers step `step` and the measure is recent.
+    fn bounded_motion(&mut self, cm: &ContactModel, step: u64) -> Option<f64> {
+        let m = &self.measured;
+        let at = m.at?;
+        if m.reaches != step || step - at >= m.every || m.motion.len() != cm.surfaces.len() {
+            return None;
+        }
+        // the first node is off its measured shift by ≤ travel, every node off its measured
+        // offset from the first by ≤ 2 travel: closing_with grows by ≤ 6 travel per pair
+        // (with the rounding of the measures on top)
+        let travel = m.travel + 16.0 * f64::EPSILON * m.extent;
+        let grown = |(g, m): (&super::GrainSurface, &SurfaceMotion)| {
+            if g.moves_here() {
+                SurfaceMotion {
+                    shift: m.shift,
+                    spread: m.spread + 3.0 * travel,
+                }
+            } else {
+                SurfaceMotion::UNKNOWN
+            }
+        };
+        self.motion.clear();
+        self.motion
+            .extend(cm.surfaces.iter().zip(&self.measured.motion).map(grown));
+        Some(self.measured.moved + travel)
     }
 
     /// Rebuilds the lists at positions `x` (walls at displacements `wall_now`) and makes
@@ -230,6 +358,7 @@ impl BroadPhase {
         self.motion.clear();
         self.motion
             .resize(cm.surfaces.len(), SurfaceMotion::AT_REST);
+        self.measured.at = None;
         self.build_lists(cm, x, wall_now, lists);
     }
 
@@ -268,6 +397,10 @@ impl BroadPhase {
             }
             self.boxes.push(b);
         }
+        self.measured.extent = (self.boxes.iter())
+            .flat_map(|b| b.min.into_iter().chain(b.max))
+            .filter(|c| c.is_finite())
+            .fold(0.0, |e, c| e.max(c.abs()));
         let reach = |g: usize| cm.margin + 0.5 * cm.surfaces[g].h_max;
 
         // Sweep and prune along x over the inflated boxes.

@@ -296,17 +296,18 @@ pub fn evaluate(
     state: &mut ContactState,
     scratch: &mut ContactScratch,
 ) -> Result<(), MufeError> {
-    let rebuild = needs_rebuild(model, x, time, dt, state, scratch);
+    let rebuild = needs_rebuild(model, x, time, step, dt, state, scratch);
     evaluate_with(model, x, v, time, step, dt, rebuild, state, scratch)
 }
 
 /// Whether the cached candidate lists must be rebuilt before evaluating at x_n (t_n =
-/// `time`). Under MPI the ranks OR their answers so that all rebuild at the same step, as
-/// the serial run would.
+/// `time`, n = `step`). Under MPI the ranks OR their answers so that all rebuild at the
+/// same step, as the serial run would.
 pub fn needs_rebuild(
     model: &Model,
     x: &[[f64; 3]],
     time: f64,
+    step: u64,
     dt: f64,
     state: &ContactState,
     scratch: &mut ContactScratch,
@@ -324,7 +325,7 @@ pub fn needs_rebuild(
     }
     scratch
         .broad
-        .needs_rebuild(cm, x, &scratch.wall_next, &state.detection)
+        .needs_rebuild(cm, x, &scratch.wall_next, &state.detection, step)
 }
 
 /// Values per grain in [`share_surface_motion`]'s buffer.
@@ -389,7 +390,7 @@ pub fn evaluate_with(
         return Ok(());
     }
     if scratch.wall_now.len() != cm.walls.len() {
-        needs_rebuild(model, x, time, dt, state, scratch);
+        needs_rebuild(model, x, time, step, dt, state, scratch);
     }
     if rebuild {
         scratch.broad.rebuild(
@@ -743,6 +744,63 @@ density = 2500.0
         )
     }
 
+    /// Between exact measures the surface motion is bounded by the integrator's travel:
+    /// two spheres, one spinning, collide; with a measure every 16 steps the run is the
+    /// one measured every step to the bit, each bound covers the measure, and most steps
+    /// skip the measure.
+    #[test]
+    fn travel_bound_between_measures_leaves_the_run_unchanged() {
+        let (radius, seeding) = (1.0e-3, 3.0e-4);
+        let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
+        let (ca, cb) = ([0.0; 3], [2.0 * radius + 2e-6, 0.0, 0.0]);
+        let scene = pair_scene(("a", &sphere, ca), ("b", &sphere, cb));
+        let (mut every, mut measured) = (solver(&scene), solver(&scene));
+        measured.scratch.contact.broad.measure_motion_every(1);
+        // closing at 3 m/s, b spinning about z at 2000 rad/s (rim speed 2 m/s)
+        let dt = every.model.dt;
+        let steps = (2e-6 / 3.0 / dt) as usize + 40;
+        for s in [&mut every, &mut measured] {
+            for n in s.model.grains[0].nodes.clone() {
+                s.state.v[n] = [1.5, 0.0, 0.0];
+            }
+            for n in s.model.grains[1].nodes.clone() {
+                let r = sub(s.state.x[n], cb);
+                s.state.v[n] = [-1.5 - 2000.0 * r[1], 2000.0 * r[0], 0.0];
+            }
+        }
+        let mut touching = 0;
+        for _ in 0..steps {
+            every.step().unwrap();
+            measured.step().unwrap();
+            let (b, m) = (
+                &every.scratch.contact.broad,
+                &measured.scratch.contact.broad,
+            );
+            assert!(
+                b.moved >= m.moved,
+                "bound {:e} < measure {:e}",
+                b.moved,
+                m.moved
+            );
+            let closing = |br: &broad::BroadPhase| br.motion[0].closing_with(&br.motion[1]);
+            assert!(closing(b) >= closing(m));
+            touching += usize::from(every.state.contact.stats.points > 0);
+        }
+        assert!(touching > 10, "the spheres touched in {touching} steps");
+        assert_eq!(every.state.x, measured.state.x);
+        assert_eq!(every.state.v, measured.state.v);
+        let (n_every, n_measured) = (
+            every.scratch.contact.broad.motion_measures(),
+            measured.scratch.contact.broad.motion_measures(),
+        );
+        // every step but the first, which builds the lists
+        assert_eq!(n_measured as usize, steps - 1);
+        assert!(
+            n_every * 8 < n_measured,
+            "{n_every} measures of {n_measured}"
+        );
+    }
+
     /// The motion each surface reports since the rebuild: a translation is all shift, a
     /// rotation about the grain's centre by θ spreads the nodes by up to 2θR from the
     /// first node's displacement.
@@ -774,6 +832,7 @@ density = 2500.0
             &s.model,
             &s.state.x,
             0.0,
+            0,
             dt,
             &s.state.contact,
             &mut s.scratch.contact,

@@ -91,6 +91,9 @@ struct NodePartials {
     gravity_after: f64,
     damping_before: f64,
     damping_after: f64,
+    /// Largest velocity component |v_{n+½}|_∞ (m/s): √3 Δt times it bounds how far any
+    /// node went in the step.
+    max_speed: f64,
     bad_node: Option<usize>,
 }
 
@@ -253,6 +256,7 @@ impl Solver {
                 model,
                 &state.x,
                 state.time,
+                state.step,
                 dt,
                 &state.contact,
                 &mut scratch.contact,
@@ -464,6 +468,12 @@ impl Solver {
 
         state.time = state.time_at_step(state.step + 1, dt);
         state.step += 1;
+        // a periodic cell also shifts the images' nodes, which the integrator's speeds do
+        // not bound: the contact check then measures every step
+        if model.periodic.is_none() {
+            let travel = 3f64.sqrt() * dt * partials.max_speed;
+            scratch.contact.broad.note_travel(state.step, travel);
+        }
 
         // Exploding energy: with every force accounted for, KE + U cannot exceed the energy
         // supplied; an unstable integration grows it exponentially past any such bound.
@@ -556,6 +566,14 @@ fn integrate_and_sum(
                     .unwrap_or_else(|| predict(a, force[n], m, dt));
                 let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
                 p.kinetic += 0.5 * m * ab;
+                // plain comparisons (one max instruction each): no NaN handling is needed
+                // here, see bad_node
+                for c in b {
+                    let c = c.abs();
+                    if c > p.max_speed {
+                        p.max_speed = c;
+                    }
+                }
                 // without gravity and damping their powers are +0 whatever the node does
                 // (a non-finite velocity ends the run below)
                 if !undamped {
@@ -585,6 +603,7 @@ fn integrate_and_sum(
         total.gravity_after += p.gravity_after;
         total.damping_before += p.damping_before;
         total.damping_after += p.damping_after;
+        total.max_speed = total.max_speed.max(p.max_speed);
         if total.bad_node.is_none() {
             total.bad_node = p.bad_node;
         }
