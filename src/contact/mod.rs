@@ -115,8 +115,8 @@ use crate::math::dot;
 use crate::model::Model;
 pub use broad::DetectionReference;
 use broad::{BroadPhase, CandidateLists};
-use narrow::{evaluate_entry_on, nearest_facet, EvalContext, PointResult};
-use prefetch::{warm_rings, warm_up, WARM_BATCH};
+use narrow::{EvalContext, PointResult};
+use prefetch::evaluate_pipelined;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -432,20 +432,7 @@ pub fn evaluate_with(
         .results
         .par_chunks_mut(ENTRY_CHUNK)
         .zip(scratch.evaluated.par_chunks(ENTRY_CHUNK))
-        .for_each(|(out, indices)| {
-            for (out, batch) in out.chunks_mut(WARM_BATCH).zip(indices.chunks(WARM_BATCH)) {
-                warm_up(&ctx, &lists.entries, batch);
-                let mut nearest = [None; WARM_BATCH];
-                for (f, &i) in nearest.iter_mut().zip(batch) {
-                    *f = nearest_facet(&ctx, &lists.entries[i as usize]);
-                }
-                let nearest = &nearest[..batch.len()];
-                warm_rings(&ctx, nearest);
-                for ((r, &i), &f) in out.iter_mut().zip(batch).zip(nearest) {
-                    *r = evaluate_entry_on(&ctx, &lists.entries[i as usize], f);
-                }
-            }
-        });
+        .for_each(|(out, indices)| evaluate_pipelined(&ctx, &lists.entries, indices, out));
 
     let stats = &mut state.stats;
     stats.points = 0;

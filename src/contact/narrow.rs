@@ -457,7 +457,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
 
 /// The candidate facet of `entry` nearest to its slave node (by the flat closest-point
 /// distance), `None` without candidates: the first step of [`evaluate_entry`], which
-/// [`super::prefetch::warm_rings`] needs before the rest.
+/// [`super::prefetch`] needs before the rest.
 pub fn nearest_facet(ctx: &EvalContext, entry: &Entry) -> Option<u32> {
     let cands = &ctx.candidates[entry.start as usize..entry.end as usize];
     let xs = ctx.x[ctx.cm.node[entry.slave as usize] as usize];

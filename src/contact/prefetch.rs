@@ -2,115 +2,217 @@
 //!
 //! Why: an evaluated entry reads one grain pair's corner of the surface arrays, which the
 //! element stage has long evicted (it streams the whole mesh), and reaches it through a
-//! chain of dependent lookups: entry → candidate facets → their corners → each corner's
-//! facet list. Evaluated one entry after another, every link is a miss the core waits for
-//! (profiled on the 2000-sphere block: most of the contact stage). [`warm_up`] walks the
-//! same chain for a batch of entries one link at a time, so that the misses of the whole
-//! batch are in flight together, and the evaluation then finds its data in cache. It only
-//! prefetches: the results do not change.
+//! chain of dependent lookups: entry → slave node and candidate facets → their corners'
+//! positions → (nearest facet) → its neighbours and its corners' surface slots → each
+//! corner's fan → the fan's positions. Evaluated one entry after another, every link is a
+//! miss the core waits for.
 //!
-//! The chain forks at the nearest candidate facet: only its corners' facet rings are read
-//! (the curved patch's vertex normals), so a batch is fetched in two rounds, [`warm_up`]
-//! for the candidates, then, once the nearest facets are found, [`warm_rings`] for the
-//! rings (session 28: fetching every candidate corner's ring head, as before, left the
-//! rings themselves to miss one link at a time). A ring is read as its fan of corner
-//! pairs (`ContactModel::vertex_fans`), not through its facets: one link fewer.
+//! [`evaluate_pipelined`] walks the chain for batches of [`BATCH`] entries as a software
+//! pipeline: at each turn every [`Stage`] handles its own batch, stage s the batch s
+//! turns behind the first, and each prefetches the next link for its batch. A link is
+//! thus read one whole turn (a batch's evaluation, several µs) after its line was asked
+//! for, when it has arrived, and the misses of eight batches overlap the arithmetic
+//! instead of stalling it (docs/BENCHMARKS.md, session 34: the two-round prefetch before
+//! it stalled on each link's own loads). Only prefetches are added: the results do not
+//! change.
+//!
+//! The chain forks at the nearest candidate facet: only its corners' rings are read (the
+//! curved patch's vertex normals). A ring is read as its fan of corner pairs
+//! (`ContactModel::vertex_fans`), not through its facets: one link fewer.
 
-use super::narrow::{Entry, EvalContext};
+use super::narrow::{evaluate_entry_on, nearest_facet, Entry, EvalContext, PointResult};
 use super::vertex_normals::fan_around;
 
-/// Entries whose data is fetched together: enough misses in flight to fill the core's
-/// miss buffers, few enough that the batch's lines (≈ 100 each) stay in L2 until used.
-pub const WARM_BATCH: usize = 16;
+/// Entries per batch: enough misses in flight per stage to fill the core's miss buffers,
+/// few enough that the lines of all batches in the pipeline (≈ 40 per entry) stay in L2.
+pub const BATCH: usize = 16;
+
+/// What each turn does to its batch, in chain order (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Stage {
+    /// The slave's surface slot and its candidate list.
+    EntryHeads,
+    /// The slave's position, velocity and mass; the candidate facets.
+    SlaveAndFacets,
+    /// The candidate facets' corner positions.
+    CandidateCorners,
+    /// Finds the nearest candidate; its neighbours, corner velocities and surface slots.
+    Nearest,
+    /// The corners' fan offsets and sizes; the neighbours' corners.
+    RingHeads,
+    /// The corners' fans.
+    Fans,
+    /// The fans' positions.
+    FanPositions,
+    /// The evaluation itself.
+    Evaluate,
+}
+
+const STAGES: [Stage; 8] = [
+    Stage::EntryHeads,
+    Stage::SlaveAndFacets,
+    Stage::CandidateCorners,
+    Stage::Nearest,
+    Stage::RingHeads,
+    Stage::Fans,
+    Stage::FanPositions,
+    Stage::Evaluate,
+];
+
+/// Turns from `Nearest` to `Evaluate` inclusive: the nearest facets kept at once.
+const NEAREST_KEPT: usize = Stage::Evaluate as usize - Stage::Nearest as usize + 1;
 
 /// Hints the cache line holding `r` into L1.
 #[inline(always)]
 fn touch<T>(r: &T) {
-    // one line, at r's first byte
     crate::lanes::prefetch((r as *const T).cast::<u8>(), 1);
 }
 
-/// Prefetches, link by link, what finding the nearest candidate facet of the entries
-/// `batch` (indices into `entries`) reads: the slave node's data, the candidate facets and
-/// their corners' positions. The rest of an evaluation reads around the nearest facet
-/// only, which [`warm_rings`] fetches once it is known.
-pub fn warm_up(ctx: &EvalContext, entries: &[Entry], batch: &[u32]) {
+/// Hints both lines a node's 24-byte vector may straddle.
+#[inline(always)]
+fn touch_node(v: &[[f64; 3]], n: u32) {
+    let p = v[n as usize].as_ptr();
+    crate::lanes::prefetch(p, 1);
+    crate::lanes::prefetch(p.wrapping_add(2), 1);
+}
+
+/// Evaluates the entries `indices` (into `entries`) into `out`, in order, through the
+/// prefetch pipeline of the module docs.
+pub fn evaluate_pipelined(
+    ctx: &EvalContext,
+    entries: &[Entry],
+    indices: &[u32],
+    out: &mut [PointResult],
+) {
+    let batches = indices.len().div_ceil(BATCH);
+    let mut nearest = [[None; BATCH]; NEAREST_KEPT];
+    for turn in 0..batches + STAGES.len() - 1 {
+        for &stage in &STAGES {
+            let Some(b) = turn.checked_sub(stage as usize).filter(|&b| b < batches) else {
+                continue;
+            };
+            let range = b * BATCH..indices.len().min((b + 1) * BATCH);
+            let batch = &indices[range.clone()];
+            let slot = &mut nearest[b % NEAREST_KEPT];
+            run_stage(ctx, entries, stage, batch, slot, &mut out[range]);
+        }
+    }
+}
+
+/// One stage's work on one batch.
+fn run_stage(
+    ctx: &EvalContext,
+    entries: &[Entry],
+    stage: Stage,
+    batch: &[u32],
+    nearest: &mut [Option<u32>; BATCH],
+    out: &mut [PointResult],
+) {
     let cm = ctx.cm;
     let batch = || batch.iter().map(|&i| &entries[i as usize]);
     let candidates = |e: &Entry| &ctx.candidates[e.start as usize..e.end as usize];
-    for e in batch() {
-        touch(&cm.node[e.slave as usize]);
-        if let Some(first) = candidates(e).first() {
-            touch(first);
+    if stage == Stage::Nearest {
+        *nearest = [None; BATCH];
+        for (f, e) in nearest.iter_mut().zip(batch()) {
+            *f = nearest_facet(ctx, e);
         }
     }
-    for e in batch() {
-        let (k, s) = (e.slave as usize, cm.node[e.slave as usize] as usize);
-        touch(&ctx.x[s]);
-        touch(&ctx.v[s]);
-        if let Some(m) = ctx.mass.get(s) {
-            touch(m);
-        }
-        touch(&cm.node_h[k]);
-        touch(&cm.node_area[k]);
-        for &f in candidates(e) {
-            touch(&cm.facet[f as usize]);
-        }
-    }
-    touch_corner_positions(ctx, batch().flat_map(candidates));
-}
-
-/// Prefetches the positions of the corners of `facets`.
-fn touch_corner_positions<'a>(ctx: &EvalContext, facets: impl Iterator<Item = &'a u32>) {
-    for &f in facets {
-        for n in ctx.cm.facet[f as usize] {
-            touch(&ctx.x[n as usize]);
-        }
-    }
-}
-
-/// Prefetches, link by link, what the rest of an evaluation reads around each entry's
-/// nearest facet (`nearest`, from [`super::narrow::nearest_facet`]): its neighbours, its
-/// corners' velocities and sizes, and for each corner the fan of corners around it with
-/// their positions (the smooth vertex normals of the curved patch).
-pub fn warm_rings(ctx: &EvalContext, nearest: &[Option<u32>]) {
-    let cm = ctx.cm;
-    let corners = || nearest.iter().flatten().flat_map(|&f| cm.facet[f as usize]);
-    for &f in nearest.iter().flatten() {
-        touch(&cm.facet_adjacent[f as usize]);
-    }
-    for n in corners() {
-        touch(&cm.surface_index[n as usize]);
-        touch(&ctx.v[n as usize]);
-    }
-    for n in corners() {
-        let s = cm.surface_index[n as usize] as usize;
-        touch(&cm.vertex_facet_offsets[s]);
-        touch(&cm.node_h[s]);
-    }
-    for n in corners() {
-        let fan = fan_around(cm, n);
-        if let (Some(first), Some(last)) = (fan.first(), fan.last()) {
-            touch(first);
-            touch(last);
-        }
-    }
-    // the neighbour across the edge a patch point may be clamped to
-    for &f in nearest.iter().flatten() {
-        for o in cm.facet_adjacent[f as usize] {
-            if let Some(facet) = cm.facet.get(o as usize) {
-                touch(facet);
+    let found = || nearest.iter().flatten();
+    let corners = || found().flat_map(|&f| cm.facet[f as usize]);
+    match stage {
+        Stage::EntryHeads => {
+            for e in batch() {
+                let k = e.slave as usize;
+                touch(&cm.node[k]);
+                touch(&cm.node_h[k]);
+                touch(&cm.node_area[k]);
+                if let (Some(first), Some(last)) = (candidates(e).first(), candidates(e).last()) {
+                    touch(first);
+                    touch(last);
+                }
             }
         }
-    }
-    // around a closed surface's vertex every fan corner comes first in one pair
-    for n in corners() {
-        let fan = fan_around(cm, n);
-        for &[a, _] in fan {
-            touch(&ctx.x[a as usize]);
+        Stage::SlaveAndFacets => {
+            for e in batch() {
+                let s = cm.node[e.slave as usize];
+                touch_node(ctx.x, s);
+                touch_node(ctx.v, s);
+                if let Some(m) = ctx.mass.get(s as usize) {
+                    touch(m);
+                }
+                for &f in candidates(e) {
+                    touch(&cm.facet[f as usize]);
+                }
+            }
         }
-        if let Some(&[_, b]) = fan.last() {
-            touch(&ctx.x[b as usize]);
+        Stage::CandidateCorners => {
+            for e in batch() {
+                for &f in candidates(e) {
+                    for n in cm.facet[f as usize] {
+                        touch_node(ctx.x, n);
+                    }
+                }
+            }
+        }
+        Stage::Nearest => {
+            for &f in found() {
+                touch(&cm.facet_adjacent[f as usize]);
+            }
+            for n in corners() {
+                touch(&cm.surface_index[n as usize]);
+                touch_node(ctx.v, n);
+            }
+        }
+        Stage::RingHeads => {
+            for n in corners() {
+                let s = cm.surface_index[n as usize] as usize;
+                touch(&cm.vertex_facet_offsets[s]);
+                touch(&cm.vertex_facet_offsets[s + 1]);
+                touch(&cm.node_h[s]);
+            }
+            // the neighbour across the edge a patch point may be clamped to
+            for &f in found() {
+                for o in cm.facet_adjacent[f as usize] {
+                    if let Some(facet) = cm.facet.get(o as usize) {
+                        touch(facet);
+                    }
+                }
+            }
+        }
+        Stage::Fans => {
+            for n in corners() {
+                let fan = fan_around(cm, n);
+                if let (Some(first), Some(last)) = (fan.first(), fan.last()) {
+                    touch(first);
+                    touch(last);
+                }
+            }
+            for &f in found() {
+                for o in cm.facet_adjacent[f as usize] {
+                    if let Some(facet) = cm.facet.get(o as usize) {
+                        for n in facet {
+                            touch_node(ctx.x, *n);
+                        }
+                    }
+                }
+            }
+        }
+        Stage::FanPositions => {
+            // around a closed surface's vertex every fan corner comes first in one pair
+            for n in corners() {
+                let fan = fan_around(cm, n);
+                for &[a, _] in fan {
+                    touch_node(ctx.x, a);
+                }
+                if let Some(&[_, b]) = fan.last() {
+                    touch_node(ctx.x, b);
+                }
+            }
+        }
+        Stage::Evaluate => {
+            for ((r, e), &f) in out.iter_mut().zip(batch()).zip(nearest.iter()) {
+                *r = evaluate_entry_on(ctx, e, f);
+            }
         }
     }
 }
