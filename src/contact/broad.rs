@@ -61,6 +61,8 @@ pub struct BroadPhase {
     /// The last exact measure of `moved` and `motion`, and how far the nodes can have
     /// travelled since: what bounds them in the steps between measures.
     measured: MeasuredMotion,
+    /// The last [`BroadPhase::note_travel`]: (step, travel into it).
+    travel_into: Option<(u64, f64)>,
     order: Vec<u32>,
     bvh_built: Vec<bool>,
 }
@@ -176,6 +178,15 @@ pub struct CandidateLists {
     pub wall_nodes: Vec<(u32, u32)>,
     pub bvh: Vec<Bvh>,
     query: Vec<u32>,
+    /// Σ over the steps since the lists were built of how far any node of any rank can
+    /// have gone in the step (m); `None` while a step's travel is unknown (a periodic
+    /// cell), when no entry is skipped by it.
+    odometer: Option<f64>,
+    /// Per entry: the `odometer` reading before which its node cannot have reached the
+    /// master: when an evaluation finds the node outside by s, the reading then + s/2 (the
+    /// gap closes by at most the travel of each side, as for `gap_at_rebuild`); −∞ when
+    /// it is to be evaluated.
+    resume_at: Vec<f64>,
 }
 
 impl CandidateLists {
@@ -184,8 +195,14 @@ impl CandidateLists {
     /// two surfaces can have closed of it. That is at most 2 `moved` (no node has moved
     /// more than `moved`; each side closes the gap by at most that), and at most
     /// [`SurfaceMotion::closing_with`] of the two surfaces' `motion`.
+    ///
+    /// Of those, an entry whose node an earlier evaluation found too far outside to have
+    /// arrived since (see `resume_at`) is skipped: in a packing most entries within reach
+    /// are the rings around the contact points, micrometres away, which the travel of a
+    /// few thousand steps cannot close.
     pub fn within_reach(&self, moved: f64, motion: &[SurfaceMotion], out: &mut Vec<u32>) {
         out.clear();
+        let odometer = self.odometer.unwrap_or(f64::INFINITY);
         for (p, range) in self.passes.iter().zip(&self.pass_entries) {
             let (s, m) = (p.slave as usize, p.master as usize);
             let closing = match (motion.get(s), motion.get(m)) {
@@ -196,9 +213,37 @@ impl CandidateLists {
             out.extend(
                 (start..end)
                     .zip(&self.gap_at_rebuild[start..end])
-                    .filter(|&(_, &d0)| d0 <= closing)
+                    .filter(|&(i, &d0)| d0 <= closing && self.resume_at[i] <= odometer)
                     .map(|(i, _)| i as u32),
             );
+        }
+    }
+
+    /// Advances the odometer by `travel`, the farthest any node of any rank went in the
+    /// step that led to the positions about to be evaluated (not finite: unknown).
+    pub fn advance_odometer(&mut self, travel: f64) {
+        if travel.is_finite() {
+            self.odometer = Some(self.odometer.unwrap_or(0.0) + travel);
+        } else if self.odometer.take().is_some() {
+            self.resume_at.fill(f64::NEG_INFINITY);
+        }
+    }
+
+    /// Records, for the entries `evaluated` with the outcomes `outside` (the separation of
+    /// a node found outside, m; `None` for one in contact), when each must be evaluated
+    /// again.
+    pub fn note_separations(
+        &mut self,
+        evaluated: &[u32],
+        outside: impl Iterator<Item = Option<f64>>,
+    ) {
+        let Some(odometer) = self.odometer else {
+            return;
+        };
+        for (&i, separation) in evaluated.iter().zip(outside) {
+            // a hair short of s/2, for the rounding of the readings
+            self.resume_at[i as usize] =
+                separation.map_or(f64::NEG_INFINITY, |s| odometer + 0.5 * s * (1.0 - 1e-9));
         }
     }
 }
@@ -288,6 +333,7 @@ impl BroadPhase {
     /// every step since the last exact measure, the next check measures again: a caller
     /// that also moves nodes otherwise (a periodic cell shifts its images) does not note.
     pub fn note_travel(&mut self, step: u64, travel: f64) {
+        self.travel_into = Some((step, travel));
         let m = &mut self.measured;
         if m.at.is_some() && m.reaches + 1 == step && travel.is_finite() {
             m.reaches = step;
@@ -297,8 +343,19 @@ impl BroadPhase {
         }
     }
 
-    /// Measures the surface motion every `steps` steps (1: every step).
-    pub fn measure_motion_every(&mut self, steps: u64) {
+    /// This rank's travel into step `step` (m), as noted by [`BroadPhase::note_travel`];
+    /// infinite when not noted.
+    pub fn travel_into(&self, step: u64) -> f64 {
+        match self.travel_into {
+            Some((noted, travel)) if noted == step && self.measured.every > 1 => travel,
+            _ => f64::INFINITY,
+        }
+    }
+
+    /// Measures the surface motion every `steps` steps and bounds it by the travel in
+    /// between. 1 takes no bound from the travel at all: every step measures, and no
+    /// entry is skipped by its separation (see [`CandidateLists::within_reach`]).
+    pub fn bound_by_travel(&mut self, steps: u64) {
         self.measured.every = steps.max(1);
         self.measured.at = None;
     }
@@ -462,6 +519,7 @@ impl BroadPhase {
         lists.entries.clear();
         lists.pass_entries.clear();
         lists.gap_at_rebuild.clear();
+        lists.odometer = Some(0.0);
         lists.candidates.clear();
         for (pi, pass) in lists.passes.iter().enumerate() {
             let first_entry = lists.entries.len() as u32;
@@ -494,6 +552,10 @@ impl BroadPhase {
                 .pass_entries
                 .push(first_entry..lists.entries.len() as u32);
         }
+        lists.resume_at.clear();
+        lists
+            .resume_at
+            .resize(lists.entries.len(), f64::NEG_INFINITY);
 
         // Walls: surface nodes within 1.5 margin of the plane.
         lists.wall_nodes.clear();

@@ -277,6 +277,9 @@ pub struct PointResult {
     pub traction: [f64; 3],
     /// On the Coulomb cone at this step (slipping).
     pub sliding: bool,
+    /// When not active: how far outside the master the node is at least (m); infinite
+    /// without candidates.
+    pub separation: f64,
 }
 
 /// Weight of each of the two passes.
@@ -477,10 +480,12 @@ pub fn evaluate_entry_on(ctx: &EvalContext, entry: &Entry, nearest: Option<u32>)
     };
     let xs = x[s as usize];
     let Some(facet) = nearest else {
+        r.separation = f64::INFINITY;
         return r;
     };
     let loc = locate_on_facet(cm, x, xs, facet as usize);
     if loc.depth <= 0.0 {
+        r.separation = -loc.depth;
         return r;
     }
     let (cl, facet, gap, normal) = (loc.closest, loc.facet, loc.depth, loc.normal);

@@ -270,13 +270,19 @@ impl Solver {
         timers.time(Stage::Contact, || {
             let grains = state.partition.owner.len();
             crate::contact::share_surface_motion(model, &scratch.contact, grains, over_ranks);
-            over_ranks.extend([scratch.contact.broad.moved, f64::from(u8::from(local))]);
+            let broad = &scratch.contact.broad;
+            over_ranks.extend([
+                broad.moved,
+                f64::from(u8::from(local)),
+                broad.travel_into(state.step),
+            ]);
         });
         timers.time(Stage::Sync, || hooks.max(over_ranks));
-        let [moved, rebuild] = over_ranks[over_ranks.len() - 2..] else {
-            unreachable!("two values were appended")
+        let [moved, rebuild, travel] = over_ranks[over_ranks.len() - 3..] else {
+            unreachable!("three values were appended")
         };
         scratch.contact.broad.moved = moved;
+        scratch.contact.lists.advance_odometer(travel);
         let rebuild = rebuild > 0.0;
         timers.time(Stage::Contact, || {
             crate::contact::take_surface_motion(model, &scratch.over_ranks, &mut scratch.contact)
