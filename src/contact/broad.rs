@@ -202,7 +202,7 @@ impl CandidateLists {
     /// few thousand steps cannot close.
     pub fn within_reach(&self, moved: f64, motion: &[SurfaceMotion], out: &mut Vec<u32>) {
         out.clear();
-        let odometer = self.odometer.unwrap_or(f64::INFINITY);
+        let odometer = self.odometer;
         for (p, range) in self.passes.iter().zip(&self.pass_entries) {
             let (s, m) = (p.slave as usize, p.master as usize);
             let closing = match (motion.get(s), motion.get(m)) {
@@ -213,7 +213,9 @@ impl CandidateLists {
             out.extend(
                 (start..end)
                     .zip(&self.gap_at_rebuild[start..end])
-                    .filter(|&(i, &d0)| d0 <= closing && self.resume_at[i] <= odometer)
+                    .filter(|&(i, &d0)| {
+                        d0 <= closing && odometer.is_none_or(|o| self.resume_at[i] <= o)
+                    })
                     .map(|(i, _)| i as u32),
             );
         }

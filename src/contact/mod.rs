@@ -116,7 +116,7 @@ use crate::model::Model;
 pub use broad::DetectionReference;
 use broad::{BroadPhase, CandidateLists};
 use narrow::{EvalContext, PointResult};
-use prefetch::evaluate_pipelined;
+use prefetch::{evaluate_pipelined, touch_point_nodes, RESULTS_AHEAD};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -503,7 +503,11 @@ pub fn add_forces(
     gf.clear();
     gf.resize(model.grains.len(), [0.0; 3]);
     let lists = &scratch.lists;
-    for r in &scratch.results {
+    let results = &scratch.results;
+    for (i, r) in results.iter().enumerate() {
+        if let Some(ahead) = results.get(i + RESULTS_AHEAD) {
+            touch_point_nodes(ahead, force);
+        }
         if !r.active {
             continue;
         }
@@ -570,7 +574,13 @@ pub fn damping_power(
     // belongs to exactly one rank, so the sum over ranks is the serial one (and no ghost
     // v_{n+½}, which only its owner knows, is needed).
     let owned = model.owned_nodes;
-    for r in &scratch.results {
+    let results = &scratch.results;
+    for (i, r) in results.iter().enumerate() {
+        if let Some(ahead) = results.get(i + RESULTS_AHEAD) {
+            touch_point_nodes(ahead, v_before);
+            touch_point_nodes(ahead, predictor.force);
+            touch_point_nodes(ahead, predictor.mass);
+        }
         if !r.active || r.damping_force == 0.0 {
             continue;
         }

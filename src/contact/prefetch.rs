@@ -76,6 +76,26 @@ fn touch_node(v: &[[f64; 3]], n: u32) {
     crate::lanes::prefetch(p.wrapping_add(2), 1);
 }
 
+/// Results looked ahead by the serial passes over them ([`touch_point_nodes`]).
+pub const RESULTS_AHEAD: usize = 8;
+
+/// Prefetches the values in `array` of the nodes result `r` acts on (its slave and master
+/// corners): the serial passes over the results (forces, damper power) read them
+/// scattered over the mesh, and call this [`RESULTS_AHEAD`] results early.
+pub fn touch_point_nodes<T>(r: &PointResult, array: &[T]) {
+    if !r.active {
+        return;
+    }
+    for n in std::iter::once(r.slave).chain(r.masters) {
+        if let Some(value) = array.get(n as usize) {
+            // both lines a value may straddle
+            let p = (value as *const T).cast::<u8>();
+            crate::lanes::prefetch(p, 1);
+            crate::lanes::prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
+        }
+    }
+}
+
 /// Evaluates the entries `indices` (into `entries`) into `out`, in order, through the
 /// prefetch pipeline of the module docs.
 pub fn evaluate_pipelined(

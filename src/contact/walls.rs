@@ -63,6 +63,25 @@ pub fn displacements(wall: &Wall, ws: &WallState, t: f64, dt: f64) -> [[f64; 3];
     }
 }
 
+/// Wall nodes looked ahead by [`enforce`].
+const NODES_AHEAD: usize = 8;
+
+/// Prefetches what [`enforce`] reads of model node `n`: the wall nodes of a wall are a few
+/// per grain, scattered over the mesh.
+#[inline(always)]
+fn touch_wall_node(n: usize, x: &[[f64; 3]], predictor: &Predictor) {
+    for array in [x, predictor.v, predictor.force] {
+        if let Some(value) = array.get(n) {
+            let p = value.as_ptr();
+            crate::lanes::prefetch(p, 1);
+            crate::lanes::prefetch(p.wrapping_add(2), 1);
+        }
+    }
+    if let Some(m) = predictor.mass.get(n) {
+        crate::lanes::prefetch(m, 1);
+    }
+}
+
 /// Corrects `v_next` (v_{n+½}, where not stored `predictor`'s, whose `v` is v_{n−½}) of the
 /// candidate nodes `wall_nodes` (wall, flat surface
 /// index; ordered by wall) so that no node ends behind a wall at t_{n+1}; records each
@@ -102,6 +121,9 @@ pub fn enforce(
         let (mut p_before, mut p_after, mut q_before, mut q_after) = (0.0, 0.0, 0.0, 0.0);
         let mut contacts = 0;
         while cursor < wall_nodes.len() && wall_nodes[cursor].0 as usize == w {
+            if let Some(&(_, ahead)) = wall_nodes.get(cursor + NODES_AHEAD) {
+                touch_wall_node(cm.node[ahead as usize] as usize, x, predictor);
+            }
             let k = wall_nodes[cursor].1 as usize;
             cursor += 1;
             let node = cm.node[k] as usize;
