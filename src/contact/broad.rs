@@ -210,14 +210,27 @@ impl CandidateLists {
                 _ => 2.0 * moved,
             };
             let (start, end) = (range.start as usize, range.end as usize);
-            out.extend(
-                (start..end)
-                    .zip(&self.gap_at_rebuild[start..end])
-                    .filter(|&(i, &d0)| {
-                        d0 <= closing && odometer.is_none_or(|o| self.resume_at[i] <= o)
-                    })
-                    .map(|(i, _)| i as u32),
-            );
+            // branch-free: every index is written, the count advances where it qualifies
+            // (which entries do is unpredictable, a branch per entry mispredicted often)
+            let mut kept = out.len();
+            out.resize(kept + (end - start), 0);
+            let gaps = &self.gap_at_rebuild[start..end];
+            match odometer {
+                Some(o) => {
+                    let resume = &self.resume_at[start..end];
+                    for (i, (&d0, &r)) in gaps.iter().zip(resume).enumerate() {
+                        out[kept] = (start + i) as u32;
+                        kept += usize::from((d0 <= closing) & (r <= o));
+                    }
+                }
+                None => {
+                    for (i, &d0) in gaps.iter().enumerate() {
+                        out[kept] = (start + i) as u32;
+                        kept += usize::from(d0 <= closing);
+                    }
+                }
+            }
+            out.truncate(kept);
         }
     }
 
