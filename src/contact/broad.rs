@@ -15,8 +15,15 @@
 //! keeps every node that can reach the plane within the next step in the list.
 //!
 //! The work per step is one pass over the cached entries (which slave nodes can have
-//! reached their master since the rebuild: `CandidateLists::within_reach`) and the narrow phase over
-//! those within reach, i.e. over the surface nodes near contact, not grain pairs × facets.
+//! reached their master since the rebuild: `CandidateLists::within_reach`) and the narrow
+//! phase over those within reach, i.e. over the surface nodes near contact, not grain
+//! pairs × facets. Of those, a node an evaluation found outside by s is skipped until the
+//! nodes can have travelled s/2 since (the travel odometer, from the integrator's largest
+//! speed): in a packing that leaves the nodes in contact and the few about to be.
+//!
+//! Both bounds rest on one property: a gap closes by at most the sum of how far the slave
+//! node and the master's nodes moved. The surface motion they need is measured exactly
+//! every [`MEASURE_MOTION_EVERY`] steps and bounded by the travel in between.
 
 use super::narrow::{locate, Aabb, Bvh, Entry, Pass};
 use super::ContactModel;

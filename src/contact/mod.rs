@@ -755,24 +755,31 @@ density = 2500.0
     fn travel_bounds_leave_the_run_unchanged() {
         let (radius, seeding) = (1.0e-3, 3.0e-4);
         let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
-        let (ca, cb) = ([0.0; 3], [2.0 * radius + 2e-6, 0.0, 0.0]);
+        // a closes on b at 3 m/s along a cube diagonal, where |v| = √3 |v|∞ makes the
+        // travel bound tight head-on (a skip 5× too long then misses contact; 2× does not:
+        // the nodes around the contact point close obliquely); b spins about z at 50 rad/s
+        // (rim speed 0.05 m/s), which spreads its nodes' motion
+        let d = 1.0 / 3f64.sqrt();
+        let (ca, cb) = ([0.0; 3], [(2.0 * radius + 1e-6) * d; 3]);
         let scene = pair_scene(("a", &sphere, ca), ("b", &sphere, cb));
         let (mut every, mut measured) = (solver(&scene), solver(&scene));
         measured.scratch.contact.broad.bound_by_travel(1);
-        // closing at 3 m/s, b spinning about z at 2000 rad/s (rim speed 2 m/s)
         let dt = every.model.dt;
-        let steps = (2e-6 / 3.0 / dt) as usize + 40;
+        // until 150 steps in contact (the faceted spheres meet a little later than their
+        // 1 µm gap alone says)
+        let limit = (1e-4 / 3.0 / dt) as usize;
         for s in [&mut every, &mut measured] {
             for n in s.model.grains[0].nodes.clone() {
-                s.state.v[n] = [1.5, 0.0, 0.0];
+                s.state.v[n] = [3.0 * d; 3];
             }
             for n in s.model.grains[1].nodes.clone() {
                 let r = sub(s.state.x[n], cb);
-                s.state.v[n] = [-1.5 - 2000.0 * r[1], 2000.0 * r[0], 0.0];
+                s.state.v[n] = [-50.0 * r[1], 50.0 * r[0], 0.0];
             }
         }
-        let (mut touching, mut evaluated) = (0, [0, 0]);
-        for _ in 0..steps {
+        let (mut touching, mut evaluated, mut steps) = (0, [0, 0], 0);
+        while touching < 150 && steps < limit {
+            steps += 1;
             every.step().unwrap();
             measured.step().unwrap();
             evaluated[0] += every.scratch.contact.results.len();
@@ -791,10 +798,13 @@ density = 2500.0
             assert!(closing(b) >= closing(m));
             touching += usize::from(every.state.contact.stats.points > 0);
         }
-        assert!(touching > 10, "the spheres touched in {touching} steps");
+        assert_eq!(
+            touching, 150,
+            "the spheres touched in {touching} of {steps} steps"
+        );
         eprintln!("entries evaluated: {evaluated:?}");
         assert!(
-            evaluated[0] * 4 < evaluated[1] * 3,
+            evaluated[0] < evaluated[1],
             "entries evaluated with and without skipping: {evaluated:?}"
         );
         assert_eq!(every.state.x, measured.state.x);
