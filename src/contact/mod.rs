@@ -802,7 +802,6 @@ density = 2500.0
             touching, 150,
             "the spheres touched in {touching} of {steps} steps"
         );
-        eprintln!("entries evaluated: {evaluated:?}");
         assert!(
             evaluated[0] < evaluated[1],
             "entries evaluated with and without skipping: {evaluated:?}"

@@ -68,12 +68,21 @@ fn touch<T>(r: &T) {
     crate::lanes::prefetch((r as *const T).cast::<u8>(), 1);
 }
 
-/// Hints both lines a node's 24-byte vector may straddle.
+/// Hints both lines `array[n]` may straddle (a node's 24-byte vector does, one in four);
+/// nothing past the end.
+#[inline(always)]
+pub(super) fn touch_value<T>(array: &[T], n: usize) {
+    if let Some(value) = array.get(n) {
+        let p = (value as *const T).cast::<u8>();
+        crate::lanes::prefetch(p, 1);
+        crate::lanes::prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
+    }
+}
+
+/// [`touch_value`] of node `n`'s vector.
 #[inline(always)]
 fn touch_node(v: &[[f64; 3]], n: u32) {
-    let p = v[n as usize].as_ptr();
-    crate::lanes::prefetch(p, 1);
-    crate::lanes::prefetch(p.wrapping_add(2), 1);
+    touch_value(v, n as usize);
 }
 
 /// Results looked ahead by the serial passes over them ([`touch_point_nodes`]).
@@ -87,12 +96,7 @@ pub fn touch_point_nodes<T>(r: &PointResult, array: &[T]) {
         return;
     }
     for n in std::iter::once(r.slave).chain(r.masters) {
-        if let Some(value) = array.get(n as usize) {
-            // both lines a value may straddle
-            let p = (value as *const T).cast::<u8>();
-            crate::lanes::prefetch(p, 1);
-            crate::lanes::prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
-        }
+        touch_value(array, n as usize);
     }
 }
 

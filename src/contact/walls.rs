@@ -19,6 +19,7 @@
 //! Nodes with any prescribed component are left to their prescribed motion. A node touching
 //! two walls is corrected wall after wall, in scene order.
 
+use super::prefetch::touch_value;
 use super::{ContactModel, ContactState, Wall, WallState};
 use crate::kinematics::{NextVelocity, Predictor};
 
@@ -71,15 +72,9 @@ const NODES_AHEAD: usize = 8;
 #[inline(always)]
 fn touch_wall_node(n: usize, x: &[[f64; 3]], predictor: &Predictor) {
     for array in [x, predictor.v, predictor.force] {
-        if let Some(value) = array.get(n) {
-            let p = value.as_ptr();
-            crate::lanes::prefetch(p, 1);
-            crate::lanes::prefetch(p.wrapping_add(2), 1);
-        }
+        touch_value(array, n);
     }
-    if let Some(m) = predictor.mass.get(n) {
-        crate::lanes::prefetch(m, 1);
-    }
+    touch_value(predictor.mass, n);
 }
 
 /// Corrects `v_next` (v_{n+½}, where not stored `predictor`'s, whose `v` is v_{n−½}) of the
