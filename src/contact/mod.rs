@@ -506,7 +506,7 @@ pub fn add_forces(
     let results = &scratch.results;
     for (i, r) in results.iter().enumerate() {
         if let Some(ahead) = results.get(i + RESULTS_AHEAD) {
-            touch_point_nodes(ahead, force);
+            touch_point_nodes(ahead, |n| crate::lanes::touch_value(force, n));
         }
         if !r.active {
             continue;
@@ -577,9 +577,7 @@ pub fn damping_power(
     let results = &scratch.results;
     for (i, r) in results.iter().enumerate() {
         if let Some(ahead) = results.get(i + RESULTS_AHEAD) {
-            touch_point_nodes(ahead, v_before);
-            touch_point_nodes(ahead, predictor.force);
-            touch_point_nodes(ahead, predictor.mass);
+            touch_point_nodes(ahead, |n| predictor.touch(n));
         }
         if !r.active || r.damping_force == 0.0 {
             continue;

@@ -68,35 +68,25 @@ fn touch<T>(r: &T) {
     crate::lanes::prefetch((r as *const T).cast::<u8>(), 1);
 }
 
-/// Hints both lines `array[n]` may straddle (a node's 24-byte vector does, one in four);
-/// nothing past the end.
-#[inline(always)]
-pub(super) fn touch_value<T>(array: &[T], n: usize) {
-    if let Some(value) = array.get(n) {
-        let p = (value as *const T).cast::<u8>();
-        crate::lanes::prefetch(p, 1);
-        crate::lanes::prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
-    }
-}
-
-/// [`touch_value`] of node `n`'s vector.
+/// [`crate::lanes::touch_value`] of node `n`'s vector.
 #[inline(always)]
 fn touch_node(v: &[[f64; 3]], n: u32) {
-    touch_value(v, n as usize);
+    crate::lanes::touch_value(v, n as usize);
 }
 
 /// Results looked ahead by the serial passes over them ([`touch_point_nodes`]).
 pub const RESULTS_AHEAD: usize = 8;
 
-/// Prefetches the values in `array` of the nodes result `r` acts on (its slave and master
-/// corners): the serial passes over the results (forces, damper power) read them
-/// scattered over the mesh, and call this [`RESULTS_AHEAD`] results early.
-pub fn touch_point_nodes<T>(r: &PointResult, array: &[T]) {
+/// Calls `touch` on the nodes result `r` acts on (its slave and master corners): the
+/// serial passes over the results (forces, damper power) read their values scattered over
+/// the mesh, and prefetch them this way [`RESULTS_AHEAD`] results early.
+#[inline(always)]
+pub fn touch_point_nodes(r: &PointResult, touch: impl Fn(usize)) {
     if !r.active {
         return;
     }
     for n in std::iter::once(r.slave).chain(r.masters) {
-        touch_value(array, n as usize);
+        touch(n as usize);
     }
 }
 

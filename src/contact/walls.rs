@@ -19,7 +19,6 @@
 //! Nodes with any prescribed component are left to their prescribed motion. A node touching
 //! two walls is corrected wall after wall, in scene order.
 
-use super::prefetch::touch_value;
 use super::{ContactModel, ContactState, Wall, WallState};
 use crate::kinematics::{NextVelocity, Predictor};
 
@@ -71,10 +70,8 @@ const NODES_AHEAD: usize = 8;
 /// per grain, scattered over the mesh.
 #[inline(always)]
 fn touch_wall_node(n: usize, x: &[[f64; 3]], predictor: &Predictor) {
-    for array in [x, predictor.v, predictor.force] {
-        touch_value(array, n);
-    }
-    touch_value(predictor.mass, n);
+    crate::lanes::touch_value(x, n);
+    predictor.touch(n);
 }
 
 /// Corrects `v_next` (v_{n+½}, where not stored `predictor`'s, whose `v` is v_{n−½}) of the

@@ -204,6 +204,17 @@ pub fn prefetch<T>(start: *const T, count: usize) {
     let _ = (start, count);
 }
 
+/// Hints both lines `array[n]` may straddle (a node's 24-byte vector does, one in four);
+/// nothing past the end.
+#[inline(always)]
+pub fn touch_value<T>(array: &[T], n: usize) {
+    if let Some(value) = array.get(n) {
+        let p = (value as *const T).cast::<u8>();
+        prefetch(p, 1);
+        prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
+    }
+}
+
 /// Node positions and tetrahedra whose node ids were all checked, once, to be below
 /// `x.len()`: the row loads of [`Lanes::gather_corners`] then need no check per load (a
 /// check per load, a compare and a conditional move for every corner, was an eighth of

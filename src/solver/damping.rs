@@ -1,38 +1,12 @@
-//! Damping and body forces of the boundary stage: mass-proportional damping of the
-//! absolute velocity (α) and of each grain's velocity relative to its rigid-body motion
-//! (α_def, no net force or moment on the grain), and gravity on the physical mass.
+//! Damping and body forces of the step: mass-proportional damping of the absolute
+//! velocity (α) and of each grain's velocity relative to its rigid-body motion (α_def, no
+//! net force or moment on the grain), and gravity on the physical mass. They are added to
+//! a node's force where its v_{n+½} is read (`crate::kinematics::BodyForces`).
 
-use super::forces::NODE_CHUNK;
 use super::state::State;
-use crate::kinematics::{predict, NextVelocity};
+use crate::kinematics::{BodyForces, RigidVelocity};
 use crate::model::Model;
 use rayon::prelude::*;
-
-/// A grain's rigid-body velocity field v(x) = v_c + ω × (x − x_c), from its linear and
-/// angular momentum (so that damping relative to it exerts no net force or moment).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct RigidVelocity {
-    pub centre: [f64; 3],
-    pub velocity: [f64; 3],
-    pub omega: [f64; 3],
-}
-
-impl RigidVelocity {
-    #[inline(always)]
-    pub fn at(&self, x: &[f64; 3]) -> [f64; 3] {
-        let r = [
-            x[0] - self.centre[0],
-            x[1] - self.centre[1],
-            x[2] - self.centre[2],
-        ];
-        let w = &self.omega;
-        [
-            self.velocity[0] + w[1] * r[2] - w[2] * r[1],
-            self.velocity[1] + w[2] * r[0] - w[0] * r[2],
-            self.velocity[2] + w[0] * r[1] - w[1] * r[0],
-        ]
-    }
-}
 
 /// Rigid-body velocity of every grain from v_{n−½} at x_n: mass-weighted centre and
 /// velocity, ω = I⁻¹L about the centre.
@@ -121,70 +95,33 @@ pub(super) fn gravity_in_force(
         .unwrap_or(model.gravity)
 }
 
-/// Damping force on node n: −α m v − α_def m (v − v_rigid(x)) (N).
-#[inline(always)]
-pub(super) fn damping_force(
-    model: &Model,
+/// Gravity and damping of the step for the readers of v_{n+½} (`crate::kinematics`):
+/// `None` without either (an undamped stage without gravity, e.g. the triaxial loading),
+/// so that the node passes skip their terms. `rigid` holds the grains' rigid velocities
+/// when the scene damps deformation (`prepare_body_forces`).
+pub(super) fn body_forces<'a>(
+    model: &'a Model,
     alpha: f64,
-    rigid: &[RigidVelocity],
-    n: usize,
-    x: &[f64; 3],
-    v: &[f64; 3],
-) -> [f64; 3] {
-    let m = model.mass[n];
-    let mut f = [-alpha * m * v[0], -alpha * m * v[1], -alpha * m * v[2]];
-    if model.deformation_damping > 0.0 {
-        let vr = rigid[model.node_grain[n] as usize].at(x);
-        for i in 0..3 {
-            f[i] -= model.deformation_damping * m * (v[i] - vr[i]);
-        }
-    }
-    f
+    gravity: [f64; 3],
+    rigid: &'a [RigidVelocity],
+) -> Option<BodyForces<'a>> {
+    has_body_or_damping_force(model, alpha, gravity).then_some(BodyForces {
+        gravity,
+        alpha,
+        deformation_damping: model.deformation_damping,
+        physical_mass: &model.physical_mass,
+        node_grain: &model.node_grain,
+        rigid,
+    })
 }
 
-/// f ← f_int + m_phys g − α m v_{n−½}; v_{n+½} ← v_{n−½} + Δt f/m for every node (driven
-/// components are overwritten by the motions afterwards); without gravity and damping the
-/// prediction is left to its readers. Gravity acts on the physical
-/// mass only: mass added by scaling is numerical and must not weigh anything.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn apply_body_and_damping_forces(
-    model: &Model,
-    alpha: f64,
-    g: [f64; 3],
-    state: &State,
-    rigid: &mut [RigidVelocity],
-    force: &mut [[f64; 3]],
-    v_next: &mut NextVelocity,
-    dt: f64,
-) {
-    if !has_body_or_damping_force(model, alpha, g) {
-        // v_{n+½} is then the prediction from the internal and contact forces alone, up to
-        // the sign of a zero (adding ±0 changes no bit of a nonzero force): computed where
-        // read, not stored (`crate::kinematics`)
-        v_next.predict_where_read();
-        return;
-    }
+/// The boundary stage's part in gravity and damping: they are added where each node's
+/// v_{n+½} is read ([`body_forces`]), so all that is left is the rigid velocity of every
+/// grain when the scene damps deformation, from x_n and v_{n−½} before anything moves.
+pub(super) fn prepare_body_forces(model: &Model, state: &State, rigid: &mut [RigidVelocity]) {
     if model.deformation_damping > 0.0 {
         compute_grain_rigid_velocities(model, state, rigid);
     }
-    let rigid = &*rigid;
-    let owned = model.owned_nodes;
-    force[..owned]
-        .par_chunks_mut(NODE_CHUNK)
-        .zip(v_next.store_every_node()[..owned].par_chunks_mut(NODE_CHUNK))
-        .enumerate()
-        .for_each(|(chunk, (f, vn))| {
-            let base = chunk * NODE_CHUNK;
-            for k in 0..f.len() {
-                let n = base + k;
-                let (m, mp, v) = (model.mass[n], model.physical_mass[n], state.v[n]);
-                let fd = damping_force(model, alpha, rigid, n, &state.x[n], &v);
-                for i in 0..3 {
-                    f[k][i] += mp * g[i] + fd[i];
-                }
-                vn[k] = predict(v, f[k], m, dt);
-            }
-        });
 }
 
 /// Whether the step has gravity or damping: without either (an undamped stage without

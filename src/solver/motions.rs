@@ -4,16 +4,18 @@
 
 use super::state::{Reaction, State};
 use crate::boundary::PrescribedMotion;
-use crate::kinematics::{NextVelocity, Predictor};
+use crate::kinematics::{BodyForces, NextVelocity, Predictor};
 use crate::model::Model;
 
 /// Overrides the driven components of v_{n+½} so that driven nodes land exactly on their
-/// prescribed positions at t_{n+1}; records reaction force, moment and work.
+/// prescribed positions at t_{n+1}; records reaction force, moment and work. `force`
+/// holds the element and contact forces, `body` gravity and damping.
 pub(super) fn drive_prescribed_motions(
     model: &Model,
     motions: &[PrescribedMotion],
     state: &mut State,
     force: &[[f64; 3]],
+    body: Option<BodyForces>,
     v_next: &mut NextVelocity,
     dt: f64,
 ) {
@@ -25,7 +27,8 @@ pub(super) fn drive_prescribed_motions(
         let c_now = working.centre_at(t);
         let mut reaction = Reaction::default();
         let (mut p_before, mut p_after) = (0.0, 0.0);
-        let predictor = Predictor::new(&state.v, force, &model.mass, dt);
+        let predictor =
+            Predictor::new(&state.v, force, &model.mass, dt).with_body_forces(body, &state.x);
         for (j, &node) in working.nodes.iter().enumerate() {
             let n = node as usize;
             let target = working.position(j, &c_next, &q_next);
@@ -33,10 +36,11 @@ pub(super) fn drive_prescribed_motions(
             let m = model.mass[n];
             let mut r = [0.0; 3];
             let mut driven = v_next.get(n, &predictor);
+            let f = predictor.force_at(n);
             for i in 0..3 {
                 if working.components[i] {
                     let v_new = (target[i] - x[i]) / dt;
-                    r[i] = m * (v_new - state.v[n][i]) / dt - force[n][i];
+                    r[i] = m * (v_new - state.v[n][i]) / dt - f[i];
                     driven[i] = v_new;
                     p_before += r[i] * state.v[n][i];
                     p_after += r[i] * v_new;

@@ -8,10 +8,7 @@
 //! Convention: at the start of step n the state holds x_n and v_{n−½};
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
 
-use super::damping::{
-    apply_body_and_damping_forces, damping_force, damping_in_force, gravity_in_force,
-    has_body_or_damping_force, RigidVelocity,
-};
+use super::damping::{body_forces, damping_in_force, gravity_in_force, prepare_body_forces};
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
 use super::motions::drive_prescribed_motions;
 use super::periodic::{
@@ -24,7 +21,7 @@ use crate::boundary::PrescribedMotion;
 use crate::contact::{ContactScratch, ContactState};
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::error::MufeError;
-use crate::kinematics::{predict, NextVelocity, Predictor};
+use crate::kinematics::{predict, NextVelocity, Predictor, RigidVelocity};
 use crate::model::decomposition::Partition;
 use crate::model::periodic::CellKinematics;
 use crate::model::Model;
@@ -321,26 +318,21 @@ impl Solver {
         }
 
         timers.time(Stage::Boundary, || {
-            apply_body_and_damping_forces(
-                model,
-                alpha,
-                gravity,
-                state,
-                &mut scratch.grain_rigid,
-                &mut scratch.force,
-                &mut scratch.v_next,
-                dt,
-            );
+            prepare_body_forces(model, state, &mut scratch.grain_rigid);
+            scratch.v_next.predict_where_read();
             drive_prescribed_motions(
                 model,
                 &self.motions,
                 state,
                 &scratch.force,
+                body_forces(model, alpha, gravity, &scratch.grain_rigid),
                 &mut scratch.v_next,
                 dt,
             );
         });
-        let predictor = Predictor::new(&state.v, &scratch.force, &model.mass, dt);
+        let body = body_forces(model, alpha, gravity, &scratch.grain_rigid);
+        let predictor = Predictor::new(&state.v, &scratch.force, &model.mass, dt)
+            .with_body_forces(body, &state.x);
         timers.time(Stage::Contact, || {
             crate::contact::enforce_walls(
                 model,
@@ -428,7 +420,8 @@ impl Solver {
 
         // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
         // before integration overwrites v.
-        let predictor = Predictor::new(&state.v, &scratch.force, &model.mass, dt);
+        let predictor = Predictor::new(&state.v, &scratch.force, &model.mass, dt)
+            .with_body_forces(body, &state.x);
         let contact_damping = timers.time(Stage::Contact, || {
             crate::contact::damping_power(model, &predictor, &scratch.v_next, &scratch.contact)
         });
@@ -551,9 +544,8 @@ fn integrate_and_sum(
     scratch: &mut Scratch,
     dt: f64,
 ) -> NodePartials {
-    let rigid = &scratch.grain_rigid;
+    let body = body_forces(model, alpha, g, &scratch.grain_rigid);
     let owned = model.owned_nodes;
-    let undamped = !has_body_or_damping_force(model, alpha, g);
     let (next, force) = (&scratch.v_next, &scratch.force);
     state.x[..owned]
         .par_chunks_mut(NODE_CHUNK)
@@ -567,9 +559,16 @@ fn integrate_and_sum(
                 let n = base + k;
                 let m = model.mass[n];
                 let a = v[k];
-                let b = next
-                    .stored(n)
-                    .unwrap_or_else(|| predict(a, force[n], m, dt));
+                // the complete force and v_{n+½} as every reader in the step had them
+                // (`crate::kinematics`); the damping force once, for both
+                let (f, fd) = match &body {
+                    None => (force[n], None),
+                    Some(body) => {
+                        let (f, fd) = body.total_force(n, force[n], &x[k], &a, m);
+                        (f, Some(fd))
+                    }
+                };
+                let b = next.stored(n).unwrap_or_else(|| predict(a, f, m, dt));
                 let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
                 p.kinetic += 0.5 * m * ab;
                 // plain comparisons (one max instruction each): no NaN handling is needed
@@ -582,9 +581,8 @@ fn integrate_and_sum(
                 }
                 // without gravity and damping their powers are +0 whatever the node does
                 // (a non-finite velocity ends the run below)
-                if !undamped {
+                if let Some(fd) = fd {
                     let mp = model.physical_mass[n];
-                    let fd = damping_force(model, alpha, rigid, n, &x[k], &a);
                     p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
                     p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
                     p.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
