@@ -65,6 +65,24 @@ pub struct BodyForces<'a> {
 }
 
 impl BodyForces<'_> {
+    /// Whether g is anything but +0 in every component. Without gravity m_p g is +0 for
+    /// every node, so the passes skip reading m_p and still add the same bits.
+    #[inline(always)]
+    pub fn weighs(&self) -> bool {
+        self.gravity.iter().any(|g| g.to_bits() != 0)
+    }
+
+    /// m_p g of node `n` (N).
+    #[inline(always)]
+    pub fn weight(&self, n: usize) -> [f64; 3] {
+        if self.weighs() {
+            let mp = self.physical_mass[n];
+            self.gravity.map(|g| mp * g)
+        } else {
+            [0.0; 3]
+        }
+    }
+
     /// f_d of node `n` at x, v with integrator mass m (N).
     #[inline(always)]
     pub fn damping_force(&self, n: usize, x: &[f64; 3], v: &[f64; 3], m: f64) -> [f64; 3] {
@@ -91,12 +109,11 @@ impl BodyForces<'_> {
         m: f64,
     ) -> ([f64; 3], [f64; 3]) {
         let fd = self.damping_force(n, x, v, m);
-        let mp = self.physical_mass[n];
-        let g = self.gravity;
+        let w = self.weight(n);
         let total = [
-            f[0] + (mp * g[0] + fd[0]),
-            f[1] + (mp * g[1] + fd[1]),
-            f[2] + (mp * g[2] + fd[2]),
+            f[0] + (w[0] + fd[0]),
+            f[1] + (w[1] + fd[1]),
+            f[2] + (w[2] + fd[2]),
         ];
         (total, fd)
     }
@@ -285,5 +302,26 @@ mod tests {
         }
         let bare = Predictor::new(&v, &f, &m, dt);
         assert_eq!(bare.force_at(1), f[1]);
+
+        // without gravity m_p is not read (here it would be NaN) and the force is the same
+        let nan = vec![f64::NAN; 2];
+        let weightless = BodyForces {
+            gravity: [0.0; 3],
+            physical_mass: &nan,
+            ..body
+        };
+        assert!(!weightless.weighs());
+        let p = Predictor::new(&v, &f, &m, dt).with_body_forces(Some(weightless), &x);
+        let fd = weightless.damping_force(1, &x[1], &v[1], m[1]);
+        let expect: Vec<u64> = (0..3)
+            .map(|i| (f[1][i] + (0.0 + fd[i])).to_bits())
+            .collect();
+        assert_eq!(p.force_at(1).map(f64::to_bits).to_vec(), expect);
+        // a negative zero is a gravity: m_p g is then −0, not +0
+        assert!(BodyForces {
+            gravity: [0.0, -0.0, 0.0],
+            ..body
+        }
+        .weighs());
     }
 }

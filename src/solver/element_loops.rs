@@ -249,6 +249,15 @@ impl Tally {
         jacobian: f64,
         plastic_increment: f64,
     ) {
+        self.check(k, strain_energy, jacobian, plastic_increment);
+        self.result.strain_energy += strain_energy;
+        self.result.plastic_work += plastic_work;
+    }
+
+    /// Notes element `k` as the chunk's first failure if it failed (an inverted element,
+    /// a non-finite energy, too much plastic strain in one step), adding nothing.
+    #[inline(always)]
+    fn check(&mut self, k: usize, strain_energy: f64, jacobian: f64, plastic_increment: f64) {
         let r = &mut self.result;
         if r.bad_element.is_none()
             && !(jacobian > 0.0
@@ -261,10 +270,16 @@ impl Tally {
                 plastic_increment,
             });
         }
-        r.strain_energy += strain_energy;
-        r.plastic_work += plastic_work;
     }
 }
+
+/// How many partial sums an elastic chunk's strain energy is gathered in: element k into
+/// sum k mod 8, in element order; the chunk's energy is then the eight summed in order.
+/// Every kernel path (one, four or eight lanes; a chunk starts a reference block, so k is
+/// counted from a multiple of eight) adds the same numbers in the same order, and a path
+/// with lanes adds a group's energies in one vector addition where a sum in element order
+/// was a chain of eight scalar additions per group.
+const ENERGY_SUMS: usize = BLOCK;
 
 /// One chunk: its elements' forces added into the node forces, plastic states committed,
 /// energies and the first failure returned.
@@ -373,6 +388,9 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
         0
     };
     let ahead = PREFETCH_GROUPS * width;
+    // a group's energies go to sums (g mod `per_group`)·width + lane = element mod 8
+    let per_group = ENERGY_SUMS / width;
+    let mut group_sums = [T::splat(0.0); ENERGY_SUMS];
     blocks.prefetch_starting_in(0..ahead);
     for g in 0..groups {
         let first = g * width;
@@ -382,17 +400,20 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
         // SAFETY: the nodes were checked against x, no longer than the forces; this
         // chunk's nodes are its task's alone (`Pass`)
         T::add_corner_forces(&out.nodal, &nodes, first, pass.force.as_mut_ptr());
-        let energy = out.strain_energy.to_array();
-        if out.jacobian.all_positive() && out.strain_energy.all_finite() {
-            // the common case: no element to report, only the energy to sum in order
+        let sum = &mut group_sums[g % per_group];
+        *sum = *sum + out.strain_energy;
+        if !(out.jacobian.all_positive() && out.strain_energy.all_finite()) {
+            let (energy, jacobian) = (out.strain_energy.to_array(), out.jacobian.to_array());
             for l in 0..width {
-                tally.result.strain_energy += energy[l];
+                tally.check(first + l, energy[l], jacobian[l], 0.0);
             }
-        } else {
-            let jacobian = out.jacobian.to_array();
-            for l in 0..width {
-                tally.record(first + l, energy[l], 0.0, jacobian[l], 0.0);
-            }
+        }
+    }
+    let mut sums = [0.0; ENERGY_SUMS];
+    for (a, group_sum) in group_sums[..per_group].iter().enumerate() {
+        let lanes = group_sum.to_array();
+        for l in 0..width {
+            sums[a * width + l] = lanes[l];
         }
     }
     for k in groups * width..tets.len() {
@@ -401,8 +422,10 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
         let (nodal, energy, jacobian) = tet_forces_elastic(&nodes.corners_of(k), &reference, law);
         // SAFETY: as for the groups above
         f64::add_corner_forces(&nodal, &nodes, k, pass.force.as_mut_ptr());
-        tally.record(k, energy, 0.0, jacobian, 0.0);
+        sums[k % ENERGY_SUMS] += energy;
+        tally.check(k, energy, jacobian, 0.0);
     }
+    tally.result.strain_energy = sums.iter().fold(0.0, |total, s| total + s);
     tally.result
 }
 

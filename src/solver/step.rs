@@ -1,6 +1,7 @@
 //! The explicit central-difference step as named, timed stages:
 //! contact (detection, grain–grain forces at x_n) → internal forces (+ contact forces)
-//! → boundary (body force, damping, prescribed motions) → contact (kinematic walls on
+//! → boundary (prescribed motions; gravity and damping join a node's force wherever its
+//! v_{n+½} is read, `crate::kinematics`) → contact (kinematic walls on
 //! v_{n+½}; servo walls move to t_{n+1} from their force summed over ranks) → integrate
 //! → energy. Time in both contact parts is charged to `contact`; the ghost exchange to
 //! `halo`, and the step's small collectives, which wait for the slowest rank, to `sync`.
@@ -545,6 +546,7 @@ fn integrate_and_sum(
     dt: f64,
 ) -> NodePartials {
     let body = body_forces(model, alpha, g, &scratch.grain_rigid);
+    let weighs = body.is_some_and(|b| b.weighs());
     let owned = model.owned_nodes;
     let (next, force) = (&scratch.v_next, &scratch.force);
     state.x[..owned]
@@ -582,9 +584,12 @@ fn integrate_and_sum(
                 // without gravity and damping their powers are +0 whatever the node does
                 // (a non-finite velocity ends the run below)
                 if let Some(fd) = fd {
-                    let mp = model.physical_mass[n];
-                    p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
-                    p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
+                    // without gravity its powers stay +0 (+0 plus a signed zero is +0)
+                    if weighs {
+                        let mp = model.physical_mass[n];
+                        p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
+                        p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
+                    }
                     p.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
                     p.damping_after += fd[0] * b[0] + fd[1] * b[1] + fd[2] * b[2];
                 }
