@@ -179,7 +179,9 @@ impl<'a> Predictor<'a> {
         touch_value(self.force, n);
         touch_value(self.mass, n);
         if let Some((b, x)) = &self.body {
-            touch_value(b.physical_mass, n);
+            if b.weighs() {
+                touch_value(b.physical_mass, n);
+            }
             touch_value(x, n);
         }
     }

@@ -213,16 +213,8 @@ fn hooke_of_doubled<T: Lanes>(lambda: f64, mu: f64, eps2: &Sym<T>) -> (Sym<T>, T
 /// Green–Lagrange strain E = ½(FᵀF − I) of a row-major F, as [`Sym`].
 #[inline(always)]
 pub fn green_lagrange_sym<T: Lanes>(f: &[T; 9]) -> Sym<T> {
-    let c = |i: usize, j: usize| dot3(f[i], f[j], f[3 + i], f[3 + j], f[6 + i], f[6 + j]);
-    let (half, one) = (T::splat(0.5), T::splat(1.0));
-    [
-        half * (c(0, 0) - one),
-        half * (c(1, 1) - one),
-        half * (c(2, 2) - one),
-        half * c(1, 2),
-        half * c(0, 2),
-        half * c(0, 1),
-    ]
+    let half = T::splat(0.5);
+    doubled_green_lagrange_sym(f).map(|d| half * d)
 }
 
 /// ε̃ = E − ½E², the Biot strain U − I to second order in E.
