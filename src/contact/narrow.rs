@@ -301,6 +301,45 @@ pub struct EvalContext<'a> {
     pub friction: bool,
 }
 
+/// Looks up friction points in a history sorted by key, for keys asked in ascending order
+/// (entry order is key order: the history is pushed in it): each search gallops forward
+/// from where the last one ended, a few comparisons on lines just read, where a binary
+/// search over the whole history missed the cache in its last levels (docs/BENCHMARKS.md,
+/// session 36). Finds what a binary search finds, for keys in any order.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HistoryCursor {
+    /// Where the last search ended: every point before it has a smaller key than the last
+    /// key asked.
+    next: usize,
+}
+
+impl HistoryCursor {
+    /// The point of `history` with key `key`, if any.
+    pub fn find<'h>(
+        &mut self,
+        history: &'h [FrictionPoint],
+        key: ContactKey,
+    ) -> Option<&'h FrictionPoint> {
+        let ahead = self.next.min(history.len());
+        let start = match ahead.checked_sub(1) {
+            Some(last) if history[last].key >= key => 0,
+            _ => ahead,
+        };
+        let rest = &history[start..];
+        // gallop: rest[..lo] < key, and rest[hi] ≥ key once the loop ends inside rest
+        let (mut lo, mut hi, mut stride) = (0, 0, 1);
+        while hi < rest.len() && rest[hi].key < key {
+            lo = hi + 1;
+            hi += stride;
+            stride *= 2;
+        }
+        let hi = hi.min(rest.len());
+        let at = start + lo + rest[lo..hi].partition_point(|p| p.key < key);
+        self.next = at;
+        history.get(at).filter(|p| p.key == key)
+    }
+}
+
 /// Outward pseudo-normal of the master surface at a closest-point feature.
 fn pseudo_normal(cm: &ContactModel, x: &[[f64; 3]], facet: usize, feature: Feature) -> [f64; 3] {
     match feature {
@@ -455,7 +494,8 @@ fn locate_on_patch(
 /// of its inputs: safe to run in parallel, results independent of scheduling. Callers
 /// evaluate only the entries that [`super::broad::CandidateLists::within_reach`] lists.
 pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
-    evaluate_entry_on(ctx, entry, nearest_facet(ctx, entry))
+    let mut history = HistoryCursor::default();
+    evaluate_entry_on(ctx, entry, nearest_facet(ctx, entry), &mut history)
 }
 
 /// The candidate facet of `entry` nearest to its slave node (by the flat closest-point
@@ -467,8 +507,14 @@ pub fn nearest_facet(ctx: &EvalContext, entry: &Entry) -> Option<u32> {
     nearest_candidate(ctx.cm, ctx.x, xs, cands).map(|i| cands[i])
 }
 
-/// [`evaluate_entry`] with its [`nearest_facet`] already found.
-pub fn evaluate_entry_on(ctx: &EvalContext, entry: &Entry, nearest: Option<u32>) -> PointResult {
+/// [`evaluate_entry`] with its [`nearest_facet`] already found; `history` finds the
+/// friction point (fastest when entries come in order).
+pub fn evaluate_entry_on(
+    ctx: &EvalContext,
+    entry: &Entry,
+    nearest: Option<u32>,
+    history: &mut HistoryCursor,
+) -> PointResult {
     let cm = ctx.cm;
     let x = ctx.x;
     let s_flat = entry.slave as usize;
@@ -521,9 +567,9 @@ pub fn evaluate_entry_on(ctx: &EvalContext, entry: &Entry, nearest: Option<u32>)
     let mut sliding = false;
     if ctx.friction {
         let key = ContactKey::of(sg, mg, s);
-        let t_old = match ctx.history.binary_search_by_key(&key, |p| p.key) {
-            Ok(i) => rotate_onto_plane(ctx.history[i].traction, normal),
-            Err(_) => [0.0; 3],
+        let t_old = match history.find(ctx.history, key) {
+            Some(p) => rotate_onto_plane(p.traction, normal),
+            None => [0.0; 3],
         };
         let du = scale(v_rel, ctx.dt);
         let du_t = tangential(du, normal);
@@ -556,6 +602,58 @@ pub fn evaluate_entry_on(ctx: &EvalContext, entry: &Entry, nearest: Option<u32>)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cursor finds what a binary search finds: keys asked in ascending order (its
+    /// use), in descending order and at random, present or not, from any history length.
+    #[test]
+    fn history_cursor_finds_what_a_binary_search_finds() {
+        let key = |grain: u32, node: u32| ContactKey {
+            grain,
+            other: grain + 1,
+            image: [0; 3],
+            other_image: [0; 3],
+            node,
+        };
+        let mut seed = 12345u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as u32
+        };
+        for len in [0usize, 1, 2, 7, 100, 1000] {
+            let mut history: Vec<FrictionPoint> = (0..len)
+                .map(|_| FrictionPoint {
+                    key: key(next() % 4, next() % 500),
+                    traction: [next() as f64; 3],
+                })
+                .collect();
+            history.sort_by_key(|p| p.key);
+            history.dedup_by_key(|p| p.key);
+            let mut asked: Vec<ContactKey> =
+                (0..300).map(|_| key(next() % 5, next() % 520)).collect();
+            asked.extend(history.iter().step_by(3).map(|p| p.key));
+            let mut ascending = asked.clone();
+            ascending.sort();
+            let mut descending = ascending.clone();
+            descending.reverse();
+            for order in [&ascending, &descending, &asked] {
+                let mut cursor = HistoryCursor::default();
+                let mut found = 0;
+                for &k in order {
+                    let expected = history.binary_search_by_key(&k, |p| p.key).ok();
+                    let got = cursor.find(&history, k);
+                    assert_eq!(
+                        got.map(|p| p.key),
+                        expected.map(|i| history[i].key),
+                        "{k:?}"
+                    );
+                    found += usize::from(got.is_some());
+                }
+                assert!(found >= history.len().div_ceil(3), "{found} found");
+            }
+        }
+    }
 
     #[test]
     fn bvh_query_matches_brute_force() {

@@ -20,7 +20,9 @@
 //! curved patch's vertex normals). A ring is read as its fan of corner pairs
 //! (`ContactModel::vertex_fans`), not through its facets: one link fewer.
 
-use super::narrow::{evaluate_entry_on, nearest_facet, Entry, EvalContext, PointResult};
+use super::narrow::{
+    evaluate_entry_on, nearest_facet, Entry, EvalContext, HistoryCursor, PointResult,
+};
 use super::vertex_normals::fan_around;
 
 /// Entries per batch: enough misses in flight per stage to fill the core's miss buffers,
@@ -100,6 +102,7 @@ pub fn evaluate_pipelined(
 ) {
     let batches = indices.len().div_ceil(BATCH);
     let mut nearest = [[None; BATCH]; NEAREST_KEPT];
+    let mut history = HistoryCursor::default();
     for turn in 0..batches + STAGES.len() - 1 {
         for &stage in &STAGES {
             let Some(b) = turn.checked_sub(stage as usize).filter(|&b| b < batches) else {
@@ -108,7 +111,15 @@ pub fn evaluate_pipelined(
             let range = b * BATCH..indices.len().min((b + 1) * BATCH);
             let batch = &indices[range.clone()];
             let slot = &mut nearest[b % NEAREST_KEPT];
-            run_stage(ctx, entries, stage, batch, slot, &mut out[range]);
+            run_stage(
+                ctx,
+                entries,
+                stage,
+                batch,
+                slot,
+                &mut history,
+                &mut out[range],
+            );
         }
     }
 }
@@ -120,6 +131,7 @@ fn run_stage(
     stage: Stage,
     batch: &[u32],
     nearest: &mut [Option<u32>; BATCH],
+    history: &mut HistoryCursor,
     out: &mut [PointResult],
 ) {
     let cm = ctx.cm;
@@ -225,7 +237,7 @@ fn run_stage(
         }
         Stage::Evaluate => {
             for ((r, e), &f) in out.iter_mut().zip(batch()).zip(nearest.iter()) {
-                *r = evaluate_entry_on(ctx, e, f);
+                *r = evaluate_entry_on(ctx, e, f, history);
             }
         }
     }
