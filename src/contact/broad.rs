@@ -2,17 +2,27 @@
 //! next rebuild (a Verlet-list scheme).
 //!
 //! At a rebuild, every grain's box (over its current surface nodes) is inflated by
-//! r_g = margin + ½ h_max(g); grain pairs whose inflated boxes overlap are found by sweep and
+//! r_g = skin + ½ h_max(g); grain pairs whose inflated boxes overlap are found by sweep and
 //! prune along x. For each pair and each direction (slave → master) the slave surface nodes
 //! inside the master's inflated box query the master's facet [`Bvh`] with a box of half-size
-//! margin + ½ h(node); the facets found are the node's candidates until the next rebuild.
-//! Walls list the surface nodes within 1.5 margin of their plane.
+//! skin + ½ h(node); the facets found are the node's candidates until the next rebuild.
+//! Walls list the surface nodes within 1.5 skin of their plane.
 //!
-//! Why this is complete: between rebuilds no surface node moves by d_max ≥ margin/2, so a
-//! node–facet distance shrinks by less than 2 d_max < margin; a node that now penetrates a
-//! facet by up to ½ h (deeper is reported as tunnelling) was within margin + ½ h of it at the
-//! rebuild, hence a candidate. For walls, d_max + (wall motion along its normal) < margin/2
+//! Why this is complete: between rebuilds no surface node moves by d_max ≥ skin/2, so a
+//! node–facet distance shrinks by less than 2 d_max < skin; a node that now penetrates a
+//! facet by up to ½ h (deeper is reported as tunnelling) was within skin + ½ h of it at the
+//! rebuild, hence a candidate. For walls, d_max + (wall motion along its normal) < skin/2
 //! keeps every node that can reach the plane within the next step in the list.
+//!
+//! The skin adapts to how fast the surfaces move ([`next_skin`]): it starts at the contact
+//! margin (the largest, what the halo and the partition are planned with), doubles (up to
+//! the margin) when a rebuild comes sooner than [`GROW_BELOW`] steps after the last, and
+//! shrinks when a check every [`SKIN_CHECK_EVERY`] steps finds the surfaces so slow that a
+//! skin a quarter as thick or thinner would last [`SKIN_LASTS`] steps. A quasi-static
+//! packing moves micrometres over the whole test, a fraction of the margin (½ the
+//! smallest surface edge): its lists then hold the facets around each contact point and
+//! not a ring of them 25 µm wide (docs/BENCHMARKS.md, session 36). Which candidates the
+//! lists hold changes what is evaluated, never the result of an evaluation.
 //!
 //! The work per step is one pass over the cached entries (which slave nodes can have
 //! reached their master since the rebuild: `CandidateLists::within_reach`) and the narrow
@@ -45,6 +55,79 @@ pub struct DetectionReference {
     pub wall_ref: Vec<[f64; 3]>,
     /// Number of rebuilds so far.
     pub rebuilds: u64,
+    /// The skin the lists were built with (m); 0 before the first rebuild (and in a
+    /// checkpoint written before the skin adapted: the model's margin then).
+    #[serde(default)]
+    pub skin: f64,
+    /// Step of the last rebuild.
+    #[serde(default)]
+    pub built_at: u64,
+}
+
+impl DetectionReference {
+    /// True at step `step` when it checks whether a thinner skin would do: every
+    /// [`SKIN_CHECK_EVERY`] steps since the rebuild.
+    pub fn checks_skin_at(&self, step: u64) -> bool {
+        let since = step.saturating_sub(self.built_at);
+        self.built && since > 0 && since.is_multiple_of(SKIN_CHECK_EVERY)
+    }
+
+    /// The skin the lists were built with (m).
+    pub fn skin(&self, cm: &ContactModel) -> f64 {
+        if self.skin > 0.0 {
+            self.skin
+        } else {
+            cm.margin
+        }
+    }
+}
+
+/// Steps between the checks whether a thinner skin would do (see [`next_skin`]); every
+/// rank measures the surface motion exactly at these steps, so the check reads the same
+/// largest displacement on any number of ranks.
+pub const SKIN_CHECK_EVERY: u64 = 1024;
+/// A skin is made thinner when one at most a quarter as thick lasts this many steps at the
+/// pace since the last rebuild.
+pub const SKIN_LASTS: u64 = 8192;
+/// A rebuild sooner than this many steps after the last one doubles the skin.
+pub const GROW_BELOW: u64 = 256;
+/// The thinnest skin, as a fraction of the contact margin.
+pub const SKIN_FLOOR: f64 = 1.0 / 64.0;
+
+/// The skin to rebuild the lists with at step `step`, or `None` to keep them: after a
+/// rebuild `voted` by some rank (a list may miss a contact), the same skin, doubled (up to
+/// the margin) when it lasted less than [`GROW_BELOW`] steps; at a check step (every
+/// [`SKIN_CHECK_EVERY`] steps since the rebuild), a thinner one when the surfaces moved so
+/// little that 2 × (their pace) × [`SKIN_LASTS`] is at most a quarter of it. `moved` is
+/// the largest displacement of any surface node since the rebuild (every rank's, measured
+/// exactly at a check step) and `wall_moved` the largest wall motion along its normal.
+/// Every argument is the same on every rank, so all choose alike.
+pub fn next_skin(
+    cm: &ContactModel,
+    reference: &DetectionReference,
+    step: u64,
+    moved: f64,
+    wall_moved: f64,
+    voted: bool,
+) -> Option<f64> {
+    if !reference.built {
+        return Some(cm.margin);
+    }
+    let skin = reference.skin(cm);
+    let since = step.saturating_sub(reference.built_at);
+    if voted {
+        return Some(if since < GROW_BELOW {
+            (2.0 * skin).min(cm.margin)
+        } else {
+            skin
+        });
+    }
+    if !reference.checks_skin_at(step) {
+        return None;
+    }
+    let pace = (moved + wall_moved) / since as f64;
+    let wanted = (2.0 * pace * SKIN_LASTS as f64).max(SKIN_FLOOR * cm.margin);
+    (wanted <= 0.25 * skin).then_some(wanted)
 }
 
 /// Cached broad-phase data (scratch: derived from the [`DetectionReference`], never
@@ -70,6 +153,11 @@ pub struct BroadPhase {
     measured: MeasuredMotion,
     /// The last [`BroadPhase::note_travel`]: (step, travel into it).
     travel_into: Option<(u64, f64)>,
+    /// Keep the skin at the contact margin (a reference for tests of the adaptive one).
+    pub fixed_skin: bool,
+    /// Largest wall motion along its normal since the last rebuild, as of the last
+    /// [`BroadPhase::needs_rebuild`] (m; the walls are the same on every rank).
+    pub wall_moved: f64,
     order: Vec<u32>,
     bvh_built: Vec<bool>,
 }
@@ -331,14 +419,15 @@ impl BroadPhase {
         if !reference.built {
             return true;
         }
-        let due = |d: f64| {
-            2.0 * d >= cm.margin
-                || cm.walls.iter().enumerate().any(|(w, wall)| {
-                    let moved = dot(sub(wall_next[w], reference.wall_ref[w]), wall.normal).abs();
-                    d + moved >= 0.5 * cm.margin
-                })
-        };
-        if let Some(bound) = self.bounded_motion(cm, step) {
+        let skin = reference.skin(cm);
+        self.wall_moved = (cm.walls.iter().enumerate())
+            .map(|(w, wall)| dot(sub(wall_next[w], reference.wall_ref[w]), wall.normal).abs())
+            .fold(0.0, f64::max);
+        let wall_moved = self.wall_moved;
+        let due =
+            |d: f64| 2.0 * d >= skin || (!cm.walls.is_empty() && d + wall_moved >= 0.5 * skin);
+        let skin_check = reference.checks_skin_at(step);
+        if let Some(bound) = self.bounded_motion(cm, step).filter(|_| !skin_check) {
             if !due(bound) {
                 self.moved = bound;
                 return false;
@@ -417,6 +506,7 @@ impl BroadPhase {
 
     /// Rebuilds the lists at positions `x` (walls at displacements `wall_now`) and makes
     /// them the new `reference`.
+    #[allow(clippy::too_many_arguments)]
     pub fn rebuild(
         &mut self,
         cm: &ContactModel,
@@ -424,9 +514,13 @@ impl BroadPhase {
         wall_now: &[[f64; 3]],
         lists: &mut CandidateLists,
         reference: &mut DetectionReference,
+        skin: f64,
+        step: u64,
     ) {
         reference.rebuilds += 1;
         reference.built = true;
+        reference.skin = skin;
+        reference.built_at = step;
         reference.x_ref.clear();
         reference
             .x_ref
@@ -438,7 +532,7 @@ impl BroadPhase {
         self.motion
             .resize(cm.surfaces.len(), SurfaceMotion::AT_REST);
         self.measured.at = None;
-        self.build_lists(cm, x, wall_now, lists);
+        self.build_lists(cm, x, wall_now, lists, skin);
     }
 
     /// Rebuilds the lists of an existing `reference` (after a restore or a migration of
@@ -455,16 +549,18 @@ impl BroadPhase {
         for (k, &n) in cm.node.iter().enumerate() {
             x_then[n as usize] = reference.x_ref[k];
         }
-        self.build_lists(cm, &x_then, &reference.wall_ref, lists);
+        self.build_lists(cm, &x_then, &reference.wall_ref, lists, reference.skin(cm));
     }
 
-    /// Pairs, slave entries, candidate facets and wall node lists at positions `x`.
+    /// Pairs, slave entries, candidate facets and wall node lists at positions `x`, for
+    /// surfaces that move less than `skin`/2 until the next rebuild.
     fn build_lists(
         &mut self,
         cm: &ContactModel,
         x: &[[f64; 3]],
         wall_now: &[[f64; 3]],
         lists: &mut CandidateLists,
+        skin: f64,
     ) {
         self.built = true;
         let ng = cm.surfaces.len();
@@ -480,7 +576,7 @@ impl BroadPhase {
             .flat_map(|b| b.min.into_iter().chain(b.max))
             .filter(|c| c.is_finite())
             .fold(0.0, |e, c| e.max(c.abs()));
-        let reach = |g: usize| cm.margin + 0.5 * cm.surfaces[g].h_max;
+        let reach = |g: usize| skin + 0.5 * cm.surfaces[g].h_max;
 
         // Sweep and prune along x over the inflated boxes.
         self.pairs.clear();
@@ -552,7 +648,7 @@ impl BroadPhase {
                 if !zone.contains(p) {
                     continue;
                 }
-                let q = Aabb::around(p, cm.margin + 0.5 * cm.node_h[k]);
+                let q = Aabb::around(p, skin + 0.5 * cm.node_h[k]);
                 lists.query.clear();
                 lists.bvh[m].query(&q, &mut lists.query);
                 if lists.query.is_empty() {
@@ -579,7 +675,7 @@ impl BroadPhase {
             .resume_at
             .resize(lists.entries.len(), f64::NEG_INFINITY);
 
-        // Walls: surface nodes within 1.5 margin of the plane.
+        // Walls: surface nodes within 1.5 skin of the plane.
         lists.wall_nodes.clear();
         for (w, wall) in cm.walls.iter().enumerate() {
             let p = wall.point_at_displacement(wall_now[w]);
@@ -595,11 +691,11 @@ impl BroadPhase {
                     let c = if n[i] >= 0.0 { b.min[i] } else { b.max[i] };
                     lowest += (c - p[i]) * n[i];
                 }
-                if lowest > 1.5 * cm.margin {
+                if lowest > 1.5 * skin {
                     continue;
                 }
                 for k in surf.nodes.clone() {
-                    if dot(sub(x[cm.node[k] as usize], p), n) <= 1.5 * cm.margin {
+                    if dot(sub(x[cm.node[k] as usize], p), n) <= 1.5 * skin {
                         lists.wall_nodes.push((w as u32, k as u32));
                     }
                 }
@@ -633,6 +729,77 @@ mod tests {
         let mut out = Vec::new();
         lists.within_reach(moved, motion, &mut out);
         out
+    }
+
+    /// The skin starts at the margin, doubles (to the margin at most) after a rebuild that
+    /// came early, stays after one that came late, and thins only at check steps, only
+    /// when a quarter of it or less lasts `SKIN_LASTS` steps at the pace so far, never
+    /// below the floor.
+    #[test]
+    fn the_skin_follows_the_pace_of_the_surfaces() {
+        let cm = ContactModel {
+            margin: 1e-5,
+            ..Default::default()
+        };
+        let mut reference = DetectionReference::default();
+        assert_eq!(next_skin(&cm, &reference, 7, 0.0, 0.0, false), Some(1e-5));
+        reference.built = true;
+        reference.built_at = 2048;
+        reference.skin = 1e-6;
+        let step = |since: u64| 2048 + since;
+        // a rebuild voted early doubles the skin, late keeps it, and never past the margin
+        assert_eq!(
+            next_skin(&cm, &reference, step(100), 0.0, 0.0, true),
+            Some(2e-6)
+        );
+        let late = step(GROW_BELOW);
+        assert_eq!(next_skin(&cm, &reference, late, 0.0, 0.0, true), Some(1e-6));
+        reference.skin = 8e-6;
+        assert_eq!(
+            next_skin(&cm, &reference, step(1), 0.0, 0.0, true),
+            Some(1e-5)
+        );
+        // no vote: nothing between checks, however still the surfaces
+        assert_eq!(
+            next_skin(&cm, &reference, step(1000), 0.0, 0.0, false),
+            None
+        );
+        let check = SKIN_CHECK_EVERY;
+        // at a check: 2 × pace × SKIN_LASTS, when at most a quarter of the skin
+        let moved = 1e-7;
+        let wanted = 2.0 * moved / check as f64 * SKIN_LASTS as f64;
+        assert!(wanted < 0.25 * 8e-6);
+        assert_eq!(
+            next_skin(&cm, &reference, step(check), moved, 0.0, false),
+            Some(wanted)
+        );
+        // the walls' motion counts like the nodes'
+        let both = next_skin(
+            &cm,
+            &reference,
+            step(check),
+            0.5 * moved,
+            0.5 * moved,
+            false,
+        );
+        assert_eq!(both, Some(wanted));
+        // a pace at which a quarter of the skin does not last: kept
+        let fast = 0.25 * 8e-6 / (2.0 * SKIN_LASTS as f64) * check as f64 * 1.01;
+        assert_eq!(
+            next_skin(&cm, &reference, step(check), fast, 0.0, false),
+            None
+        );
+        // at rest: the floor
+        let floor = next_skin(&cm, &reference, step(2 * check), 0.0, 0.0, false);
+        assert_eq!(floor, Some(SKIN_FLOOR * 1e-5));
+        reference.skin = SKIN_FLOOR * 1e-5;
+        assert_eq!(
+            next_skin(&cm, &reference, step(check), 0.0, 0.0, false),
+            None
+        );
+        // a checkpoint from before the adaptive skin: the margin
+        reference.skin = 0.0;
+        assert_eq!(reference.skin(&cm), 1e-5);
     }
 
     #[test]

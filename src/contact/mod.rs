@@ -206,6 +206,10 @@ pub struct ContactStats {
     pub grain_force: Vec<[f64; 3]>,
     /// Broad-phase rebuilds so far.
     pub rebuilds: u64,
+    /// The skin of the broad phase's lists (m): how far surfaces may move before their
+    /// rebuild (see [`broad`]).
+    #[serde(default)]
+    pub skin: f64,
 }
 
 /// Everything contact keeps between steps (serialised with the solver state).
@@ -296,10 +300,34 @@ pub fn evaluate(
     state: &mut ContactState,
     scratch: &mut ContactScratch,
 ) -> Result<(), MufeError> {
-    let rebuild = needs_rebuild(model, x, time, step, dt, state, scratch);
+    let voted = needs_rebuild(model, x, time, step, dt, state, scratch);
+    let rebuild = rebuild_skin(model, state, scratch, step, scratch.broad.moved, voted);
     let travel = scratch.broad.travel_into(step);
     scratch.lists.advance_odometer(travel);
     evaluate_with(model, x, v, time, step, dt, rebuild, state, scratch)
+}
+
+/// The skin of the lists rebuilt at step `step`, or `None` when they are kept: see
+/// [`broad::next_skin`]. `voted`: some rank's [`needs_rebuild`] found that its lists may
+/// miss a contact; `moved`: the largest surface displacement since the rebuild over all
+/// ranks.
+pub fn rebuild_skin(
+    model: &Model,
+    state: &ContactState,
+    scratch: &ContactScratch,
+    step: u64,
+    moved: f64,
+    voted: bool,
+) -> Option<f64> {
+    let cm = &model.contact;
+    if !cm.active() {
+        return None;
+    }
+    if scratch.broad.fixed_skin {
+        return (voted || !state.detection.built).then_some(cm.margin);
+    }
+    let wall_moved = scratch.broad.wall_moved;
+    broad::next_skin(cm, &state.detection, step, moved, wall_moved, voted)
 }
 
 /// Whether the cached candidate lists must be rebuilt before evaluating at x_n (t_n =
@@ -374,7 +402,8 @@ pub fn take_surface_motion(model: &Model, buffer: &[f64], scratch: &mut ContactS
     }
 }
 
-/// [`evaluate`] with the rebuild decision taken by the caller (see [`needs_rebuild`]).
+/// [`evaluate`] with the rebuild decision taken by the caller: `rebuild` is the skin of the
+/// lists to rebuild (see [`rebuild_skin`]), `None` to keep them.
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_with(
     model: &Model,
@@ -383,7 +412,7 @@ pub fn evaluate_with(
     time: f64,
     step: u64,
     dt: f64,
-    rebuild: bool,
+    rebuild: Option<f64>,
     state: &mut ContactState,
     scratch: &mut ContactScratch,
 ) -> Result<(), MufeError> {
@@ -394,13 +423,15 @@ pub fn evaluate_with(
     if scratch.wall_now.len() != cm.walls.len() {
         needs_rebuild(model, x, time, step, dt, state, scratch);
     }
-    if rebuild {
+    if let Some(skin) = rebuild {
         scratch.broad.rebuild(
             cm,
             x,
             &scratch.wall_now,
             &mut scratch.lists,
             &mut state.detection,
+            skin,
+            step,
         );
     } else if !scratch.broad.built {
         scratch
@@ -408,6 +439,7 @@ pub fn evaluate_with(
             .restore(cm, x, &state.detection, &mut scratch.lists);
     }
     state.stats.rebuilds = state.detection.rebuilds;
+    state.stats.skin = state.detection.skin(cm);
 
     std::mem::swap(&mut state.history, &mut scratch.history_old);
     state.history.clear();
@@ -816,6 +848,70 @@ density = 2500.0
             n_every * 8 < n_measured,
             "{n_every} measures of {n_measured}"
         );
+    }
+
+    /// A thin skin changes what is evaluated, never the run: two spheres close slowly on
+    /// each other, so that the first skin check thins the skin, then ten times faster, so
+    /// that the thin lists are rebuilt on the way, and stay in contact; the run equals, to
+    /// the bit, the one whose skin stays at the margin, with fewer candidate facets.
+    #[test]
+    fn a_thin_skin_leaves_the_run_unchanged() {
+        let (radius, seeding) = (1.0e-3, 3.0e-4);
+        let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
+        let gap = 1e-5;
+        let (ca, cb) = ([0.0; 3], [2.0 * radius + gap, 0.0, 0.0]);
+        let scene = pair_scene(("a", &sphere, ca), ("b", &sphere, cb));
+        let (mut thin, mut fixed) = (solver(&scene), solver(&scene));
+        fixed.scratch.contact.broad.fixed_skin = true;
+        let dt = thin.model.dt;
+        let check = broad::SKIN_CHECK_EVERY;
+        // a tenth of the gap by the first check, then ten times as fast
+        let slow = 0.1 * gap / (check as f64 * dt);
+        let push = |s: &mut crate::solver::Solver, speed: f64| {
+            for n in s.model.grains[0].nodes.clone() {
+                s.state.v[n] = [speed, 0.0, 0.0];
+            }
+            // the kick is energy from outside the ledger: not a blow-up
+            s.state.supplied_energy = f64::MAX;
+        };
+        push(&mut thin, slow);
+        push(&mut fixed, slow);
+        let margin = thin.model.contact.margin;
+        let (mut touching, mut steps, mut candidates) = (0, 0, [0, 0]);
+        let mut skin_at_check = 0.0;
+        while touching < 200 && steps < 4 * check {
+            steps += 1;
+            thin.step().unwrap();
+            fixed.step().unwrap();
+            // the check is at the evaluation of step `check`, in the step after it
+            if steps == check + 1 {
+                skin_at_check = thin.state.contact.stats.skin;
+                push(&mut thin, 10.0 * slow);
+                push(&mut fixed, 10.0 * slow);
+            }
+            for (c, s) in candidates.iter_mut().zip([&thin, &fixed]) {
+                *c = s.scratch.contact.lists.candidates.len();
+            }
+            touching += usize::from(thin.state.contact.stats.points > 0);
+        }
+        assert_eq!(touching, 200, "touched in {touching} of {steps} steps");
+        assert!(
+            skin_at_check < 0.25 * margin,
+            "skin {skin_at_check:e}, margin {margin:e}"
+        );
+        let rebuilds = [&thin, &fixed].map(|s| s.state.contact.stats.rebuilds);
+        assert!(
+            rebuilds[0] >= 3 && rebuilds[1] == 1,
+            "rebuilds {rebuilds:?}"
+        );
+        assert_eq!(fixed.state.contact.stats.skin, margin);
+        assert!(
+            candidates[0] * 3 < candidates[1] * 2,
+            "candidate facets with the thin and the fixed skin: {candidates:?}"
+        );
+        assert_eq!(thin.state.x, fixed.state.x);
+        assert_eq!(thin.state.v, fixed.state.v);
+        assert_eq!(thin.state.contact.history, fixed.state.contact.history);
     }
 
     /// The motion each surface reports since the rebuild: a translation is all shift, a

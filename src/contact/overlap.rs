@@ -26,6 +26,8 @@ pub fn check_initial_overlap(model: &Model, file: &str) -> Result<(), InputError
         &wall0,
         &mut lists,
         &mut DetectionReference::default(),
+        cm.margin,
+        0,
     );
     let zeros = vec![[0.0; 3]; x0.len()];
     let ctx = EvalContext {

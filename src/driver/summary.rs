@@ -284,12 +284,13 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
     );
     if solver.model.contact.active() {
         println!(
-            "contact: {} points now, at most {}; max penetration {:.3e} m ({:.2e} × smallest surface edge); {} broad-phase rebuilds; {:.1}% of step time in contact",
+            "contact: {} points now, at most {}; max penetration {:.3e} m ({:.2e} × smallest surface edge); {} broad-phase rebuilds, skin now {:.3e} m; {:.1}% of step time in contact",
             summary.contacts_now,
             summary.max_contacts,
             summary.max_penetration,
             summary.max_penetration / solver.model.contact.min_edge.max(f64::MIN_POSITIVE),
             summary.rebuilds,
+            solver.state.contact.stats.skin,
             100.0 * summary.contact_share
         );
     }

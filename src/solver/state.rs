@@ -224,5 +224,6 @@ impl State {
         self.contact.stats.rebuilds = stats.rebuilds;
         // the candidate lists are rebuilt for the new layout; only the count carries over
         self.contact.detection.rebuilds = detection.rebuilds;
+        self.contact.detection.skin = detection.skin;
     }
 }

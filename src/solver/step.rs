@@ -281,7 +281,14 @@ impl Solver {
         };
         scratch.contact.broad.moved = moved;
         scratch.contact.lists.advance_odometer(travel);
-        let rebuild = rebuild > 0.0;
+        let rebuild = crate::contact::rebuild_skin(
+            model,
+            &state.contact,
+            &scratch.contact,
+            state.step,
+            moved,
+            rebuild > 0.0,
+        );
         timers.time(Stage::Contact, || {
             crate::contact::take_surface_motion(model, &scratch.over_ranks, &mut scratch.contact)
         });
