@@ -230,6 +230,12 @@ impl NextVelocity {
         self.stored[n].then(|| self.values[n])
     }
 
+    /// Whether any of `nodes` has a stored v_{n+½}.
+    #[inline(always)]
+    pub fn any_stored(&self, nodes: std::ops::Range<usize>) -> bool {
+        self.stored[nodes].iter().any(|&s| s)
+    }
+
     /// v_{n+½} of node `n`.
     #[inline(always)]
     pub fn get(&self, n: usize, predictor: &Predictor) -> [f64; 3] {

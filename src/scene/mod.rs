@@ -263,7 +263,7 @@ pub struct BoundarySpec {
 /// [contact]
 /// friction = 0.22        # Coulomb μ between grains (default 0: frictionless)
 /// penalty_factor = 20.0  # ε_n = factor × E'/h (default `contact::DEFAULT_PENALTY_FACTOR`)
-/// margin = 5e-6          # broad-phase margin (m); default ½ × smallest surface edge
+/// margin = 5e-6          # thickest broad-phase skin (m); default ½ × smallest surface edge
 /// damping = 0.05         # normal contact damping, fraction of critical (default 0.05)
 /// ```
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -277,8 +277,11 @@ pub struct ContactSpec {
     /// [`crate::contact::DEFAULT_PENALTY_FACTOR`].
     #[serde(default)]
     pub penalty_factor: Option<f64>,
-    /// Broad-phase margin (m), > 0: candidate lists are rebuilt when a surface node has
-    /// moved more than margin/2. Default ½ × the smallest surface edge of the scene.
+    /// Broad-phase margin (m), > 0: the thickest skin of the candidate lists, which are
+    /// rebuilt when a surface node has moved more than half the skin; the skin starts
+    /// here and adapts below it to how fast the surfaces move (`crate::contact::broad`).
+    /// The halo and the partition plan with the margin. Default ½ × the smallest surface
+    /// edge of the scene.
     #[serde(default)]
     pub margin: Option<f64>,
     /// Normal contact damping as a fraction ζ of the critical damping of each contact

@@ -4,8 +4,9 @@
 //! - [`setup`]: a [`Solver`] from a scene (model assembly, time step, overlap check,
 //!   initial velocities);
 //! - [`step`]: the step pipeline as named, timed stages ([`timing`]): internal forces
-//!   ([`forces`]), halo, contact, boundary ([`damping`], [`motions`]), walls, integrate,
-//!   energy; [`diagnose`] names the element behind a blow-up;
+//!   ([`forces`]), halo, contact, boundary ([`damping`], [`motions`]), walls, integrate
+//!   (`integrate`: the node update in groups of eight lanes), energy; [`diagnose`] names
+//!   the element behind a blow-up;
 //! - [`periodic`]: the periodic cell in a step (images, homogenised stress, its work);
 //! - [`state`]: the one serde [`State`] that evolves; everything else is model or scratch.
 //!
@@ -17,6 +18,7 @@ pub mod diagnose;
 mod element_loops;
 pub mod element_schedule;
 pub mod forces;
+mod integrate;
 pub mod motions;
 pub mod periodic;
 pub mod setup;

@@ -11,6 +11,7 @@
 
 use super::damping::{body_forces, damping_in_force, gravity_in_force, prepare_body_forces};
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
+use super::integrate::{integrate_and_sum, NodePartials};
 use super::motions::drive_prescribed_motions;
 use super::periodic::{
     axis_speeds, cell_contact_sums, cell_power, ramp_axis_speeds, refresh_local_images,
@@ -22,11 +23,10 @@ use crate::boundary::PrescribedMotion;
 use crate::contact::{ContactScratch, ContactState};
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::error::MufeError;
-use crate::kinematics::{predict, NextVelocity, Predictor, RigidVelocity};
+use crate::kinematics::{NextVelocity, Predictor, RigidVelocity};
 use crate::model::decomposition::Partition;
 use crate::model::periodic::CellKinematics;
 use crate::model::Model;
-use rayon::prelude::*;
 
 /// What a step needs from other ranks. The serial implementation ([`Serial`]) does
 /// nothing; the MPI one lives in `crate::domain` (the only module that talks to MPI).
@@ -69,7 +69,7 @@ pub struct Scratch {
     /// summed over ranks (N), and each wall's total (`crate::contact::wall_normal_forces`).
     wall_grain_forces: Vec<f64>,
     wall_forces: Vec<f64>,
-    node_partials: Vec<NodePartials>,
+    pub(super) node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
     pub(super) grain_rigid: Vec<RigidVelocity>,
     /// Centre of each grain for the periodic cell's stress.
@@ -80,19 +80,6 @@ pub struct Scratch {
     /// (`crate::contact::share_surface_motion`), then the largest displacement and the
     /// rebuild vote.
     over_ranks: Vec<f64>,
-}
-
-#[derive(Debug, Clone, Copy, Default)]
-struct NodePartials {
-    kinetic: f64,
-    gravity_before: f64,
-    gravity_after: f64,
-    damping_before: f64,
-    damping_after: f64,
-    /// Largest velocity component |v_{n+½}|_∞ (m/s): √3 Δt times it bounds how far any
-    /// node went in the step.
-    max_speed: f64,
-    bad_node: Option<usize>,
 }
 
 /// Model + motions + state + scratch: one rank's explicit solver.
@@ -540,89 +527,4 @@ impl Solver {
         }
         l
     }
-}
-
-/// Kinetic energy and power sums over nodes (fixed chunks, summed in order), then
-/// x_{n+1} = x_n + Δt v_{n+½} and v ← v_{n+½}.
-fn integrate_and_sum(
-    model: &Model,
-    alpha: f64,
-    g: [f64; 3],
-    state: &mut State,
-    scratch: &mut Scratch,
-    dt: f64,
-) -> NodePartials {
-    let body = body_forces(model, alpha, g, &scratch.grain_rigid);
-    let weighs = body.is_some_and(|b| b.weighs());
-    let owned = model.owned_nodes;
-    let (next, force) = (&scratch.v_next, &scratch.force);
-    state.x[..owned]
-        .par_chunks_mut(NODE_CHUNK)
-        .zip(state.v[..owned].par_chunks_mut(NODE_CHUNK))
-        .zip(scratch.node_partials.par_iter_mut())
-        .enumerate()
-        .for_each(|(chunk, ((x, v), out))| {
-            let base = chunk * NODE_CHUNK;
-            let mut p = NodePartials::default();
-            for k in 0..x.len() {
-                let n = base + k;
-                let m = model.mass[n];
-                let a = v[k];
-                // the complete force and v_{n+½} as every reader in the step had them
-                // (`crate::kinematics`); the damping force once, for both
-                let (f, fd) = match &body {
-                    None => (force[n], None),
-                    Some(body) => {
-                        let (f, fd) = body.total_force(n, force[n], &x[k], &a, m);
-                        (f, Some(fd))
-                    }
-                };
-                let b = next.stored(n).unwrap_or_else(|| predict(a, f, m, dt));
-                let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-                p.kinetic += 0.5 * m * ab;
-                // plain comparisons (one max instruction each): no NaN handling is needed
-                // here, see bad_node
-                for c in b {
-                    let c = c.abs();
-                    if c > p.max_speed {
-                        p.max_speed = c;
-                    }
-                }
-                // without gravity and damping their powers are +0 whatever the node does
-                // (a non-finite velocity ends the run below)
-                if let Some(fd) = fd {
-                    // without gravity its powers stay +0 (+0 plus a signed zero is +0)
-                    if weighs {
-                        let mp = model.physical_mass[n];
-                        p.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
-                        p.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
-                    }
-                    p.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
-                    p.damping_after += fd[0] * b[0] + fd[1] * b[1] + fd[2] * b[2];
-                }
-                if p.bad_node.is_none()
-                    && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite())
-                {
-                    p.bad_node = Some(n);
-                }
-                for i in 0..3 {
-                    x[k][i] += dt * b[i];
-                }
-                v[k] = b;
-            }
-            *out = p;
-        });
-    let mut total = NodePartials::default();
-    for p in &scratch.node_partials {
-        total.kinetic += p.kinetic;
-        total.gravity_before += p.gravity_before;
-        total.gravity_after += p.gravity_after;
-        total.damping_before += p.damping_before;
-        total.damping_after += p.damping_after;
-        total.max_speed = total.max_speed.max(p.max_speed);
-        if total.bad_node.is_none() {
-            total.bad_node = p.bad_node;
-        }
-    }
-    total
 }

@@ -1,0 +1,413 @@
+//! The integrator: x_{n+1} = x_n + Δt v_{n+½}, v ← v_{n+½}, with the step's kinetic energy,
+//! body-force powers and largest speed summed over the nodes on the way.
+//!
+//! Nodes are updated eight at a time in lanes (one array per component), so that the
+//! divisions by the mass and the damping force become vector instructions: node by node,
+//! three scalar divisions and the damping arithmetic per node made the pass of the damped
+//! 2000-sphere block compute-bound (4.4 ms/step against 3.0 without damping, the pass then
+//! moving ≈ 130 B per node; docs/BENCHMARKS.md, session 36). Every lane evaluates the
+//! expressions of [`crate::kinematics`] in the same order, and the sums and the largest
+//! speed are taken node by node in node order, so the results are the same to the bit as
+//! node by node. A group with a node whose v_{n+½} a motion or wall stored goes node by
+//! node.
+
+use super::damping::body_forces;
+use super::forces::{KernelPath, NODE_CHUNK};
+use super::state::State;
+use super::step::Scratch;
+use crate::kinematics::{predict, BodyForces, NextVelocity};
+use crate::model::Model;
+use rayon::prelude::*;
+
+/// Nodes per group of lanes.
+const LANES: usize = 8;
+
+/// One chunk's sums (added over the chunks in order).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct NodePartials {
+    pub kinetic: f64,
+    pub gravity_before: f64,
+    pub gravity_after: f64,
+    pub damping_before: f64,
+    pub damping_after: f64,
+    /// Largest velocity component |v_{n+½}|_∞ (m/s): √3 Δt times it bounds how far any
+    /// node went in the step.
+    pub max_speed: f64,
+    pub bad_node: Option<usize>,
+}
+
+/// What every node's update reads besides its own x and v.
+struct Inputs<'a> {
+    mass: &'a [f64],
+    force: &'a [[f64; 3]],
+    next: &'a NextVelocity,
+    body: Option<BodyForces<'a>>,
+    weighs: bool,
+    dt: f64,
+}
+
+impl NodePartials {
+    /// Takes node `n`'s terms, in node order: v_{n−½} = `a`, v_{n+½} = `b`, its damping
+    /// force `fd` (with body forces) and physical mass `mp` (with gravity).
+    #[inline(always)]
+    fn add_node(
+        &mut self,
+        n: usize,
+        m: f64,
+        a: [f64; 3],
+        b: [f64; 3],
+        fd: Option<[f64; 3]>,
+        weight: Option<(f64, [f64; 3])>,
+    ) {
+        let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        self.kinetic += 0.5 * m * ab;
+        // plain comparisons (one max instruction each): no NaN handling is needed here,
+        // see bad_node
+        for c in b {
+            let c = c.abs();
+            if c > self.max_speed {
+                self.max_speed = c;
+            }
+        }
+        // without gravity and damping their powers are +0 whatever the node does (a
+        // non-finite velocity ends the run)
+        if let Some(fd) = fd {
+            if let Some((mp, g)) = weight {
+                self.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
+                self.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
+            }
+            self.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
+            self.damping_after += fd[0] * b[0] + fd[1] * b[1] + fd[2] * b[2];
+        }
+        if self.bad_node.is_none() && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite()) {
+            self.bad_node = Some(n);
+        }
+    }
+}
+
+/// Kinetic energy and power sums over the owned nodes (fixed chunks, summed in order),
+/// then x_{n+1} = x_n + Δt v_{n+½} and v ← v_{n+½}.
+pub(super) fn integrate_and_sum(
+    model: &Model,
+    alpha: f64,
+    g: [f64; 3],
+    state: &mut State,
+    scratch: &mut Scratch,
+    dt: f64,
+) -> NodePartials {
+    let body = body_forces(model, alpha, g, &scratch.grain_rigid);
+    let inputs = Inputs {
+        mass: &model.mass,
+        force: &scratch.force,
+        next: &scratch.v_next,
+        weighs: body.is_some_and(|b| b.weighs()),
+        body,
+        dt,
+    };
+    let owned = model.owned_nodes;
+    let path = scratch.elements.path;
+    state.x[..owned]
+        .par_chunks_mut(NODE_CHUNK)
+        .zip(state.v[..owned].par_chunks_mut(NODE_CHUNK))
+        .zip(scratch.node_partials.par_iter_mut())
+        .enumerate()
+        .for_each(|(chunk, ((x, v), out))| {
+            *out = integrate_chunk_on(path, &inputs, chunk * NODE_CHUNK, x, v);
+        });
+    let mut total = NodePartials::default();
+    for p in &scratch.node_partials {
+        total.kinetic += p.kinetic;
+        total.gravity_before += p.gravity_before;
+        total.gravity_after += p.gravity_after;
+        total.damping_before += p.damping_before;
+        total.damping_after += p.damping_after;
+        total.max_speed = total.max_speed.max(p.max_speed);
+        if total.bad_node.is_none() {
+            total.bad_node = p.bad_node;
+        }
+    }
+    total
+}
+
+/// [`integrate_chunk`] compiled for the element kernel's path (`path` is one the CPU
+/// runs: [`KernelPath::detect`]), whose wider lanes divide eight or four masses at once.
+fn integrate_chunk_on(
+    path: KernelPath,
+    inputs: &Inputs,
+    base: usize,
+    x: &mut [[f64; 3]],
+    v: &mut [[f64; 3]],
+) -> NodePartials {
+    match path {
+        // SAFETY: the path was detected on this CPU
+        #[cfg(target_arch = "x86_64")]
+        KernelPath::Avx512 => unsafe { integrate_chunk_avx512(inputs, base, x, v) },
+        // SAFETY: the same
+        #[cfg(target_arch = "x86_64")]
+        KernelPath::Avx2 => unsafe { integrate_chunk_avx2(inputs, base, x, v) },
+        _ => integrate_chunk(inputs, base, x, v),
+    }
+}
+
+/// [`integrate_chunk`] for AVX-512.
+///
+/// # Safety
+/// The CPU must support AVX-512F and VL ([`KernelPath::detect`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+unsafe fn integrate_chunk_avx512(
+    inputs: &Inputs,
+    base: usize,
+    x: &mut [[f64; 3]],
+    v: &mut [[f64; 3]],
+) -> NodePartials {
+    integrate_chunk(inputs, base, x, v)
+}
+
+/// [`integrate_chunk`] for AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA ([`KernelPath::detect`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn integrate_chunk_avx2(
+    inputs: &Inputs,
+    base: usize,
+    x: &mut [[f64; 3]],
+    v: &mut [[f64; 3]],
+) -> NodePartials {
+    integrate_chunk(inputs, base, x, v)
+}
+
+/// The nodes `base..` of one chunk (`x`, `v`): groups of [`LANES`], node by node where a
+/// group has a stored v_{n+½} and at the chunk's end.
+#[inline(always)]
+fn integrate_chunk(
+    inputs: &Inputs,
+    base: usize,
+    x: &mut [[f64; 3]],
+    v: &mut [[f64; 3]],
+) -> NodePartials {
+    let mut p = NodePartials::default();
+    let mut k = 0;
+    while k < x.len() {
+        let n = base + k;
+        if k + LANES <= x.len() && !inputs.next.any_stored(n..n + LANES) {
+            let (x, v) = (&mut x[k..k + LANES], &mut v[k..k + LANES]);
+            update_group(inputs, n, x, v, &mut p);
+            k += LANES;
+        } else {
+            update_node(inputs, n, &mut x[k], &mut v[k], &mut p);
+            k += 1;
+        }
+    }
+    p
+}
+
+/// Node `n` alone: the complete force and v_{n+½} as every reader in the step had them
+/// (`crate::kinematics`), the damping force once for both the velocity and its power.
+#[inline(always)]
+fn update_node(
+    inputs: &Inputs,
+    n: usize,
+    x: &mut [f64; 3],
+    v: &mut [f64; 3],
+    p: &mut NodePartials,
+) {
+    let m = inputs.mass[n];
+    let a = *v;
+    let (f, fd) = match &inputs.body {
+        None => (inputs.force[n], None),
+        Some(body) => {
+            let (f, fd) = body.total_force(n, inputs.force[n], x, &a, m);
+            (f, Some(fd))
+        }
+    };
+    let b = (inputs.next.stored(n)).unwrap_or_else(|| predict(a, f, m, inputs.dt));
+    let weight = (inputs.body.as_ref())
+        .filter(|_| inputs.weighs)
+        .map(|body| (body.physical_mass[n], body.gravity));
+    p.add_node(n, m, a, b, fd, weight);
+    for i in 0..3 {
+        x[i] += inputs.dt * b[i];
+    }
+    *v = b;
+}
+
+/// Nodes `n..n + LANES` (`x`, `v`), none with a stored v_{n+½}: the expressions of
+/// [`update_node`] lane by lane, the sums node by node.
+#[inline(always)]
+fn update_group(
+    inputs: &Inputs,
+    n: usize,
+    x: &mut [[f64; 3]],
+    v: &mut [[f64; 3]],
+    p: &mut NodePartials,
+) {
+    type Lanes = [f64; LANES];
+    use std::array::from_fn;
+    let m: Lanes = from_fn(|l| inputs.mass[n + l]);
+    let a: [Lanes; 3] = from_fn(|i| from_fn(|l| v[l][i]));
+    let mut f: [Lanes; 3] = from_fn(|i| from_fn(|l| inputs.force[n + l][i]));
+    let mut fd = [[0.0; LANES]; 3];
+    let mut mp = [0.0; LANES];
+    if let Some(body) = &inputs.body {
+        // BodyForces::damping_force and total_force, lane by lane
+        let alpha = body.alpha;
+        for i in 0..3 {
+            for l in 0..LANES {
+                fd[i][l] = -alpha * m[l] * a[i][l];
+            }
+        }
+        let dd = body.deformation_damping;
+        if dd > 0.0 {
+            let rigid: [[f64; 3]; LANES] =
+                from_fn(|l| body.rigid[body.node_grain[n + l] as usize].at(&x[l]));
+            for i in 0..3 {
+                for l in 0..LANES {
+                    fd[i][l] -= dd * m[l] * (a[i][l] - rigid[l][i]);
+                }
+            }
+        }
+        let mut w = [[0.0; LANES]; 3];
+        if inputs.weighs {
+            mp = from_fn(|l| body.physical_mass[n + l]);
+            for i in 0..3 {
+                for l in 0..LANES {
+                    w[i][l] = mp[l] * body.gravity[i];
+                }
+            }
+        }
+        for i in 0..3 {
+            for l in 0..LANES {
+                f[i][l] += w[i][l] + fd[i][l];
+            }
+        }
+    }
+    let dt = inputs.dt;
+    let mut b = [[0.0; LANES]; 3];
+    for i in 0..3 {
+        for l in 0..LANES {
+            b[i][l] = a[i][l] + dt * f[i][l] / m[l];
+        }
+    }
+    let node = |c: &[Lanes; 3], l: usize| [c[0][l], c[1][l], c[2][l]];
+    for l in 0..LANES {
+        let fd = inputs.body.as_ref().map(|_| node(&fd, l));
+        let weight = (inputs.body.as_ref())
+            .filter(|_| inputs.weighs)
+            .map(|body| (mp[l], body.gravity));
+        p.add_node(n + l, m[l], node(&a, l), node(&b, l), fd, weight);
+    }
+    for (l, (x, v)) in x.iter_mut().zip(v.iter_mut()).enumerate() {
+        for i in 0..3 {
+            x[i] += dt * b[i][l];
+        }
+        *v = node(&b, l);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::RigidVelocity;
+
+    /// Nodes in lanes give what they give one by one, to the bit: x, v and every sum,
+    /// without body forces, with mass damping, with deformation damping and with gravity
+    /// (each on top of the last), over velocities, forces and masses spanning decades, on
+    /// every kernel path this CPU runs; 21 nodes, one with a stored v_{n+½}, so that a
+    /// group goes node by node and the chunk ends in single nodes.
+    #[test]
+    fn a_group_of_lanes_is_its_nodes_one_by_one_to_the_bit() {
+        let mut seed = 7u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        let scale = |r: f64, decades: f64| 10f64.powf(r * decades);
+        let rigid = [
+            RigidVelocity {
+                centre: [1e-3, -2e-3, 5e-4],
+                velocity: [0.3, -0.1, 0.02],
+                omega: [12.0, -3.0, 40.0],
+            },
+            RigidVelocity {
+                centre: [-1e-3, 2e-3, 0.0],
+                velocity: [-0.2, 0.05, 0.4],
+                omega: [-5.0, 8.0, 1.0],
+            },
+        ];
+        const NODES: usize = 21;
+        let node_grain: Vec<u32> = (0..NODES as u32).map(|l| l % 3 / 2).collect();
+        let paths = [KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512];
+        let paths: Vec<KernelPath> = paths.into_iter().filter(|p| p.is_supported()).collect();
+        for trial in 0..200 {
+            let mass: Vec<f64> = (0..NODES).map(|_| 1e-9 * scale(next(), 3.0)).collect();
+            let physical: Vec<f64> = mass.iter().map(|m| m * (0.9 + 0.1 * next())).collect();
+            let force: Vec<[f64; 3]> = (0..NODES)
+                .map(|_| [next(), next(), next()].map(|c| c * scale(next(), 4.0)))
+                .collect();
+            let x0: Vec<[f64; 3]> = (0..NODES)
+                .map(|_| [next(), next(), next()].map(|c| 2e-3 * c))
+                .collect();
+            let v0: Vec<[f64; 3]> = (0..NODES)
+                .map(|_| [next(), next(), next()].map(|c| c * scale(next(), 2.0)))
+                .collect();
+            let body = |alpha: f64, dd: f64, g: [f64; 3]| BodyForces {
+                gravity: g,
+                alpha,
+                deformation_damping: dd,
+                physical_mass: &physical,
+                node_grain: &node_grain,
+                rigid: &rigid,
+            };
+            let cases = [
+                None,
+                Some(body(3e4, 0.0, [0.0; 3])),
+                Some(body(3e4, 2e5, [0.0; 3])),
+                Some(body(3e4, 2e5, [0.0, 0.0, -9.81])),
+            ];
+            let mut stored = NextVelocity::new(NODES);
+            stored.set(11, [0.5, -0.25, 0.125]);
+            for body in cases {
+                let inputs = Inputs {
+                    mass: &mass,
+                    force: &force,
+                    next: &stored,
+                    weighs: body.is_some_and(|b| b.weighs()),
+                    body,
+                    dt: 5.5e-9 * (1.0 + 0.5 * next()),
+                };
+                let (mut xn, mut vn, mut pn) = (x0.clone(), v0.clone(), NodePartials::default());
+                for l in 0..NODES {
+                    update_node(&inputs, l, &mut xn[l], &mut vn[l], &mut pn);
+                }
+                for &path in &paths {
+                    let (mut xg, mut vg) = (x0.clone(), v0.clone());
+                    let pg = integrate_chunk_on(path, &inputs, 0, &mut xg, &mut vg);
+                    let bits = |v: &[[f64; 3]]| -> Vec<u64> {
+                        v.iter().flatten().map(|c| c.to_bits()).collect()
+                    };
+                    assert_eq!(bits(&xg), bits(&xn), "x, trial {trial}, {path:?}");
+                    assert_eq!(bits(&vg), bits(&vn), "v, trial {trial}, {path:?}");
+                    assert_ne!(bits(&vg), bits(&v0), "v moved");
+                    let sums = |p: &NodePartials| {
+                        [
+                            p.kinetic,
+                            p.gravity_before,
+                            p.gravity_after,
+                            p.damping_before,
+                            p.damping_after,
+                            p.max_speed,
+                        ]
+                        .map(f64::to_bits)
+                    };
+                    assert_eq!(sums(&pg), sums(&pn), "sums, trial {trial}, {path:?}");
+                    assert_eq!(pg.bad_node, pn.bad_node);
+                }
+            }
+        }
+    }
+}
