@@ -14,8 +14,7 @@
 use super::damping::body_forces;
 use super::forces::{KernelPath, NODE_CHUNK};
 use super::state::State;
-use super::step::Scratch;
-use crate::kinematics::{predict, BodyForces, NextVelocity};
+use crate::kinematics::{predict, BodyForces, NextVelocity, RigidVelocity};
 use crate::model::Model;
 use rayon::prelude::*;
 
@@ -85,37 +84,50 @@ impl NodePartials {
     }
 }
 
-/// Kinetic energy and power sums over the owned nodes (fixed chunks, summed in order),
-/// then x_{n+1} = x_n + Δt v_{n+½} and v ← v_{n+½}.
+/// What the step hands the integrator besides the model and the state.
+pub(super) struct StepResults<'a> {
+    /// Node forces from elements and contacts (N).
+    pub force: &'a [[f64; 3]],
+    /// The v_{n+½} that motions and walls stored.
+    pub next: &'a NextVelocity,
+    /// Each grain's rigid velocity (for deformation damping).
+    pub rigid: &'a [RigidVelocity],
+    /// The element kernel's compiled path, which the node update shares.
+    pub path: KernelPath,
+}
+
+/// Kinetic energy and power sums over the owned nodes (fixed chunks, one entry of
+/// `partials` each, summed in order), then x_{n+1} = x_n + Δt v_{n+½} and v ← v_{n+½}.
 pub(super) fn integrate_and_sum(
     model: &Model,
     alpha: f64,
     g: [f64; 3],
     state: &mut State,
-    scratch: &mut Scratch,
+    step: StepResults,
+    partials: &mut [NodePartials],
     dt: f64,
 ) -> NodePartials {
-    let body = body_forces(model, alpha, g, &scratch.grain_rigid);
+    let body = body_forces(model, alpha, g, step.rigid);
     let inputs = Inputs {
         mass: &model.mass,
-        force: &scratch.force,
-        next: &scratch.v_next,
+        force: step.force,
+        next: step.next,
         weighs: body.is_some_and(|b| b.weighs()),
         body,
         dt,
     };
     let owned = model.owned_nodes;
-    let path = scratch.elements.path;
+    let path = step.path;
     state.x[..owned]
         .par_chunks_mut(NODE_CHUNK)
         .zip(state.v[..owned].par_chunks_mut(NODE_CHUNK))
-        .zip(scratch.node_partials.par_iter_mut())
+        .zip(partials.par_iter_mut())
         .enumerate()
         .for_each(|(chunk, ((x, v), out))| {
             *out = integrate_chunk_on(path, &inputs, chunk * NODE_CHUNK, x, v);
         });
     let mut total = NodePartials::default();
-    for p in &scratch.node_partials {
+    for p in partials.iter() {
         total.kinetic += p.kinetic;
         total.gravity_before += p.gravity_before;
         total.gravity_after += p.gravity_after;

@@ -11,7 +11,7 @@
 
 use super::damping::{body_forces, damping_in_force, gravity_in_force, prepare_body_forces};
 use super::forces::{compute_internal_forces_into, ElementScratch, NODE_CHUNK};
-use super::integrate::{integrate_and_sum, NodePartials};
+use super::integrate::{integrate_and_sum, NodePartials, StepResults};
 use super::motions::drive_prescribed_motions;
 use super::periodic::{
     axis_speeds, cell_contact_sums, cell_power, ramp_axis_speeds, refresh_local_images,
@@ -69,7 +69,7 @@ pub struct Scratch {
     /// summed over ranks (N), and each wall's total (`crate::contact::wall_normal_forces`).
     wall_grain_forces: Vec<f64>,
     wall_forces: Vec<f64>,
-    pub(super) node_partials: Vec<NodePartials>,
+    node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
     pub(super) grain_rigid: Vec<RigidVelocity>,
     /// Centre of each grain for the periodic cell's stress.
@@ -422,7 +422,14 @@ impl Solver {
         });
 
         let partials = timers.time(Stage::Integrate, || {
-            integrate_and_sum(model, alpha, gravity, state, scratch, dt)
+            let step = StepResults {
+                force: &scratch.force,
+                next: &scratch.v_next,
+                rigid: &scratch.grain_rigid,
+                path: scratch.elements.path,
+            };
+            let partials = &mut scratch.node_partials;
+            integrate_and_sum(model, alpha, gravity, state, step, partials, dt)
         });
         timers.time(Stage::Halo, || {
             hooks.ghosts_out(&state.x, &state.v, &cell_after)
