@@ -94,8 +94,9 @@ pub const GROW_BELOW: u64 = 256;
 /// The thinnest skin, as a fraction of the contact margin.
 pub const SKIN_FLOOR: f64 = 1.0 / 64.0;
 
-/// The skin to rebuild the lists with at step `step`, or `None` to keep them: after a
-/// rebuild `voted` by some rank (a list may miss a contact), the same skin, doubled (up to
+/// The skin to rebuild the lists with at step `step`, or `None` to keep them: without
+/// lists (the first build, or after a migration dropped them), the reference's skin (the
+/// margin when it has none); after a rebuild `voted` by some rank (a list may miss a contact), the same skin, doubled (up to
 /// the margin) when it lasted less than [`GROW_BELOW`] steps; at a check step (every
 /// [`SKIN_CHECK_EVERY`] steps since the rebuild), a thinner one when the surfaces moved so
 /// little that 2 × (their pace) × [`SKIN_LASTS`] is at most a quarter of it. `moved` is
@@ -111,7 +112,8 @@ pub fn next_skin(
     voted: bool,
 ) -> Option<f64> {
     if !reference.built {
-        return Some(cm.margin);
+        // the first build, or lists dropped with a migration (which keeps the skin)
+        return Some(reference.skin(cm));
     }
     let skin = reference.skin(cm);
     let since = step.saturating_sub(reference.built_at);
@@ -743,6 +745,9 @@ mod tests {
         };
         let mut reference = DetectionReference::default();
         assert_eq!(next_skin(&cm, &reference, 7, 0.0, 0.0, false), Some(1e-5));
+        // lists dropped by a migration keep the skin they had
+        reference.skin = 3e-6;
+        assert_eq!(next_skin(&cm, &reference, 7, 0.0, 0.0, false), Some(3e-6));
         reference.built = true;
         reference.built_at = 2048;
         reference.skin = 1e-6;
