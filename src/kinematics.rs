@@ -86,15 +86,29 @@ impl BodyForces<'_> {
     /// f_d of node `n` at x, v with integrator mass m (N).
     #[inline(always)]
     pub fn damping_force(&self, n: usize, x: &[f64; 3], v: &[f64; 3], m: f64) -> [f64; 3] {
-        let alpha = self.alpha;
-        let mut f = [-alpha * m * v[0], -alpha * m * v[1], -alpha * m * v[2]];
+        let mut f = std::array::from_fn(|i| self.mass_damping_along(m, v[i]));
         if self.deformation_damping > 0.0 {
             let vr = self.rigid[self.node_grain[n] as usize].at(x);
             for i in 0..3 {
-                f[i] -= self.deformation_damping * m * (v[i] - vr[i]);
+                f[i] = self.add_deformation_damping(f[i], m, v[i], vr[i]);
             }
         }
         f
+    }
+
+    /// One component of −α m v for integrator mass m and velocity component v (N). With
+    /// [`Self::add_deformation_damping`], the expressions every path evaluates, node by
+    /// node or in lanes (which keep the test on α_def out of their loops).
+    #[inline(always)]
+    pub fn mass_damping_along(&self, m: f64, v: f64) -> f64 {
+        -self.alpha * m * v
+    }
+
+    /// `f` − α_def m (v − v_rigid) along one axis, v_rigid the grain's rigid velocity
+    /// component at the node (N).
+    #[inline(always)]
+    pub fn add_deformation_damping(&self, f: f64, m: f64, v: f64, v_rigid: f64) -> f64 {
+        f - self.deformation_damping * m * (v - v_rigid)
     }
 
     /// The complete force f + (m_p g + f_d) of node `n` from its internal and contact
@@ -110,13 +124,18 @@ impl BodyForces<'_> {
     ) -> ([f64; 3], [f64; 3]) {
         let fd = self.damping_force(n, x, v, m);
         let w = self.weight(n);
-        let total = [
-            f[0] + (w[0] + fd[0]),
-            f[1] + (w[1] + fd[1]),
-            f[2] + (w[2] + fd[2]),
-        ];
-        (total, fd)
+        (
+            std::array::from_fn(|i| with_body_force(f[i], w[i], fd[i])),
+            fd,
+        )
     }
+}
+
+/// One component of the complete force: f + (m_p g + f_d), in that grouping on every path
+/// (N).
+#[inline(always)]
+pub fn with_body_force(f: f64, weight: f64, damping: f64) -> f64 {
+    f + (weight + damping)
 }
 
 /// What a node's predicted v_{n+½} is computed from.
@@ -190,11 +209,13 @@ impl<'a> Predictor<'a> {
 /// v + Δt f/m, the one expression every path evaluates.
 #[inline(always)]
 pub fn predict(v: [f64; 3], f: [f64; 3], m: f64, dt: f64) -> [f64; 3] {
-    [
-        v[0] + dt * f[0] / m,
-        v[1] + dt * f[1] / m,
-        v[2] + dt * f[2] / m,
-    ]
+    std::array::from_fn(|i| predict_along(v[i], f[i], m, dt))
+}
+
+/// One component of [`predict`] (the integrator's lanes evaluate it component-wise).
+#[inline(always)]
+pub fn predict_along(v: f64, f: f64, m: f64, dt: f64) -> f64 {
+    v + dt * f / m
 }
 
 /// v_{n+½} of every node: stored where set, else the prediction (module docs).

@@ -96,8 +96,9 @@ pub const SKIN_FLOOR: f64 = 1.0 / 64.0;
 
 /// The skin to rebuild the lists with at step `step`, or `None` to keep them: without
 /// lists (the first build, or after a migration dropped them), the reference's skin (the
-/// margin when it has none); after a rebuild `voted` by some rank (a list may miss a contact), the same skin, doubled (up to
-/// the margin) when it lasted less than [`GROW_BELOW`] steps; at a check step (every
+/// margin when it has none); after a rebuild `voted` by some rank (a list may miss a
+/// contact), the same skin, doubled (up to the margin) when it lasted less than
+/// [`GROW_BELOW`] steps; at a check step (every
 /// [`SKIN_CHECK_EVERY`] steps since the rebuild), a thinner one when the surfaces moved so
 /// little that 2 × (their pace) × [`SKIN_LASTS`] is at most a quarter of it. `moved` is
 /// the largest displacement of any surface node since the rebuild (every rank's, measured
@@ -111,11 +112,11 @@ pub fn next_skin(
     wall_moved: f64,
     voted: bool,
 ) -> Option<f64> {
+    let skin = reference.skin(cm);
     if !reference.built {
         // the first build, or lists dropped with a migration (which keeps the skin)
-        return Some(reference.skin(cm));
+        return Some(skin);
     }
-    let skin = reference.skin(cm);
     let since = step.saturating_sub(reference.built_at);
     if voted {
         return Some(if since < GROW_BELOW {

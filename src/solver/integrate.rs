@@ -14,7 +14,9 @@
 use super::damping::body_forces;
 use super::forces::{KernelPath, NODE_CHUNK};
 use super::state::State;
-use crate::kinematics::{predict, BodyForces, NextVelocity, RigidVelocity};
+use crate::kinematics::{
+    predict, predict_along, with_body_force, BodyForces, NextVelocity, RigidVelocity,
+};
 use crate::model::Model;
 use rayon::prelude::*;
 
@@ -264,20 +266,19 @@ fn update_group(
     let mut fd = [[0.0; LANES]; 3];
     let mut mp = [0.0; LANES];
     if let Some(body) = &inputs.body {
-        // BodyForces::damping_force and total_force, lane by lane
-        let alpha = body.alpha;
+        // BodyForces::total_force, lane by lane
         for i in 0..3 {
             for l in 0..LANES {
-                fd[i][l] = -alpha * m[l] * a[i][l];
+                fd[i][l] = body.mass_damping_along(m[l], a[i][l]);
             }
         }
-        let dd = body.deformation_damping;
-        if dd > 0.0 {
+        if body.deformation_damping > 0.0 {
             let rigid: [[f64; 3]; LANES] =
                 from_fn(|l| body.rigid[body.node_grain[n + l] as usize].at(&x[l]));
             for i in 0..3 {
                 for l in 0..LANES {
-                    fd[i][l] -= dd * m[l] * (a[i][l] - rigid[l][i]);
+                    let (f, v) = (fd[i][l], a[i][l]);
+                    fd[i][l] = body.add_deformation_damping(f, m[l], v, rigid[l][i]);
                 }
             }
         }
@@ -292,7 +293,7 @@ fn update_group(
         }
         for i in 0..3 {
             for l in 0..LANES {
-                f[i][l] += w[i][l] + fd[i][l];
+                f[i][l] = with_body_force(f[i][l], w[i][l], fd[i][l]);
             }
         }
     }
@@ -300,7 +301,7 @@ fn update_group(
     let mut b = [[0.0; LANES]; 3];
     for i in 0..3 {
         for l in 0..LANES {
-            b[i][l] = a[i][l] + dt * f[i][l] / m[l];
+            b[i][l] = predict_along(a[i][l], f[i][l], m[l], dt);
         }
     }
     let node = |c: &[Lanes; 3], l: usize| [c[0][l], c[1][l], c[2][l]];
