@@ -7,7 +7,9 @@
 //! inside the master's inflated box query the master's facet [`Bvh`] with a box of half-size
 //! skin + ½ h(node); of the facets found, those that can become the node's nearest before
 //! the next rebuild (closer than its nearest now + 2 skin, `keep_facets_that_can_become_
-//! nearest`) are its candidates until then. Walls list the surface nodes within 1.5 skin of their plane.
+//! nearest`) are its candidates until then. A node whose gap to its nearest facet exceeds
+//! the skin gets no entry: the gap cannot close before the next rebuild (`within_reach`
+//! never selects it). Walls list the surface nodes within 1.5 skin of their plane.
 //!
 //! Why this is complete: between rebuilds no surface node moves by d_max ≥ skin/2, so a
 //! node–facet distance shrinks by less than 2 d_max < skin; a node that now penetrates a
@@ -660,8 +662,13 @@ impl BroadPhase {
                     continue;
                 };
                 let facet = lists.query[nearest] as usize;
-                keep_facets_that_can_become_nearest(cm, x, p, facet, skin, &mut lists.query);
                 let d0 = (-locate_on_facet(cm, x, p, facet).depth).max(0.0);
+                // until the next rebuild a gap closes by less than the skin
+                // (`within_reach`): a node farther out cannot reach its master before then
+                if d0 > skin {
+                    continue;
+                }
+                keep_facets_that_can_become_nearest(cm, x, p, facet, skin, &mut lists.query);
                 let start = lists.candidates.len() as u32;
                 lists.candidates.extend_from_slice(&lists.query);
                 lists.entries.push(Entry {
@@ -877,18 +884,20 @@ mod tests {
         assert_eq!(reach(&lists, 1.5 * um, &head_on), [0, 1, 2, 5]);
     }
 
-    /// The candidates a rebuild keeps hold every facet that can become a slave node's
-    /// nearest before the next rebuild: two spheres pressed 5 µm into each other, their
-    /// lists built with a 4 µm skin, then every surface node moved by just under half the
-    /// skin (what the next rebuild allows), the grains sliding past each other and every
-    /// node straying its own way. For every entry within a quarter edge of the master, the
-    /// nearest of its candidates is as near as the nearest facet of the whole master
-    /// surface; and the lists hold fewer facets than half-edge boxes find. (Random motion
-    /// cannot tell the skin's factor 2 from 1, which only a contrived motion needs; with
-    /// no skin term at all the test fails.)
+    /// The lists a rebuild makes hold every facet that can become a slave node's nearest,
+    /// and every node that can come into contact, before the next rebuild: two spheres
+    /// pressed 17 µm into each other, their lists built with a 20 µm skin, then every
+    /// surface node moved by just under half the skin (what the next rebuild allows), the
+    /// grains closing head-on or sliding past each other, every node straying its own way.
+    /// For every entry within a quarter edge of the master, the nearest of its candidates
+    /// is as near as the nearest facet of the whole master surface; every slave node then
+    /// inside its master has an entry; and the lists hold fewer facets than half-edge boxes
+    /// find. Entries kept only within half the skin, or candidates only within the nearest
+    /// distance (no skin term), fail it; random motion cannot tell the candidates' factor 2
+    /// from 1, which only a contrived motion needs.
     #[test]
-    fn kept_candidates_hold_every_facet_that_can_become_nearest() {
-        let (radius, seeding, depth) = (1.0e-3, 1.0e-4, 5.0e-6);
+    fn rebuilt_lists_hold_every_nearest_facet_and_contact_the_skin_allows() {
+        let (radius, seeding, depth) = (1.0e-3, 1.0e-4, 1.7e-5);
         let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
         let grain = |name: &str, x: f64| {
             format!("[[grains]]\nname = \"{name}\"\nmaterial = \"glass\"\nshape = {sphere}\ncentre = [{x:e}, 0.0, 0.0]\n")
@@ -906,7 +915,7 @@ mod tests {
         for n in solver.model.grains[1].nodes.clone() {
             x[n][0] -= 2.0 * depth;
         }
-        let skin = 4.0e-6;
+        let skin = 2.0e-5;
         let (broad, lists) = (
             &mut solver.scratch.contact.broad,
             &mut solver.scratch.contact.lists,
@@ -942,7 +951,7 @@ mod tests {
             "{kept} candidates kept of {half_edge_boxes}"
         );
 
-        let mut near = 0;
+        let (mut near, mut inside) = (0, 0);
         let unit = |h: u64| {
             // a direction from 32 bits of a hash, uniform enough for this
             let angle = |shift: u32| ((h >> shift) & 0xffff) as f64 / 65536.0;
@@ -958,7 +967,12 @@ mod tests {
         for trial in 0..16u64 {
             // the grains slide past each other (a one way, b the other) and every node
             // strays in its own direction: each by just under half the skin
-            let slide = unit(mix(trial + 1));
+            // (the first trial head-on: the grains close by most of the skin)
+            let slide = if trial == 0 {
+                [1.0, 0.0, 0.0]
+            } else {
+                unit(mix(trial + 1))
+            };
             let mut y = x.clone();
             for &n in &cm.node {
                 let sign = if b_nodes.contains(&(n as usize)) {
@@ -988,7 +1002,33 @@ mod tests {
                 let nearest = kept[nearest_candidate(cm, &y, p, kept).expect("candidates")];
                 assert_eq!(distance(&y, p, nearest), everywhere, "entry {e:?}");
             }
+            // every slave node inside its master after the motion has an entry there
+            for (pi, pass) in lists.passes.iter().enumerate() {
+                let master = &cm.surfaces[pass.master as usize];
+                let facets: Vec<u32> = (master.facets.clone()).map(|f| f as u32).collect();
+                let centre = if pass.master == 0 {
+                    0.0
+                } else {
+                    2.0 * radius - depth
+                };
+                for k in cm.surfaces[pass.slave as usize].nodes.clone() {
+                    let p = y[cm.node[k] as usize];
+                    let off_centre = [p[0] - centre, p[1], p[2]];
+                    if dot(off_centre, off_centre).sqrt() > radius + 4.0 * skin {
+                        continue;
+                    }
+                    let f = facets[nearest_candidate(cm, &y, p, &facets).expect("facets")];
+                    if locate_on_facet(cm, &y, p, f as usize).depth <= 0.0 {
+                        continue;
+                    }
+                    inside += 1;
+                    let listed = (lists.entries.iter())
+                        .any(|e| e.slave as usize == k && e.pass as usize == pi);
+                    assert!(listed, "node {k} inside its master has no entry");
+                }
+            }
         }
+        assert!(inside > 20, "{inside} nodes inside their master");
         assert!(near > 100, "{near} entries near the master");
     }
 }
