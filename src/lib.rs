@@ -39,4 +39,6 @@ pub mod math;
 pub mod sand;
 pub mod scene;
 pub mod solver;
+#[cfg(test)]
+pub(crate) mod testing;
 pub mod validate;

@@ -3,12 +3,16 @@
 //! non-overlapping grains whose volumes are within 3 % of their voxels', whose contact faces
 //! coincide, and whose scene `mufe check` accepts and `mufe run` starts stress-free.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use mufe::image::nrrd::write_nrrd;
 use mufe::image::scene::{import_labels, ImportOptions};
 use mufe::image::LabelImage;
+
+#[path = "../src/testing.rs"]
+mod testing;
+use testing::TestDir;
 
 const VOXEL: f64 = 1.0e-5; // m
 const RADIUS: f64 = 9.0; // voxels
@@ -48,13 +52,6 @@ fn three_touching_balls() -> LabelImage {
         spacing: None,
         origin: [0.0; 3],
     }
-}
-
-fn workdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("mufe_label_import_{}_{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn mufe(args: &[&str], dir: &Path) -> std::process::Output {
@@ -117,7 +114,7 @@ fn three_touching_labels_become_three_grains_that_meet_without_overlap() {
 
 #[test]
 fn the_imported_scene_checks_and_starts_stress_free() {
-    let dir = workdir("run");
+    let dir = TestDir::new("label_import_run");
     let image = three_touching_balls();
     write_nrrd(&dir.join("balls.nrrd"), &image, [VOXEL; 3]).unwrap();
     import_without_overlap("balls.nrrd", "balls.toml", 3, &dir);
@@ -172,7 +169,7 @@ fn the_imported_scene_checks_and_starts_stress_free() {
 
 #[test]
 fn a_header_without_spacing_or_unit_is_refused_naming_the_field() {
-    let dir = workdir("errors");
+    let dir = TestDir::new("label_import_errors");
     let mut image = three_touching_balls();
     image.labels.truncate(8);
     image.size = [2, 2, 2];
@@ -197,7 +194,7 @@ fn a_header_without_spacing_or_unit_is_refused_naming_the_field() {
 
 #[test]
 fn a_virtual_sand_image_imports_as_its_grains_touching_without_overlap() {
-    let dir = workdir("sand");
+    let dir = TestDir::new("label_import_sand");
     let out = mufe(
         &[
             "sand",

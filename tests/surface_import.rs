@@ -6,6 +6,8 @@
 
 #[path = "common/results.rs"]
 mod results;
+#[path = "../src/testing.rs"]
+mod testing;
 
 use mufe::mesh::import::formats::{
     write_msh, write_msh_volume, write_obj, write_stl_ascii, write_stl_binary,
@@ -440,8 +442,7 @@ fn two_grains_of_virtual_sand_run_with_the_energy_ledger_balanced() {
 /// (issue 15, item 2), giving the meshes the in-process mesher gives.
 #[test]
 fn distinct_shapes_mesh_in_worker_processes_into_the_cache_alike() {
-    let dir = std::env::temp_dir().join(format!("mufe_workers_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = testing::TestDir::new("workers");
     let mufe = env!("CARGO_BIN_EXE_mufe");
     let run = |args: &[&str], envs: &[(&str, &str)]| {
         let mut c = std::process::Command::new(mufe);
@@ -451,7 +452,6 @@ fn distinct_shapes_mesh_in_worker_processes_into_the_cache_alike() {
         }
         c.output().unwrap()
     };
-    std::fs::create_dir_all(&dir).unwrap();
     let out = run(&["sand", "--out", "s", "--grains", "4", "--seed", "3"], &[]);
     assert!(out.status.success());
     let totals = |o: &std::process::Output| {

@@ -427,12 +427,7 @@ fn voxel_type(t: &str) -> Option<VoxelType> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn tmp(name: &str) -> std::path::PathBuf {
-        let d = std::env::temp_dir().join(format!("mufe_nrrd_{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
-        d.join(name)
-    }
+    use crate::testing::TestDir;
 
     fn image() -> LabelImage {
         LabelImage {
@@ -445,7 +440,8 @@ mod tests {
 
     #[test]
     fn written_images_read_back_with_spacing_in_metres() {
-        let p = tmp("a.nrrd");
+        let dir = TestDir::new("nrrd_written");
+        let p = dir.join("a.nrrd");
         write_nrrd(&p, &image(), [1e-5, 2e-5, 3e-5]).unwrap();
         let r = read_nrrd(&p).unwrap();
         assert_eq!(r.labels, image().labels);
@@ -458,7 +454,8 @@ mod tests {
 
     #[test]
     fn big_endian_signed_ascii_and_detached_data_are_read() {
-        let p = tmp("b.nrrd");
+        let dir = TestDir::new("nrrd_detached");
+        let p = dir.join("b.nrrd");
         let mut bytes =
             b"NRRD0004\ntype: short\ndimension: 3\nsizes: 2 1 1\nspacings: 5 5 5\nencoding: raw\nendian: big\n\n"
                 .to_vec();
@@ -477,7 +474,7 @@ mod tests {
         assert_eq!(r.labels, vec![0, 1, 2, 0]);
         assert_eq!(r.spacing.unwrap().metres_per_unit, Some(1e-3));
 
-        let raw = tmp("c.raw");
+        let raw = dir.join("c.raw");
         std::fs::write(&raw, [4u8, 0, 4, 0]).unwrap();
         std::fs::write(
             &p,
@@ -489,7 +486,8 @@ mod tests {
 
     #[test]
     fn every_bad_header_names_its_field() {
-        let p = tmp("d.nrrd");
+        let dir = TestDir::new("nrrd_bad_header");
+        let p = dir.join("d.nrrd");
         let head = "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 1 1\nencoding: raw\n";
         let cases = [
             (

@@ -230,8 +230,7 @@ mod tests {
 
     #[test]
     fn draws_a_png_with_theory_and_fe_curves() {
-        let dir = std::env::temp_dir().join(format!("mufe_plot_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::testing::TestDir::new("plot");
         let path = dir.join("p.png");
         let theory = Series {
             label: "theory".into(),

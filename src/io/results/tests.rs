@@ -1,13 +1,8 @@
 use super::*;
 use crate::domain::with_test_domain;
 use crate::io::provenance::{iso8601_utc, shell_quote};
+use crate::testing::TestDir;
 use std::time::UNIX_EPOCH;
-
-fn temp_path(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mufe-io-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
 
 fn str_attr(loc: &Location, name: &str) -> String {
     loc.attr(name)
@@ -49,7 +44,8 @@ fn shell_quoting() {
 
 #[test]
 fn single_rank_file_reads_back() {
-    let path = temp_path("single.h5");
+    let dir = TestDir::new("io_single");
+    let path = dir.join("single.h5");
     let scene = "[scene]\nname = \"drop\" # ünïcode\n";
     let (stats, n_nodes) = with_test_domain(|d| {
         let mut w = ResultsWriter::create(d, &path, scene, &provenance()).unwrap();
@@ -203,7 +199,8 @@ fn single_rank_file_reads_back() {
 
 #[test]
 fn bad_input_is_an_error_and_the_file_stays_usable() {
-    let path = temp_path("bad.h5");
+    let dir = TestDir::new("io_bad_input");
+    let path = dir.join("bad.h5");
     with_test_domain(|d| {
         let mut w = ResultsWriter::create(d, &path, "", &provenance()).unwrap();
         assert!(w.push_history(&[1.0]).is_err(), "push before define");
@@ -306,7 +303,8 @@ fn bad_input_is_an_error_and_the_file_stays_usable() {
 
 #[test]
 fn directory_path_is_a_clear_error() {
-    let dir = temp_path("a-directory");
+    let scratch = TestDir::new("io_directory");
+    let dir = scratch.join("a-directory");
     std::fs::create_dir_all(&dir).unwrap();
     with_test_domain(|d| {
         let e = ResultsWriter::create(d, &dir, "", &provenance())
