@@ -588,19 +588,15 @@ fn add_point_force(r: &PointResult, force: &mut [[f64; 3]]) {
     }
 }
 
-/// Power sums of the contact damping forces of the last [`evaluate`] with the velocities
-/// v_{n−½} (`predictor.v`) and v_{n+½} (`v_after`), for the ledger's trapezoidal work rule
-/// (see `crate::energy`). Both are ≤ 0 when the damper only resists.
-pub fn damping_power(
-    model: &Model,
-    predictor: &Predictor,
-    v_after: &NextVelocity,
-    scratch: &ContactScratch,
-) -> (f64, f64) {
-    let v_before = predictor.v;
-    let (mut before, mut after) = (0.0, 0.0);
+/// Power of the contact damping forces of the last [`evaluate`] at the velocities `v`:
+/// called with v_{n−½} before the integrator and with v_{n+½} after it, for the ledger's
+/// trapezoidal work rule (see `crate::energy`). ≤ 0 when the damper only resists. After
+/// the integrator v_{n+½} is read where it was stored, not predicted again at the four
+/// nodes of every point (with the grain's rigid velocity for the mass damping).
+pub fn damping_power(model: &Model, v: &[[f64; 3]], scratch: &ContactScratch) -> f64 {
+    let mut power = 0.0;
     if model.contact.damping == 0.0 {
-        return (0.0, 0.0);
+        return 0.0;
     }
     // Power of the damper on each node it acts on, counted for owned nodes only: every node
     // belongs to exactly one rank, so the sum over ranks is the serial one (and no ghost
@@ -609,7 +605,7 @@ pub fn damping_power(
     let results = &scratch.results;
     for (i, r) in results.iter().enumerate() {
         if let Some(ahead) = results.get(i + RESULTS_AHEAD) {
-            touch_point_nodes(ahead, |n| predictor.touch(n));
+            touch_point_nodes(ahead, |n| crate::lanes::touch_value(v, n));
         }
         if !r.active || r.damping_force == 0.0 {
             continue;
@@ -617,18 +613,16 @@ pub fn damping_power(
         let f = r.damping_force;
         let s = r.slave as usize;
         if s < owned {
-            before += f * dot(v_before[s], r.normal);
-            after += f * dot(v_after.get(s, predictor), r.normal);
+            power += f * dot(v[s], r.normal);
         }
         for (k, &m) in r.masters.iter().enumerate() {
             let m = m as usize;
             if m < owned {
-                before -= f * r.weights[k] * dot(v_before[m], r.normal);
-                after -= f * r.weights[k] * dot(v_after.get(m, predictor), r.normal);
+                power -= f * r.weights[k] * dot(v[m], r.normal);
             }
         }
     }
-    (before, after)
+    power
 }
 
 /// Stage 3: kinematic walls on v_{n+½} (see [`walls`]). `t` = t_n.

@@ -413,14 +413,11 @@ impl Solver {
             );
         }
 
-        // Power of the contact dampers with v_{n−½} (state.v) and v_{n+½} (scratch.v_next),
-        // before integration overwrites v.
-        let predictor = Predictor::new(&state.v, &scratch.force, &model.mass, dt)
-            .with_body_forces(body, &state.x);
-        let contact_damping = timers.time(Stage::Contact, || {
-            crate::contact::damping_power(model, &predictor, &scratch.v_next, &scratch.contact)
+        // Power of the contact dampers with v_{n−½}, before integration overwrites it, and
+        // with v_{n+½} after it.
+        let contact_damping_before = timers.time(Stage::Contact, || {
+            crate::contact::damping_power(model, &state.v, &scratch.contact)
         });
-
         let partials = timers.time(Stage::Integrate, || {
             let step = StepResults {
                 force: &scratch.force,
@@ -430,6 +427,9 @@ impl Solver {
             };
             let partials = &mut scratch.node_partials;
             integrate_and_sum(model, alpha, gravity, state, step, partials, dt)
+        });
+        let contact_damping_after = timers.time(Stage::Contact, || {
+            crate::contact::damping_power(model, &state.v, &scratch.contact)
         });
         timers.time(Stage::Halo, || {
             hooks.ghosts_out(&state.x, &state.v, &cell_after)
@@ -454,8 +454,8 @@ impl Solver {
                 .record(dt, partials.gravity_before, partials.gravity_after);
             e.damping.record(
                 dt,
-                partials.damping_before + contact_damping.0,
-                partials.damping_after + contact_damping.1,
+                partials.damping_before + contact_damping_before,
+                partials.damping_after + contact_damping_after,
             );
             e.friction_dissipation = state.contact.friction_dissipation_total();
             e.contact_energy = state.contact.stats.energy;
