@@ -726,8 +726,9 @@ impl BroadPhase {
 /// D ≤ D₀ + skin then, was therefore closer than D₀ + 2 skin now; every other facet is
 /// dropped. The order of the rest is kept, so the first of equally near facets is the
 /// same. In a packing D₀ is the contact's sub-micrometre depth and the skin a few
-/// micrometres: the list shrinks from the ring of facets a half-edge box meets to the one
-/// to three at the contact point (docs/BENCHMARKS.md, session 37).
+/// micrometres: the list shrinks from the ring of facets a half-edge box meets to those at
+/// the contact point (six where the node faces a master vertex; docs/BENCHMARKS.md,
+/// session 37).
 fn keep_facets_that_can_become_nearest(
     cm: &ContactModel,
     x: &[[f64; 3]],
