@@ -128,3 +128,29 @@ pub fn closest_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -
     let (v, w) = (vb * denom, vc * denom);
     [1.0 - v - w, v, w]
 }
+
+/// splitmix64: a small, well-mixed, reproducible generator (the state is the seed).
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// A unit vector uniform on the sphere.
+    pub fn direction(&mut self) -> [f64; 3] {
+        let z = 2.0 * self.unit() - 1.0;
+        let phi = 2.0 * std::f64::consts::PI * self.unit();
+        let r = (1.0 - z * z).sqrt();
+        [r * phi.cos(), r * phi.sin(), z]
+    }
+}

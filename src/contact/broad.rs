@@ -737,13 +737,16 @@ fn keep_facets_that_can_become_nearest(
     skin: f64,
     query: &mut Vec<u32>,
 ) {
-    let distance = |f: usize| {
-        let [a, b, c] = cm.facet[f].map(|n| x[n as usize]);
-        closest_point_on_triangle(p, a, b, c).dist2.sqrt()
-    };
     // the relative slack covers the rounding of the distances, many orders above it
-    let reach = (distance(nearest) + 2.0 * skin) * (1.0 + 1e-6);
-    query.retain(|&f| distance(f as usize) <= reach);
+    let reach = (facet_distance(cm, x, p, nearest) + 2.0 * skin) * (1.0 + 1e-6);
+    query.retain(|&f| facet_distance(cm, x, p, f as usize) <= reach);
+}
+
+/// Flat distance from `p` to facet `f` at positions `x` (what the narrow phase ranks
+/// candidates by).
+fn facet_distance(cm: &ContactModel, x: &[[f64; 3]], p: [f64; 3], f: usize) -> f64 {
+    let [a, b, c] = cm.facet[f].map(|n| x[n as usize]);
+    closest_point_on_triangle(p, a, b, c).dist2.sqrt()
 }
 
 #[cfg(test)]
@@ -900,16 +903,11 @@ mod tests {
     fn rebuilt_lists_hold_every_nearest_facet_and_contact_the_skin_allows() {
         let (radius, seeding, depth) = (1.0e-3, 1.0e-4, 1.7e-5);
         let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
-        let grain = |name: &str, x: f64| {
-            format!("[[grains]]\nname = \"{name}\"\nmaterial = \"glass\"\nshape = {sphere}\ncentre = [{x:e}, 0.0, 0.0]\n")
-        };
-        let scene = format!(
-            "[simulation]\nduration = 1e-6\n[materials.glass]\ndensity = 2500.0\nyoungs_modulus = 63e9\npoisson_ratio = 0.22\n[contact]\nfriction = 0.3\n{}{}",
-            grain("a", 0.0),
-            grain("b", 2.0 * radius + depth)
+        let scene = super::super::tests::pair_scene(
+            ("a", &sphere, [0.0; 3]),
+            ("b", &sphere, [2.0 * radius + depth, 0.0, 0.0]),
         );
-        let loaded = crate::scene::parse_scene("test.toml", &scene, &[]).expect("scene parses");
-        let mut solver = crate::solver::build_solver(&loaded).expect("model builds");
+        let mut solver = super::super::tests::solver(&scene);
         let cm = &solver.model.contact;
         // built apart (a model may not start overlapped), then pressed in
         let mut x = solver.state.x.clone();
@@ -931,10 +929,7 @@ mod tests {
             0,
         );
 
-        let distance = |y: &[[f64; 3]], p: [f64; 3], f: u32| {
-            let [a, b, c] = cm.facet[f as usize].map(|n| y[n as usize]);
-            closest_point_on_triangle(p, a, b, c).dist2.sqrt()
-        };
+        let distance = |y: &[[f64; 3]], p: [f64; 3], f: u32| facet_distance(cm, y, p, f as usize);
         // against half-edge boxes (at the contact itself both hold the ring of facets
         // around the master vertex nearest a slave node; the far entries shed the most)
         let (mut kept, mut half_edge_boxes) = (0, 0);
@@ -953,26 +948,16 @@ mod tests {
         );
 
         let (mut near, mut inside) = (0, 0);
-        let unit = |h: u64| {
-            // a direction from 32 bits of a hash, uniform enough for this
-            let angle = |shift: u32| ((h >> shift) & 0xffff) as f64 / 65536.0;
-            let (z, phi) = (2.0 * angle(0) - 1.0, std::f64::consts::TAU * angle(16));
-            let r = (1.0 - z * z).sqrt();
-            [r * phi.cos(), r * phi.sin(), z]
-        };
-        let mix = |v: u64| {
-            let v = (v ^ (v >> 31)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-            v ^ (v >> 29)
-        };
         let b_nodes = solver.model.grains[1].nodes.clone();
         for trial in 0..16u64 {
             // the grains slide past each other (a one way, b the other) and every node
             // strays in its own direction: each by just under half the skin
             // (the first trial head-on: the grains close by most of the skin)
+            let mut rng = crate::math::SplitMix64(trial);
             let slide = if trial == 0 {
                 [1.0, 0.0, 0.0]
             } else {
-                unit(mix(trial + 1))
+                rng.direction()
             };
             let mut y = x.clone();
             for &n in &cm.node {
@@ -981,7 +966,7 @@ mod tests {
                 } else {
                     1.0
                 };
-                let stray = unit(mix((u64::from(n) << 8) + trial));
+                let stray = rng.direction();
                 let d: [f64; 3] = std::array::from_fn(|i| sign * slide[i] + 0.7 * stray[i]);
                 let length = dot(d, d).sqrt();
                 for i in 0..3 {

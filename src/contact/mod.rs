@@ -734,7 +734,7 @@ poisson_ratio = 0.22
 density = 2500.0
 "#;
 
-    fn solver(text: &str) -> Solver {
+    pub(super) fn solver(text: &str) -> Solver {
         let loaded = parse_scene("test.toml", text, &[]).expect("scene parses");
         build_solver(&loaded).expect("model builds")
     }
@@ -758,7 +758,10 @@ density = 2500.0
         f
     }
 
-    fn pair_scene(first: (&str, &str, [f64; 3]), second: (&str, &str, [f64; 3])) -> String {
+    pub(super) fn pair_scene(
+        first: (&str, &str, [f64; 3]),
+        second: (&str, &str, [f64; 3]),
+    ) -> String {
         let grain = |(name, shape, c): (&str, &str, [f64; 3])| {
             format!("[[grains]]\nname = \"{name}\"\nmaterial = \"glass\"\nshape = {shape}\ncentre = {c:?}\n")
         };

@@ -15,7 +15,7 @@ mod scene;
 pub use box_scene::write_sand_box;
 pub use scene::{write_sand, write_sand_image};
 
-use crate::math::{add, norm, scale};
+use crate::math::{add, norm, scale, SplitMix64};
 use crate::mesh::import::{ShapeDescriptors, Surface};
 
 /// Parameters of the generated grains.
@@ -55,29 +55,6 @@ impl Default for SandParams {
 /// Number of plane waves summed per grain.
 const WAVES: usize = 12;
 
-/// splitmix64: a small, well-mixed, reproducible generator.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn direction(&mut self) -> [f64; 3] {
-        let z = 2.0 * self.unit() - 1.0;
-        let phi = 2.0 * std::f64::consts::PI * self.unit();
-        let r = (1.0 - z * z).sqrt();
-        [r * phi.cos(), r * phi.sin(), z]
-    }
-}
-
 /// The star-shaped grain `index` of a sand: r(u) = ellipsoid(u)·max(1 + waves(u), ½) in
 /// the generator's frame, then shifted by the faceted surface's centroid and scaled to the
 /// requested size.
@@ -92,9 +69,9 @@ pub struct GrainShape {
 
 impl GrainShape {
     pub fn new(p: &SandParams, index: usize) -> Self {
-        let mut rng =
-            Rng(p.seed.wrapping_mul(0x2545_f491_4f6c_dd1d)
-                ^ (index as u64).wrapping_mul(0x9e37_79b9));
+        let mut rng = SplitMix64(
+            p.seed.wrapping_mul(0x2545_f491_4f6c_dd1d) ^ (index as u64).wrapping_mul(0x9e37_79b9),
+        );
         let waves: Vec<(f64, [f64; 3], f64, f64)> = (0..WAVES)
             .map(|_| {
                 let degree = 2.0 + (rng.unit() * 6.0).floor();
