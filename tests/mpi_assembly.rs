@@ -316,8 +316,8 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         let read = |f: &hdf5::File| f.dataset(&path).unwrap().read_raw::<f64>().unwrap();
         assert!(read(&fa) == read(&fb), "{path} differs with a trimmed halo");
     }
-    // "halo: bytes sent per step by rank: mean A, B (…), contact zones now C, D, whole
-    // ghost surfaces E, F; … at most X m … (limit Y m)"
+    // "halo: bytes sent per step by rank: mean A, B (…), now C, D (what contact reads),
+    // whole contact zones E, F, whole ghost surfaces G, H; … at most X m … (limit Y m)"
     let halo_line = |out: &std::process::Output| {
         String::from_utf8_lossy(&out.stdout)
             .lines()
@@ -332,19 +332,26 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
     };
     let t = numbers(&halo_line(&out_t));
     let w = numbers(&halo_line(&out_w));
-    assert!(t.len() == 8 && w.len() == 8, "{t:?} {w:?}");
+    assert!(t.len() == 10 && w.len() == 10, "{t:?} {w:?}");
     for r in 0..2 {
         // whole surfaces: the plan's bytes every step (plus the flags of the first exchange)
-        assert!(w[r] >= w[4 + r] && w[2 + r] == w[4 + r], "rank {r}: {w:?}");
         assert!(
-            t[r] < 0.6 * t[4 + r],
+            w[r] >= w[6 + r] && w[2 + r] == w[6 + r] && w[4 + r] == w[6 + r],
+            "rank {r}: {w:?}"
+        );
+        assert!(
+            t[r] < 0.6 * t[6 + r],
             "rank {r} sends {} of {} bytes",
             t[r],
-            t[4 + r]
+            t[6 + r]
         );
-        assert!(t[2 + r] < t[r], "rank {r}: {t:?}");
+        // the zone nodes the contact lists read are fewer than the zone's
+        assert!(
+            t[2 + r] < t[4 + r] && t[4 + r] < t[6 + r],
+            "rank {r}: {t:?}"
+        );
     }
-    let (drift, limit) = (t[6], t[7]);
+    let (drift, limit) = (t[8], t[9]);
     assert!(
         drift > 0.0 && drift < limit,
         "dormant nodes moved {drift} (limit {limit})"

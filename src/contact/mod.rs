@@ -95,6 +95,7 @@ pub mod narrow;
 mod overlap;
 pub mod patch;
 mod prefetch;
+mod reads;
 pub mod triangle;
 mod vertex_normals;
 pub mod walls;
@@ -104,6 +105,7 @@ pub use crate::model::contact_layout::{
     DEFAULT_MARGIN_FRACTION, DEFAULT_PENALTY_FACTOR, NONE,
 };
 pub use overlap::check_initial_overlap;
+pub use reads::mark_nodes_the_lists_read;
 pub use walls::GrainWallForces;
 
 use crate::boundary::servo::ServoState;

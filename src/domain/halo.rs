@@ -22,6 +22,19 @@
 //! lists, patches and forces are those of whole ghosts, bit for bit. A full exchange
 //! measures how far the dormant nodes had moved meanwhile and warns above ¼ M. Periodic
 //! images are always sent whole (their shift changes with the cell).
+//!
+//! # What contact reads
+//! A zone is planned for any contact the grains could make before the next check, but
+//! between two rebuilds of the contact lists the narrow phase reads only the nodes the
+//! lists name (`crate::contact::mark_nodes_the_lists_read`): far fewer than the zone
+//! holds. So after each rebuild every rank tells the owners of its ghosts which zone nodes
+//! its lists read ([`Halo::send_only_what_is_read`]), and only those are sent every step
+//! until the next rebuild. Before a rebuild the whole zone is refreshed
+//! ([`Halo::refresh_zones`]) with the values the step began with, so the broad phase sees
+//! what it would have seen had every zone node been sent every step: lists, forces and
+//! results are the same to the bit. After a plan, a restart or a re-partition the reads
+//! are unknown and the zones are sent until the next rebuild; a plan that does not trim
+//! (a periodic cell, or `parallel.trim_ghosts = false`) sends whole surfaces throughout.
 
 use super::{Domain, Exchange, ExchangeBuffers, PendingExchange};
 use crate::error::MufeError;
@@ -41,6 +54,9 @@ pub const VALUES_PER_NODE_FULL: usize = 7;
 
 /// Message tag of the forward halo.
 const FORWARD_TAG: i32 = 101;
+
+/// Message tag of the read flags a receiver sends the owners of its ghosts.
+const READS_TAG: i32 = 103;
 
 /// One grain (or image) in a send list: its nodes there and the zone whose nodes are kept.
 #[derive(Debug, Clone, Default)]
@@ -189,9 +205,21 @@ pub struct Halo<'d> {
     active_receives: Vec<Vec<u32>>,
     /// Per receive list: whether each node is active (parallel to `plan.receives`).
     received_active: Vec<Vec<bool>>,
+    /// Per send / receive list and node: whether the receiver's contact lists read it;
+    /// empty while unknown ([`Halo::send_only_what_is_read`]).
+    read_sends: Vec<Vec<bool>>,
+    read_receives: Vec<Vec<bool>>,
+    /// Positions of the nodes exchanged every step: the active ones that are read (all
+    /// active ones while the reads are unknown).
+    stepped_sends: Vec<Vec<u32>>,
+    stepped_receives: Vec<Vec<u32>>,
+    reads: Exchange,
     /// The next exchange sends every node (after a plan or a retarget).
     full_next: bool,
     full_in_flight: bool,
+    /// The next exchange sends every active node, read or not (a refresh before a rebuild).
+    zones_next: bool,
+    zones_in_flight: bool,
     /// A full exchange has set the active lists once (dormant nodes hold real values).
     trimmed_once: bool,
     /// Largest distance a dormant node had moved when a full exchange refreshed it (m).
@@ -225,8 +253,15 @@ impl<'d> Halo<'d> {
             recv_counts: Vec::with_capacity(nr),
             active_sends: vec![Vec::new(); ns],
             active_receives: vec![Vec::new(); nr],
+            read_sends: Vec::new(),
+            read_receives: Vec::new(),
+            stepped_sends: vec![Vec::new(); ns],
+            stepped_receives: vec![Vec::new(); nr],
+            reads: Exchange::new(READS_TAG),
             full_next: true,
             full_in_flight: false,
+            zones_next: false,
+            zones_in_flight: false,
             trimmed_once: false,
             dormant_drift: 0.0,
             drift_limit: 0.25 * margin,
@@ -256,10 +291,77 @@ impl<'d> Halo<'d> {
         self.dormant_drift = self.dormant_drift.max(old.dormant_drift);
     }
 
-    /// Bytes this rank sends per step with the current active lists.
+    /// Bytes this rank sends per step now: the zone nodes the receivers read.
     pub fn bytes_per_step(&self) -> usize {
+        let nodes: usize = self.stepped_sends.iter().map(Vec::len).sum();
+        nodes * VALUES_PER_NODE * 8
+    }
+
+    /// Bytes this rank would send per step with whole contact zones.
+    pub fn zone_bytes_per_step(&self) -> usize {
         let nodes: usize = self.active_sends.iter().map(Vec::len).sum();
         nodes * VALUES_PER_NODE * 8
+    }
+
+    /// Tells the owners of this rank's ghosts which of their nodes its contact lists read
+    /// (`read`: one flag per model node, as the lists built at this step mark them) and
+    /// learns the same of the ghosts it sends: from the next exchange on, only the zone
+    /// nodes that are read are sent (module docs). A blocking exchange between
+    /// neighbours: every rank calls at the same step, with no exchange in flight. Nothing
+    /// for a plan that does not trim.
+    pub fn send_only_what_is_read(&mut self, read: &[bool]) -> Result<(), MufeError> {
+        if !self.plan.trims || self.pending.is_some() {
+            return Ok(());
+        }
+        let flag = |on: bool| if on { 1.0 } else { 0.0 };
+        let told: Vec<(usize, Vec<f64>)> = (self.plan.receives.iter())
+            .map(|(q, nodes)| (*q, nodes.iter().map(|&n| flag(read[n as usize])).collect()))
+            .collect();
+        let counts: Vec<(usize, usize)> = (self.plan.sends.iter())
+            .map(|(q, nodes)| (*q, nodes.len()))
+            .collect();
+        let pending = self.reads.begin(self.domain, &told, &counts)?;
+        let heard = self.reads.end(pending)?;
+        self.read_sends = (heard.iter())
+            .map(|(_, flags)| flags.iter().map(|&f| f != 0.0).collect())
+            .collect();
+        self.read_receives = (told.iter())
+            .map(|(_, flags)| flags.iter().map(|&f| f != 0.0).collect())
+            .collect();
+        for i in 0..self.active_sends.len() {
+            step_only_what_is_read(
+                &self.active_sends[i],
+                &self.read_sends,
+                i,
+                &mut self.stepped_sends[i],
+            );
+        }
+        for i in 0..self.active_receives.len() {
+            step_only_what_is_read(
+                &self.active_receives[i],
+                &self.read_receives,
+                i,
+                &mut self.stepped_receives[i],
+            );
+        }
+        Ok(())
+    }
+
+    /// Sends every active node once more, read or not, so that a rebuild of the contact
+    /// lists at this step sees the whole zones as they are (module docs). A blocking
+    /// exchange between neighbours: every rank calls at the same step, with no exchange in
+    /// flight; nothing while every active node is sent anyway.
+    pub fn refresh_zones(
+        &mut self,
+        x: &mut [[f64; 3]],
+        v: &mut [[f64; 3]],
+        cell: &CellKinematics,
+    ) -> Result<(), MufeError> {
+        if self.read_sends.is_empty() || self.pending.is_some() {
+            return Ok(());
+        }
+        self.zones_next = true;
+        self.exchange(x, v, cell)
     }
 
     /// Posts the sends of the owned surface nodes' x and v and the receives of the ghosts'.
@@ -276,6 +378,7 @@ impl<'d> Halo<'d> {
             return Ok(());
         }
         let full = self.full_next;
+        let zones = self.zones_next && !full;
         let mut buffers = self.buffers.take().unwrap_or_default();
         buffers.send.clear();
         self.send_counts.clear();
@@ -303,8 +406,14 @@ impl<'d> Halo<'d> {
                         }
                     }
                 }
+                step_only_what_is_read(active, &self.read_sends, i, &mut self.stepped_sends[i]);
             } else {
-                for &k in active.iter() {
+                let sent = if zones {
+                    active
+                } else {
+                    &self.stepped_sends[i]
+                };
+                for &k in sent.iter() {
                     pack(k as usize, &mut buffers.send);
                 }
             }
@@ -314,15 +423,20 @@ impl<'d> Halo<'d> {
         for (i, (q, nodes)) in self.plan.receives.iter().enumerate() {
             let values = if full {
                 nodes.len() * VALUES_PER_NODE_FULL
-            } else {
+            } else if zones {
                 self.active_receives[i].len() * VALUES_PER_NODE
+            } else {
+                self.stepped_receives[i].len() * VALUES_PER_NODE
             };
             self.recv_counts.push((*q, values));
         }
         self.values_sent += buffers.send.len() as u64;
-        self.exchanges += 1;
+        // a refresh is an extra exchange within a step
+        self.exchanges += u64::from(!zones);
         self.full_in_flight = full;
         self.full_next = false;
+        self.zones_in_flight = zones;
+        self.zones_next = false;
         self.pending = Some(self.exchange.begin_reusing(
             self.domain,
             buffers,
@@ -338,7 +452,7 @@ impl<'d> Halo<'d> {
             return Ok(());
         };
         let buffers = self.exchange.end_reusing(pending)?;
-        let full = self.full_in_flight;
+        let (full, zones) = (self.full_in_flight, self.zones_in_flight);
         let per_node = if full {
             VALUES_PER_NODE_FULL
         } else {
@@ -349,8 +463,10 @@ impl<'d> Halo<'d> {
         {
             let expected = if full {
                 nodes.len()
-            } else {
+            } else if zones {
                 self.active_receives[i].len()
+            } else {
+                self.stepped_receives[i].len()
             };
             if data.len() != expected * per_node {
                 return Err(MufeError::Run(format!(
@@ -378,11 +494,15 @@ impl<'d> Halo<'d> {
                         active.push(k as u32);
                     }
                 }
+                let stepped = &mut self.stepped_receives[i];
+                step_only_what_is_read(active, &self.read_receives, i, stepped);
             } else {
-                for (&k, d) in self.active_receives[i]
-                    .iter()
-                    .zip(data.chunks_exact(per_node))
-                {
+                let received = if zones {
+                    &self.active_receives[i]
+                } else {
+                    &self.stepped_receives[i]
+                };
+                for (&k, d) in received.iter().zip(data.chunks_exact(per_node)) {
                     let n = nodes[k as usize] as usize;
                     x[n] = [d[0], d[1], d[2]];
                     v[n] = [d[3], d[4], d[5]];
@@ -421,6 +541,16 @@ impl<'d> Halo<'d> {
     ) -> Result<(), MufeError> {
         self.begin(x, v, cell)?;
         self.end(x, v)
+    }
+}
+
+/// `stepped` = the positions of `active` whose node list `i` reads (`read`, empty while
+/// unknown: then all of them).
+fn step_only_what_is_read(active: &[u32], read: &[Vec<bool>], i: usize, stepped: &mut Vec<u32>) {
+    stepped.clear();
+    match read.get(i) {
+        Some(read) => stepped.extend(active.iter().filter(|&&k| read[k as usize])),
+        None => stepped.extend_from_slice(active),
     }
 }
 
@@ -554,6 +684,88 @@ mod tests {
             halo.full_next = true;
             halo.exchange(&mut x, &mut v, &cell).unwrap();
             assert_eq!(halo.bytes_per_step(), 3 * VALUES_PER_NODE * 8);
+        });
+    }
+
+    #[test]
+    fn after_a_rebuild_only_the_zone_nodes_contact_reads_follow_and_a_refresh_brings_the_rest() {
+        crate::domain::with_test_domain(|domain| {
+            // grain 0 (nodes 0–3) mirrored into nodes 4–7; the zone (radius 1 around x = 2.2,
+            // cushion 0.5) holds nodes 0, 1 and 2, contact reads nodes 1 and 3 (3 is dormant)
+            let plan = HaloPlan {
+                sends: vec![(0, vec![0, 1, 2, 3])],
+                send_images: vec![vec![NO_IMAGE; 4]],
+                sent_grains: vec![vec![SentGrain {
+                    nodes: 0..4,
+                    grain: 0,
+                    cushion: vec![0.5; 4],
+                    ..Default::default()
+                }]],
+                receives: vec![(0, vec![4, 5, 6, 7])],
+                trims: true,
+            };
+            let owner = [0, 0];
+            let bounds = [
+                GrainBound {
+                    centre: [0.0; 3],
+                    radius: 1.0,
+                },
+                GrainBound {
+                    centre: [2.2, 0.0, 0.0],
+                    radius: 1.0,
+                },
+            ];
+            let margin = 0.4;
+            let mut halo = Halo::new(domain, plan, margin);
+            halo.retarget(&owner, &bounds, margin);
+            let cell = CellKinematics::default();
+            let mut x = vec![
+                [1.0, 0.0, 0.0],
+                [0.9, 0.3, 0.0],
+                [0.8, 0.0, 0.5],
+                [-1.0, 0.0, 0.0],
+                [9.0; 3],
+                [9.0; 3],
+                [9.0; 3],
+                [9.0; 3],
+            ];
+            let mut v = vec![[0.0; 3]; 8];
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(&x[4..], &x[..4]);
+            assert_eq!(halo.zone_bytes_per_step(), 3 * VALUES_PER_NODE * 8);
+            assert_eq!(halo.bytes_per_step(), 3 * VALUES_PER_NODE * 8);
+            let mut read = vec![false; 8];
+            (read[5], read[7]) = (true, true);
+            halo.send_only_what_is_read(&read).unwrap();
+            // only node 1 is in the zone and read
+            assert_eq!(halo.bytes_per_step(), VALUES_PER_NODE * 8);
+            assert_eq!(halo.zone_bytes_per_step(), 3 * VALUES_PER_NODE * 8);
+            let before = x.clone();
+            for n in 0..4 {
+                x[n][1] += 0.01;
+                v[n][2] -= 1.0;
+            }
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!((x[5], v[5]), (x[1], v[1]));
+            for (ghost, stale) in [(4, 4), (6, 6), (7, 7)] {
+                assert_eq!(x[ghost], before[stale], "node {ghost} kept its value");
+            }
+            // a refresh before a rebuild sends the whole zone, the dormant node stays
+            halo.refresh_zones(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(&x[4..7], &x[..3]);
+            assert_eq!(&v[4..7], &v[..3]);
+            assert_eq!(x[7], before[7]);
+            // and the steps after it go on sending what is read
+            x[1][0] += 0.01;
+            x[0][0] += 0.01;
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(x[5], x[1]);
+            assert_ne!(x[4], x[0]);
+            // a retarget's full exchange sends all, then still only what is read
+            halo.retarget(&owner, &bounds, margin);
+            halo.exchange(&mut x, &mut v, &cell).unwrap();
+            assert_eq!(&x[4..], &x[..4]);
+            assert_eq!(halo.bytes_per_step(), VALUES_PER_NODE * 8);
         });
     }
 }

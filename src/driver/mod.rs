@@ -99,9 +99,9 @@ pub struct RunSummary {
     /// Checkpoints this run wrote.
     pub checkpoints: checkpoints::CheckpointStats,
     /// Per rank: mean bytes the halo sent per step (full exchanges included), bytes per
-    /// step of the contact zones at the end, and what whole ghost surfaces would send
-    /// (empty on one rank).
-    pub halo_bytes: Vec<[u64; 3]>,
+    /// step at the end (the zone nodes contact reads), what whole contact zones and what
+    /// whole ghost surfaces would send (empty on one rank).
+    pub halo_bytes: Vec<[u64; 4]>,
     /// Farthest a ghost node outside the trimmed halo had moved when refreshed (m, max
     /// over ranks), and the limit of a quarter of the ghost margin.
     pub dormant_drift: (f64, f64),
@@ -479,7 +479,8 @@ impl Run<'_, '_> {
             .checked_div(halo.exchanges)
             .unwrap_or(0);
         let means = domain.all_gather_u64(mean);
-        let zones = domain.all_gather_u64(halo.bytes_per_step() as u64);
+        let read = domain.all_gather_u64(halo.bytes_per_step() as u64);
+        let zones = domain.all_gather_u64(halo.zone_bytes_per_step() as u64);
         let wholes = domain.all_gather_u64(halo.plan.bytes_per_step() as u64);
         let mut drift = [halo.dormant_drift];
         domain.max_in_place(&mut drift);
@@ -521,7 +522,7 @@ impl Run<'_, '_> {
             },
             halo_bytes: if domain.size() > 1 {
                 (0..domain.size())
-                    .map(|r| [means[r], zones[r], wholes[r]])
+                    .map(|r| [means[r], read[r], zones[r], wholes[r]])
                     .collect()
             } else {
                 Vec::new()

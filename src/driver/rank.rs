@@ -153,6 +153,20 @@ impl StepHooks for RankHooks<'_> {
     ) -> Result<(), MufeError> {
         self.halo.begin(x, v, cell)
     }
+    fn sends_only_what_is_read(&self) -> bool {
+        self.halo.plan.trims
+    }
+    fn ghosts_read(&mut self, read: &[bool]) -> Result<(), MufeError> {
+        self.halo.send_only_what_is_read(read)
+    }
+    fn refresh_ghosts(
+        &mut self,
+        x: &mut [[f64; 3]],
+        v: &mut [[f64; 3]],
+        cell: &CellKinematics,
+    ) -> Result<(), MufeError> {
+        self.halo.refresh_zones(x, v, cell)
+    }
     fn max(&mut self, values: &mut [f64]) {
         if self.domain.size() > 1 {
             self.domain.max_in_place(values);

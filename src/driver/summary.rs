@@ -305,10 +305,11 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
         };
         let (drift, limit) = summary.dormant_drift;
         println!(
-            "halo: bytes sent per step by rank: mean {} (full exchanges at the checks included), contact zones now {}, whole ghost surfaces {}; ghost nodes outside the trimmed halo moved at most {drift:.3e} m between refreshes (limit {limit:.3e} m)",
+            "halo: bytes sent per step by rank: mean {} (full exchanges at the checks and refreshes at rebuilds included), now {} (what contact reads), whole contact zones {}, whole ghost surfaces {}; ghost nodes outside the trimmed halo moved at most {drift:.3e} m between refreshes (limit {limit:.3e} m)",
             list(0),
             list(1),
             list(2),
+            list(3),
         );
     }
     println!("results: {}", summary.results.display());

@@ -45,6 +45,28 @@ pub trait StepHooks {
     ) -> Result<(), MufeError> {
         Ok(())
     }
+    /// Whether [`StepHooks::ghosts_read`] uses what it is told: then the caller marks,
+    /// after every rebuild of the contact lists, the nodes the lists read.
+    fn sends_only_what_is_read(&self) -> bool {
+        false
+    }
+    /// The contact lists were rebuilt at this step and read the nodes marked in `read`
+    /// (one flag per model node): from now on only those ghost nodes need be sent. All
+    /// ranks call at the same step.
+    fn ghosts_read(&mut self, _read: &[bool]) -> Result<(), MufeError> {
+        Ok(())
+    }
+    /// The contact lists are about to be rebuilt at this step: ghosts whose unread nodes
+    /// were not sent since the last rebuild get them now (x_n, v_{n−½}, images shifted
+    /// by `cell`). All ranks call at the same step.
+    fn refresh_ghosts(
+        &mut self,
+        _x: &mut [[f64; 3]],
+        _v: &mut [[f64; 3]],
+        _cell: &CellKinematics,
+    ) -> Result<(), MufeError> {
+        Ok(())
+    }
     /// Element-wise maximum over ranks in place (all ranks must call).
     fn max(&mut self, _values: &mut [f64]) {}
     /// Sums over ranks in place (all ranks must call).
@@ -69,6 +91,8 @@ pub struct Scratch {
     /// summed over ranks (N), and each wall's total (`crate::contact::wall_normal_forces`).
     wall_grain_forces: Vec<f64>,
     wall_forces: Vec<f64>,
+    /// Per model node: whether the contact lists read it (marked at rebuilds, for the halo).
+    read_by_contact: Vec<bool>,
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
     pub(super) grain_rigid: Vec<RigidVelocity>,
@@ -142,6 +166,7 @@ impl Solver {
             contact: ContactScratch::default(),
             wall_grain_forces: Vec::new(),
             wall_forces: Vec::new(),
+            read_by_contact: Vec::new(),
             node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
             grain_centres: Vec::with_capacity(model.grains.len()),
@@ -279,6 +304,13 @@ impl Solver {
         timers.time(Stage::Contact, || {
             crate::contact::take_surface_motion(model, &scratch.over_ranks, &mut scratch.contact)
         });
+        // a rebuild sees whole contact zones; the lists it builds say what is read after
+        let tells_reads = rebuild.is_some() && hooks.sends_only_what_is_read();
+        if tells_reads {
+            timers.time(Stage::Halo, || {
+                hooks.refresh_ghosts(&mut state.x, &mut state.v, &cell_before)
+            })?;
+        }
         timers.time(Stage::Contact, || {
             crate::contact::evaluate_with(
                 model,
@@ -292,6 +324,13 @@ impl Solver {
                 &mut scratch.contact,
             )
         })?;
+        if tells_reads {
+            timers.time(Stage::Halo, || {
+                let read = &mut scratch.read_by_contact;
+                crate::contact::mark_nodes_the_lists_read(model, &scratch.contact, read);
+                hooks.ghosts_read(read)
+            })?;
+        }
         timers.time(Stage::Contact, || {
             crate::contact::add_forces(
                 model,
