@@ -553,10 +553,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                     1
                 }
             });
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build_global()
-                .map_err(|e| MufeError::Run(format!("cannot start {threads} threads: {e}")))?;
+            start_threads(threads)?;
             run(
                 &domain,
                 &loaded,
@@ -620,10 +617,7 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                         InputError::new("<command line>", "--threads", "must be ≥ 1").into(),
                     );
                 }
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(t)
-                    .build_global()
-                    .map_err(|e| MufeError::Run(format!("cannot start {t} threads: {e}")))?;
+                start_threads(t)?;
             }
             // the runs write their results.h5 through the same (MPI-IO) output as `mufe run`
             let domain = Domain::init();
@@ -1088,4 +1082,16 @@ fn partition_command(
         println!("partition written to {}", path.display());
     }
     Ok(())
+}
+
+/// The global thread pool of `threads` threads, the main thread one of them: a parallel
+/// loop started there runs on it rather than being handed to a worker and waited for, so
+/// a rank on one thread (the default under `mpirun`) has no second thread at all — no
+/// wake-up per loop, and no idle worker spinning on the core the rank computes on.
+fn start_threads(threads: usize) -> Result<(), MufeError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .use_current_thread()
+        .build_global()
+        .map_err(|e| MufeError::Run(format!("cannot start {threads} threads: {e}")))
 }
