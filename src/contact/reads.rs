@@ -7,22 +7,34 @@
 //! rebuilds, so a ghost's other nodes need not be fresh then (`crate::domain::halo`, "What
 //! contact reads").
 
+use super::narrow::Entry;
 use super::vertex_normals::fan_around;
-use super::{ContactScratch, NONE};
+use super::{ContactModel, ContactScratch, NONE};
 use crate::model::Model;
 
 /// Marks in `read` (one flag per model node, cleared first) every node the lists in
 /// `scratch` let the narrow phase read (module docs). Runs at rebuilds only.
 pub fn mark_nodes_the_lists_read(model: &Model, scratch: &ContactScratch, read: &mut Vec<bool>) {
-    let cm = &model.contact;
     let lists = &scratch.lists;
-    let nodes = model.x0.len();
+    let cm = &model.contact;
+    mark_nodes_read_by(cm, &lists.entries, &lists.candidates, model.x0.len(), read);
+}
+
+/// [`mark_nodes_the_lists_read`] for `entries` with their `candidates`, in a model of
+/// `nodes` nodes.
+fn mark_nodes_read_by(
+    cm: &ContactModel,
+    entries: &[Entry],
+    candidates: &[u32],
+    nodes: usize,
+    read: &mut Vec<bool>,
+) {
     read.clear();
     read.resize(nodes, false);
     let mut corners = vec![false; nodes];
-    for e in &lists.entries {
+    for e in entries {
         read[cm.node[e.slave as usize] as usize] = true;
-        for &f in &lists.candidates[e.start as usize..e.end as usize] {
+        for &f in &candidates[e.start as usize..e.end as usize] {
             let f = f as usize;
             let across = cm.facet_adjacent[f].into_iter().filter(|&o| o != NONE);
             for g in std::iter::once(f).chain(across.map(|o| o as usize)) {
@@ -32,15 +44,14 @@ pub fn mark_nodes_the_lists_read(model: &Model, scratch: &ContactScratch, read: 
             }
         }
     }
-    add_one_ring(model, &corners, read);
+    add_one_ring(cm, &corners, read);
     for (r, c) in read.iter_mut().zip(&corners) {
         *r |= *c;
     }
 }
 
 /// Marks in `into` the surface neighbours of every node marked in `from`.
-fn add_one_ring(model: &Model, from: &[bool], into: &mut [bool]) {
-    let cm = &model.contact;
+fn add_one_ring(cm: &ContactModel, from: &[bool], into: &mut [bool]) {
     for (n, _) in from.iter().enumerate().filter(|(_, &on)| on) {
         for pair in fan_around(cm, n as u32) {
             for &m in pair {
@@ -53,8 +64,9 @@ fn add_one_ring(model: &Model, from: &[bool], into: &mut [bool]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::broad::DetectionReference;
+    use crate::contact::broad::{CandidateLists, DetectionReference};
     use crate::contact::narrow::{evaluate_entry, EvalContext, PointResult};
+    use crate::contact::triangle::nearest_candidate;
 
     /// What an evaluation depends on, to the bit.
     fn bits(r: &PointResult) -> Vec<u64> {
@@ -67,8 +79,12 @@ mod tests {
     }
 
     /// Two spheres pressed together, lists built, then every node moved by just under half
-    /// the skin (as far as it may go before a rebuild): the evaluation of every entry is the
-    /// same to the bit when every node the lists do not read is replaced by garbage.
+    /// the skin (as far as it may go before a rebuild), and then grain b slid sideways by
+    /// up to half an edge besides, so that nodes face the master's edges: the evaluation of
+    /// every entry is the same to the bit when every node the lists do not read is replaced
+    /// by garbage. Then entry by entry with each entry's candidates cut to its nearest
+    /// facet, so that no other entry's marks cover for it and a patch point clamped to an
+    /// edge is looked for on a neighbour facet that is no candidate.
     #[test]
     fn an_evaluation_reads_no_node_outside_the_marked_ones() {
         let (radius, seeding, depth) = (1.0e-3, 1.0e-4, 1.7e-5);
@@ -96,6 +112,7 @@ mod tests {
             skin,
             0,
         );
+        let b = model.grains[1].nodes.clone();
         let mut read = Vec::new();
         mark_nodes_the_lists_read(model, scratch, &mut read);
         let marked = read.iter().filter(|&&r| r).count();
@@ -104,12 +121,77 @@ mod tests {
             "{marked} of {} surface nodes read",
             cm.node.len()
         );
-
         let lists = &scratch.lists;
+        for slide in [0.0, 0.5 * seeding] {
+            let motion = (skin, slide, b.clone());
+            let active = evaluations_agree_without_the_unread_nodes(
+                model,
+                lists,
+                &lists.entries,
+                &x,
+                &read,
+                motion,
+            );
+            assert!(active > 100, "{active} active evaluations");
+        }
+
+        let lists = &mut scratch.lists;
+        for e in lists.entries.iter_mut() {
+            let kept = &lists.candidates[e.start as usize..e.end as usize];
+            let p = x[cm.node[e.slave as usize] as usize];
+            let nearest = kept[nearest_candidate(cm, &x, p, kept).expect("candidates")];
+            lists.candidates[e.start as usize] = nearest;
+            e.end = e.start + 1;
+        }
+        let lists = &scratch.lists;
+        let in_contact = |e: &&Entry| {
+            let v = vec![[0.0; 3]; x.len()];
+            let ctx = EvalContext {
+                cm,
+                passes: &lists.passes,
+                candidates: &lists.candidates,
+                x: &x,
+                v: &v,
+                mass: &model.mass,
+                dt: model.dt,
+                history: &[],
+                friction: false,
+            };
+            evaluate_entry(&ctx, e).active
+        };
+        let mut active = 0;
+        for e in lists.entries.iter().filter(in_contact) {
+            let one = std::slice::from_ref(e);
+            mark_nodes_read_by(cm, one, &lists.candidates, x.len(), &mut read);
+            let motion = (skin, 0.5 * seeding, b.clone());
+            active +=
+                evaluations_agree_without_the_unread_nodes(model, lists, one, &x, &read, motion);
+        }
+        assert!(active > 100, "{active} active evaluations");
+    }
+
+    /// Evaluates `entries` at 12 random displacements of the nodes from `x`, each by
+    /// 0.499 `skin` and the nodes `slid` together by up to `slide` ⟂ x, with and without
+    /// garbage in the nodes not marked in `read`; asserts the same bits and returns the
+    /// number of active evaluations.
+    fn evaluations_agree_without_the_unread_nodes(
+        model: &Model,
+        lists: &CandidateLists,
+        entries: &[Entry],
+        x: &[[f64; 3]],
+        read: &[bool],
+        (skin, slide, slid): (f64, f64, std::ops::Range<usize>),
+    ) -> usize {
+        let cm = &model.contact;
         let mut active = 0;
         for trial in 0..12u64 {
             let mut rng = crate::math::SplitMix64(trial);
-            let (mut y, mut v) = (x.clone(), vec![[0.0; 3]; x.len()]);
+            let (mut y, mut v) = (x.to_vec(), vec![[0.0; 3]; x.len()]);
+            let (angle, amount) = (std::f64::consts::TAU * rng.unit(), slide * rng.unit());
+            for n in slid.clone() {
+                y[n][1] += amount * angle.cos();
+                y[n][2] += amount * angle.sin();
+            }
             for &n in &cm.node {
                 let (stray, speed) = (rng.direction(), rng.direction());
                 for i in 0..3 {
@@ -122,7 +204,7 @@ mod tests {
                 y_bad[n] = [rng.unit(), rng.unit(), rng.unit()];
                 v_bad[n] = [1.0e3; 3];
             }
-            let context = |x: &'_ [[f64; 3]], v: &'_ [[f64; 3]]| -> Vec<PointResult> {
+            let evaluate = |x: &'_ [[f64; 3]], v: &'_ [[f64; 3]]| -> Vec<PointResult> {
                 let ctx = EvalContext {
                     cm,
                     passes: &lists.passes,
@@ -134,18 +216,14 @@ mod tests {
                     history: &[],
                     friction: true,
                 };
-                lists
-                    .entries
-                    .iter()
-                    .map(|e| evaluate_entry(&ctx, e))
-                    .collect()
+                entries.iter().map(|e| evaluate_entry(&ctx, e)).collect()
             };
-            let (good, bad) = (context(&y, &v), context(&y_bad, &v_bad));
+            let (good, bad) = (evaluate(&y, &v), evaluate(&y_bad, &v_bad));
             for (i, (g, b)) in good.iter().zip(&bad).enumerate() {
                 assert_eq!(bits(g), bits(b), "trial {trial}, entry {i}");
                 active += usize::from(g.active);
             }
         }
-        assert!(active > 100, "{active} active evaluations");
+        active
     }
 }

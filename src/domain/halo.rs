@@ -205,8 +205,10 @@ pub struct Halo<'d> {
     active_receives: Vec<Vec<u32>>,
     /// Per receive list: whether each node is active (parallel to `plan.receives`).
     received_active: Vec<Vec<bool>>,
-    /// Per send / receive list and node: whether the receiver's contact lists read it;
-    /// empty while unknown ([`Halo::send_only_what_is_read`]).
+    /// The receivers have told what their contact lists read (then every rank has, so all
+    /// of them refresh their zones before a rebuild).
+    reads_known: bool,
+    /// Per send / receive list and node: whether the receiver's contact lists read it.
     read_sends: Vec<Vec<bool>>,
     read_receives: Vec<Vec<bool>>,
     /// Positions of the nodes exchanged every step: the active ones that are read (all
@@ -253,6 +255,7 @@ impl<'d> Halo<'d> {
             recv_counts: Vec::with_capacity(nr),
             active_sends: vec![Vec::new(); ns],
             active_receives: vec![Vec::new(); nr],
+            reads_known: false,
             read_sends: Vec::new(),
             read_receives: Vec::new(),
             stepped_sends: vec![Vec::new(); ns],
@@ -328,6 +331,7 @@ impl<'d> Halo<'d> {
         self.read_receives = (told.iter())
             .map(|(_, flags)| flags.iter().map(|&f| f != 0.0).collect())
             .collect();
+        self.reads_known = true;
         for i in 0..self.active_sends.len() {
             step_only_what_is_read(
                 &self.active_sends[i],
@@ -357,7 +361,7 @@ impl<'d> Halo<'d> {
         v: &mut [[f64; 3]],
         cell: &CellKinematics,
     ) -> Result<(), MufeError> {
-        if self.read_sends.is_empty() || self.pending.is_some() {
+        if !self.reads_known || self.pending.is_some() {
             return Ok(());
         }
         self.zones_next = true;
