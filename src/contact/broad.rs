@@ -901,33 +901,10 @@ mod tests {
     /// from 1, which only a contrived motion needs.
     #[test]
     fn rebuilt_lists_hold_every_nearest_facet_and_contact_the_skin_allows() {
-        let (radius, seeding, depth) = (1.0e-3, 1.0e-4, 1.7e-5);
-        let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
-        let scene = super::super::tests::pair_scene(
-            ("a", &sphere, [0.0; 3]),
-            ("b", &sphere, [2.0 * radius + depth, 0.0, 0.0]),
-        );
-        let mut solver = super::super::tests::solver(&scene);
-        let cm = &solver.model.contact;
-        // built apart (a model may not start overlapped), then pressed in
-        let mut x = solver.state.x.clone();
-        for n in solver.model.grains[1].nodes.clone() {
-            x[n][0] -= 2.0 * depth;
-        }
-        let skin = 2.0e-5;
-        let (broad, lists) = (
-            &mut solver.scratch.contact.broad,
-            &mut solver.scratch.contact.lists,
-        );
-        broad.rebuild(
-            cm,
-            &x,
-            &[],
-            lists,
-            &mut DetectionReference::default(),
-            skin,
-            0,
-        );
+        let (radius, seeding, depth, skin) = (1.0e-3, 1.0e-4, 1.7e-5, 2.0e-5);
+        let (solver, x) =
+            super::super::tests::pressed_pair_with_lists(radius, seeding, depth, skin);
+        let (cm, lists) = (&solver.model.contact, &solver.scratch.contact.lists);
 
         let distance = |y: &[[f64; 3]], p: [f64; 3], f: u32| facet_distance(cm, y, p, f as usize);
         // against half-edge boxes (at the contact itself both hold the ring of facets

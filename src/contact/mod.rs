@@ -774,6 +774,38 @@ density = 2500.0
         )
     }
 
+    /// Two spheres of `radius` meshed at `seeding`, built apart (a model may not start
+    /// overlapped), then their positions pressed `depth` into each other along x and the
+    /// contact lists built there with `skin`: the solver and the pressed positions.
+    pub(super) fn pressed_pair_with_lists(
+        radius: f64,
+        seeding: f64,
+        depth: f64,
+        skin: f64,
+    ) -> (Solver, Vec<[f64; 3]>) {
+        let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
+        let scene = pair_scene(
+            ("a", &sphere, [0.0; 3]),
+            ("b", &sphere, [2.0 * radius + depth, 0.0, 0.0]),
+        );
+        let mut solver = solver(&scene);
+        let mut x = solver.state.x.clone();
+        for n in solver.model.grains[1].nodes.clone() {
+            x[n][0] -= 2.0 * depth;
+        }
+        let scratch = &mut solver.scratch.contact;
+        scratch.broad.rebuild(
+            &solver.model.contact,
+            &x,
+            &[],
+            &mut scratch.lists,
+            &mut DetectionReference::default(),
+            skin,
+            0,
+        );
+        (solver, x)
+    }
+
     /// The integrator's travel bounds the surface motion between exact measures and lets
     /// the narrow phase skip a node found outside until the travel since can have closed
     /// its gap: two spheres, one spinning, collide; with both bounds the run is the one

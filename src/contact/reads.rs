@@ -45,14 +45,12 @@ fn mark_nodes_read_by(
         }
     }
     add_one_ring(cm, &corners, read);
-    for (r, c) in read.iter_mut().zip(&corners) {
-        *r |= *c;
-    }
 }
 
-/// Marks in `into` the surface neighbours of every node marked in `from`.
+/// Marks in `into` every node marked in `from` and its surface neighbours.
 fn add_one_ring(cm: &ContactModel, from: &[bool], into: &mut [bool]) {
     for (n, _) in from.iter().enumerate().filter(|(_, &on)| on) {
+        into[n] = true;
         for pair in fan_around(cm, n as u32) {
             for &m in pair {
                 into[m as usize] = true;
@@ -64,7 +62,7 @@ fn add_one_ring(cm: &ContactModel, from: &[bool], into: &mut [bool]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::broad::{CandidateLists, DetectionReference};
+    use crate::contact::broad::CandidateLists;
     use crate::contact::narrow::{evaluate_entry, EvalContext, PointResult};
     use crate::contact::triangle::nearest_candidate;
 
@@ -87,31 +85,12 @@ mod tests {
     /// edge is looked for on a neighbour facet that is no candidate.
     #[test]
     fn an_evaluation_reads_no_node_outside_the_marked_ones() {
-        let (radius, seeding, depth) = (1.0e-3, 1.0e-4, 1.7e-5);
-        let sphere = format!("{{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}");
-        let scene = super::super::tests::pair_scene(
-            ("a", &sphere, [0.0; 3]),
-            ("b", &sphere, [2.0 * radius + depth, 0.0, 0.0]),
-        );
-        let mut solver = super::super::tests::solver(&scene);
+        let (radius, seeding, depth, skin) = (1.0e-3, 1.0e-4, 1.7e-5, 2.0e-5);
+        let (mut solver, x) =
+            super::super::tests::pressed_pair_with_lists(radius, seeding, depth, skin);
         let model = &solver.model;
         let cm = &model.contact;
-        let mut x = solver.state.x.clone();
-        for n in model.grains[1].nodes.clone() {
-            x[n][0] -= 2.0 * depth;
-        }
-        let skin = 2.0e-5;
         let scratch = &mut solver.scratch.contact;
-        let (broad, lists) = (&mut scratch.broad, &mut scratch.lists);
-        broad.rebuild(
-            cm,
-            &x,
-            &[],
-            lists,
-            &mut DetectionReference::default(),
-            skin,
-            0,
-        );
         let b = model.grains[1].nodes.clone();
         let mut read = Vec::new();
         mark_nodes_the_lists_read(model, scratch, &mut read);

@@ -205,17 +205,14 @@ pub struct Halo<'d> {
     active_receives: Vec<Vec<u32>>,
     /// Per receive list: whether each node is active (parallel to `plan.receives`).
     received_active: Vec<Vec<bool>>,
-    /// The receivers have told what their contact lists read (then every rank has, so all
-    /// of them refresh their zones before a rebuild).
-    reads_known: bool,
-    /// Per send / receive list and node: whether the receiver's contact lists read it.
-    read_sends: Vec<Vec<bool>>,
-    read_receives: Vec<Vec<bool>>,
+    /// What the receivers' contact lists read; `None` until they have told (then every
+    /// rank has, so all of them refresh their zones before a rebuild).
+    read: Option<ReadFlags>,
     /// Positions of the nodes exchanged every step: the active ones that are read (all
     /// active ones while the reads are unknown).
     stepped_sends: Vec<Vec<u32>>,
     stepped_receives: Vec<Vec<u32>>,
-    reads: Exchange,
+    read_exchange: Exchange,
     /// The next exchange sends every node (after a plan or a retarget).
     full_next: bool,
     full_in_flight: bool,
@@ -255,12 +252,10 @@ impl<'d> Halo<'d> {
             recv_counts: Vec::with_capacity(nr),
             active_sends: vec![Vec::new(); ns],
             active_receives: vec![Vec::new(); nr],
-            reads_known: false,
-            read_sends: Vec::new(),
-            read_receives: Vec::new(),
+            read: None,
             stepped_sends: vec![Vec::new(); ns],
             stepped_receives: vec![Vec::new(); nr],
-            reads: Exchange::new(READS_TAG),
+            read_exchange: Exchange::new(READS_TAG),
             full_next: true,
             full_in_flight: false,
             zones_next: false,
@@ -323,30 +318,23 @@ impl<'d> Halo<'d> {
         let counts: Vec<(usize, usize)> = (self.plan.sends.iter())
             .map(|(q, nodes)| (*q, nodes.len()))
             .collect();
-        let pending = self.reads.begin(self.domain, &told, &counts)?;
-        let heard = self.reads.end(pending)?;
-        self.read_sends = (heard.iter())
-            .map(|(_, flags)| flags.iter().map(|&f| f != 0.0).collect())
-            .collect();
-        self.read_receives = (told.iter())
-            .map(|(_, flags)| flags.iter().map(|&f| f != 0.0).collect())
-            .collect();
-        self.reads_known = true;
-        for i in 0..self.active_sends.len() {
-            step_only_what_is_read(
-                &self.active_sends[i],
-                &self.read_sends,
-                i,
-                &mut self.stepped_sends[i],
-            );
+        let pending = self.read_exchange.begin(self.domain, &told, &counts)?;
+        let heard = self.read_exchange.end(pending)?;
+        let flags = |messages: &[(usize, Vec<f64>)]| -> Vec<Vec<bool>> {
+            (messages.iter())
+                .map(|(_, flags)| flags.iter().map(|&f| f != 0.0).collect())
+                .collect()
+        };
+        let read = self.read.insert(ReadFlags {
+            sends: flags(&heard),
+            receives: flags(&told),
+        });
+        for (i, active) in self.active_sends.iter().enumerate() {
+            step_only_what_is_read(active, Some(&read.sends[i]), &mut self.stepped_sends[i]);
         }
-        for i in 0..self.active_receives.len() {
-            step_only_what_is_read(
-                &self.active_receives[i],
-                &self.read_receives,
-                i,
-                &mut self.stepped_receives[i],
-            );
+        for (i, active) in self.active_receives.iter().enumerate() {
+            let stepped = &mut self.stepped_receives[i];
+            step_only_what_is_read(active, Some(&read.receives[i]), stepped);
         }
         Ok(())
     }
@@ -361,7 +349,7 @@ impl<'d> Halo<'d> {
         v: &mut [[f64; 3]],
         cell: &CellKinematics,
     ) -> Result<(), MufeError> {
-        if !self.reads_known || self.pending.is_some() {
+        if self.read.is_none() || self.pending.is_some() {
             return Ok(());
         }
         self.zones_next = true;
@@ -410,7 +398,8 @@ impl<'d> Halo<'d> {
                         }
                     }
                 }
-                step_only_what_is_read(active, &self.read_sends, i, &mut self.stepped_sends[i]);
+                let read = self.read.as_ref().map(|r| &r.sends[i][..]);
+                step_only_what_is_read(active, read, &mut self.stepped_sends[i]);
             } else {
                 let sent = if zones {
                     active
@@ -427,10 +416,8 @@ impl<'d> Halo<'d> {
         for (i, (q, nodes)) in self.plan.receives.iter().enumerate() {
             let values = if full {
                 nodes.len() * VALUES_PER_NODE_FULL
-            } else if zones {
-                self.active_receives[i].len() * VALUES_PER_NODE
             } else {
-                self.stepped_receives[i].len() * VALUES_PER_NODE
+                self.received_list(i, zones).len() * VALUES_PER_NODE
             };
             self.recv_counts.push((*q, values));
         }
@@ -467,10 +454,8 @@ impl<'d> Halo<'d> {
         {
             let expected = if full {
                 nodes.len()
-            } else if zones {
-                self.active_receives[i].len()
             } else {
-                self.stepped_receives[i].len()
+                self.received_list(i, zones).len()
             };
             if data.len() != expected * per_node {
                 return Err(MufeError::Run(format!(
@@ -498,15 +483,12 @@ impl<'d> Halo<'d> {
                         active.push(k as u32);
                     }
                 }
-                let stepped = &mut self.stepped_receives[i];
-                step_only_what_is_read(active, &self.read_receives, i, stepped);
+                let read = self.read.as_ref().map(|r| &r.receives[i][..]);
+                step_only_what_is_read(active, read, &mut self.stepped_receives[i]);
             } else {
-                let received = if zones {
-                    &self.active_receives[i]
-                } else {
-                    &self.stepped_receives[i]
-                };
-                for (&k, d) in received.iter().zip(data.chunks_exact(per_node)) {
+                for (&k, d) in
+                    (self.received_list(i, zones).iter()).zip(data.chunks_exact(per_node))
+                {
                     let n = nodes[k as usize] as usize;
                     x[n] = [d[0], d[1], d[2]];
                     v[n] = [d[3], d[4], d[5]];
@@ -529,6 +511,16 @@ impl<'d> Halo<'d> {
         Ok(())
     }
 
+    /// The positions in receive list `i` of the nodes a step's exchange brings: the active
+    /// ones in a refresh (`zones`), else those that are read.
+    fn received_list(&self, i: usize, zones: bool) -> &[u32] {
+        if zones {
+            &self.active_receives[i]
+        } else {
+            &self.stepped_receives[i]
+        }
+    }
+
     /// Start of the send buffer and its capacity (for the test that steps reuse it).
     pub fn send_buffer_identity(&self) -> Option<(*const f64, usize)> {
         self.buffers
@@ -548,11 +540,17 @@ impl<'d> Halo<'d> {
     }
 }
 
-/// `stepped` = the positions of `active` whose node list `i` reads (`read`, empty while
-/// unknown: then all of them).
-fn step_only_what_is_read(active: &[u32], read: &[Vec<bool>], i: usize, stepped: &mut Vec<u32>) {
+/// Per send / receive list and node: whether the receiver's contact lists read it.
+#[derive(Debug)]
+struct ReadFlags {
+    sends: Vec<Vec<bool>>,
+    receives: Vec<Vec<bool>>,
+}
+
+/// `stepped` = the positions of `active` that are `read` (all of them while unknown).
+fn step_only_what_is_read(active: &[u32], read: Option<&[bool]>, stepped: &mut Vec<u32>) {
     stepped.clear();
-    match read.get(i) {
+    match read {
         Some(read) => stepped.extend(active.iter().filter(|&&k| read[k as usize])),
         None => stepped.extend_from_slice(active),
     }
@@ -625,37 +623,52 @@ mod tests {
         });
     }
 
+    /// Margin, owners and bounding spheres of the trimmed test halos: grain 0 at the origin
+    /// and grain 1 centred at x = 2.2, both of radius 1, on rank 0.
+    const TEST_MARGIN: f64 = 0.4;
+    const TEST_OWNER: [u32; 2] = [0, 0];
+    const TEST_BOUNDS: [GrainBound; 2] = [
+        GrainBound {
+            centre: [0.0; 3],
+            radius: 1.0,
+        },
+        GrainBound {
+            centre: [2.2, 0.0, 0.0],
+            radius: 1.0,
+        },
+    ];
+
+    /// A trimming self-halo of grain 0 (nodes 0..`n`, each with `cushion`) mirrored into
+    /// nodes `n`..2`n` for grain 1, aimed at grain 1's contact zone (the next exchange is
+    /// a full one).
+    fn trimmed_self_halo(domain: &Domain, n: u32, cushion: f64) -> Halo<'_> {
+        let plan = HaloPlan {
+            sends: vec![(0, (0..n).collect())],
+            send_images: vec![vec![NO_IMAGE; n as usize]],
+            sent_grains: vec![vec![SentGrain {
+                nodes: 0..n as usize,
+                grain: 0,
+                cushion: vec![cushion; n as usize],
+                ..Default::default()
+            }]],
+            receives: vec![(0, (n..2 * n).collect())],
+            trims: true,
+        };
+        let mut halo = Halo::new(domain, plan, TEST_MARGIN);
+        retarget_at_the_test_zone(&mut halo);
+        halo
+    }
+
+    fn retarget_at_the_test_zone(halo: &mut Halo) {
+        halo.retarget(&TEST_OWNER, &TEST_BOUNDS, TEST_MARGIN);
+    }
+
     #[test]
     fn a_trimmed_halo_sends_the_contact_zone_and_refreshes_the_rest_at_a_retarget() {
         crate::domain::with_test_domain(|domain| {
             // grain 0 (nodes 0–2) is mirrored into nodes 3–5 for grain 1, centred at
             // x = 2.2 with radius 1: only node 0, at x = 1, lies within its contact zone
-            let plan = HaloPlan {
-                sends: vec![(0, vec![0, 1, 2])],
-                send_images: vec![vec![NO_IMAGE; 3]],
-                sent_grains: vec![vec![SentGrain {
-                    nodes: 0..3,
-                    grain: 0,
-                    cushion: vec![0.1; 3],
-                    ..Default::default()
-                }]],
-                receives: vec![(0, vec![3, 4, 5])],
-                trims: true,
-            };
-            let owner = [0, 0];
-            let bounds = [
-                GrainBound {
-                    centre: [0.0; 3],
-                    radius: 1.0,
-                },
-                GrainBound {
-                    centre: [2.2, 0.0, 0.0],
-                    radius: 1.0,
-                },
-            ];
-            let margin = 0.4;
-            let mut halo = Halo::new(domain, plan, margin);
-            halo.retarget(&owner, &bounds, margin);
+            let mut halo = trimmed_self_halo(domain, 3, 0.1);
             let cell = CellKinematics::default();
             let mut x = vec![
                 [1.0, 0.0, 0.0],
@@ -679,7 +692,7 @@ mod tests {
             assert_eq!((x[4], x[5]), ([-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]));
             assert_eq!(halo.dormant_drift, 0.0);
             // a retarget refreshes the dormant nodes and measures how far they had gone
-            halo.retarget(&owner, &bounds, margin);
+            retarget_at_the_test_zone(&mut halo);
             halo.exchange(&mut x, &mut v, &cell).unwrap();
             assert_eq!(&x[3..], &x[..3]);
             assert!((halo.dormant_drift - 0.01).abs() < 1e-15);
@@ -696,32 +709,7 @@ mod tests {
         crate::domain::with_test_domain(|domain| {
             // grain 0 (nodes 0–3) mirrored into nodes 4–7; the zone (radius 1 around x = 2.2,
             // cushion 0.5) holds nodes 0, 1 and 2, contact reads nodes 1 and 3 (3 is dormant)
-            let plan = HaloPlan {
-                sends: vec![(0, vec![0, 1, 2, 3])],
-                send_images: vec![vec![NO_IMAGE; 4]],
-                sent_grains: vec![vec![SentGrain {
-                    nodes: 0..4,
-                    grain: 0,
-                    cushion: vec![0.5; 4],
-                    ..Default::default()
-                }]],
-                receives: vec![(0, vec![4, 5, 6, 7])],
-                trims: true,
-            };
-            let owner = [0, 0];
-            let bounds = [
-                GrainBound {
-                    centre: [0.0; 3],
-                    radius: 1.0,
-                },
-                GrainBound {
-                    centre: [2.2, 0.0, 0.0],
-                    radius: 1.0,
-                },
-            ];
-            let margin = 0.4;
-            let mut halo = Halo::new(domain, plan, margin);
-            halo.retarget(&owner, &bounds, margin);
+            let mut halo = trimmed_self_halo(domain, 4, 0.5);
             let cell = CellKinematics::default();
             let mut x = vec![
                 [1.0, 0.0, 0.0],
@@ -766,7 +754,7 @@ mod tests {
             assert_eq!(x[5], x[1]);
             assert_ne!(x[4], x[0]);
             // a retarget's full exchange sends all, then still only what is read
-            halo.retarget(&owner, &bounds, margin);
+            retarget_at_the_test_zone(&mut halo);
             halo.exchange(&mut x, &mut v, &cell).unwrap();
             assert_eq!(&x[4..], &x[..4]);
             assert_eq!(halo.bytes_per_step(), VALUES_PER_NODE * 8);
