@@ -1,32 +1,100 @@
-//! Partition quality and METIS run time for a 2000-grain FCC sample over a
-//! range of rank counts.
+//! Partition quality, METIS run time and the projected step time of the 2000-grain FCC
+//! cell over 2 to 1024 ranks (docs/BENCHMARKS.md, "Projection to cluster scale").
 //!
-//! Grains: R = 1.1 mm spheres in an FCC block (5 × 10 × 10 unit cells), each
-//! meshed with a graded mesh estimated at 8000 tetrahedra and 1500 surface
-//! nodes; contact margin 0.1 R; default cost model.
+//! Grains: R = 1.1 mm spheres in an FCC block (5 × 10 × 10 unit cells), partitioned as
+//! `mufe run` does (ghost margin ¼ R, default cost model, METIS seed 1). The step costs are
+//! measured in the paper-resolution run of `jobs/fcc/fcc_2000.toml` on 2 ranks
+//! (docs/BENCHMARKS.md, session 38: 2328 elements and 473 surface nodes per grain; per
+//! rank and step 27.3 ms forces + 3.05 integrate + 0.27 output over 2 328 000 elements,
+//! 8.41 ms contact over 5 424 graph edges, 0.40 ms halo for 483 935 B sent over 397 cut
+//! edges); each can be replaced by a flag. The network (latency, bandwidth per rank) is
+//! assumed: 2 µs and 12.5 GB/s, an InfiniBand HDR-class link.
 //!
-//! Run with `cargo run --release -p partition --example fcc_stats`.
+//! Run with `cargo run --release -p partition --example fcc_stats [-- --flag value ...]`;
+//! flags: --elements-per-grain, --surface-nodes-per-grain, --element-seconds,
+//! --contact-seconds-per-edge, --halo-bytes-per-cut-edge, --halo-seconds-per-byte,
+//! --latency, --bandwidth, --steps.
 
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use partition::{
-    fcc_block_cells, fcc_packing, metrics, partition, CostModel, GrainGraph, GrainInfo,
-    PartitionError, HALO_BYTES_PER_GHOST_NODE,
+    fcc_block_cells, fcc_packing, metrics, partition, project_step, CostModel, GrainGraph,
+    GrainInfo, PartitionError, StepCosts,
 };
 
 const GRAIN_COUNT: usize = 2000;
 const RADIUS: f64 = 1.1e-3; // m
-const ELEMENTS_PER_GRAIN: usize = 8000;
-const SURFACE_NODES_PER_GRAIN: usize = 1500;
-const PART_COUNTS: [usize; 8] = [8, 16, 32, 64, 128, 256, 512, 1024];
+const PART_COUNTS: [usize; 9] = [2, 8, 16, 32, 64, 128, 256, 512, 1024];
 /// `partition` (METIS + balance repair) is timed as the fastest of this many
 /// identical runs.
 const TIMING_REPEATS: usize = 5;
-const SEED: i32 = 0;
+/// The seed `mufe run` partitions with.
+const SEED: i32 = 1;
+
+/// The measured run (see the module doc), each replaceable by `--name value`.
+struct Inputs {
+    elements_per_grain: f64,
+    surface_nodes_per_grain: f64,
+    element_seconds: f64,
+    contact_seconds_per_edge: f64,
+    halo_bytes_per_cut_edge: f64,
+    halo_seconds_per_byte: f64,
+    latency: f64,
+    bandwidth: f64,
+    steps: f64,
+}
+
+impl Inputs {
+    fn from_args() -> Result<Self, String> {
+        let mut inputs = Self {
+            elements_per_grain: 2328.0,
+            surface_nodes_per_grain: 473.0,
+            element_seconds: (27.3e-3 + 3.05e-3 + 0.27e-3) / 2_328_000.0,
+            contact_seconds_per_edge: 8.41e-3 / 5424.0,
+            halo_bytes_per_cut_edge: 483_935.0 / 397.0,
+            halo_seconds_per_byte: 0.40e-3 / 483_935.0,
+            latency: 2e-6,
+            bandwidth: 12.5e9,
+            steps: 61_932.0,
+        };
+        let args: Vec<String> = std::env::args().skip(1).collect();
+        for pair in args.chunks(2) {
+            let [flag, value] = pair else {
+                return Err(format!("'{}' needs a value", pair[0]));
+            };
+            let value: f64 = value
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite() && *v > 0.0)
+                .ok_or_else(|| format!("{flag}: '{value}' is not a positive number"))?;
+            let slot = match flag.as_str() {
+                "--elements-per-grain" => &mut inputs.elements_per_grain,
+                "--surface-nodes-per-grain" => &mut inputs.surface_nodes_per_grain,
+                "--element-seconds" => &mut inputs.element_seconds,
+                "--contact-seconds-per-edge" => &mut inputs.contact_seconds_per_edge,
+                "--halo-bytes-per-cut-edge" => &mut inputs.halo_bytes_per_cut_edge,
+                "--halo-seconds-per-byte" => &mut inputs.halo_seconds_per_byte,
+                "--latency" => &mut inputs.latency,
+                "--bandwidth" => &mut inputs.bandwidth,
+                "--steps" => &mut inputs.steps,
+                other => return Err(format!("unknown flag '{other}'")),
+            };
+            *slot = value;
+        }
+        Ok(inputs)
+    }
+}
 
 fn main() -> ExitCode {
-    match run() {
+    let inputs = match Inputs::from_args() {
+        Ok(inputs) => inputs,
+        Err(message) => {
+            eprintln!("fcc_stats: {message}");
+            return ExitCode::from(2);
+        }
+    };
+    match run(&inputs) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             eprintln!("fcc_stats: {error}");
@@ -35,68 +103,70 @@ fn main() -> ExitCode {
     }
 }
 
-fn run() -> Result<(), PartitionError> {
+fn run(inputs: &Inputs) -> Result<(), PartitionError> {
     let grains: Vec<GrainInfo> = fcc_packing(GRAIN_COUNT, RADIUS)
         .into_iter()
         .map(|centre| GrainInfo {
             centre,
             bounding_radius: RADIUS,
-            elements: ELEMENTS_PER_GRAIN,
-            surface_nodes: SURFACE_NODES_PER_GRAIN,
+            elements: inputs.elements_per_grain as usize,
+            surface_nodes: inputs.surface_nodes_per_grain as usize,
         })
         .collect();
-    let margin = 0.1 * RADIUS;
-    let cost = CostModel::default();
-
-    let build_start = Instant::now();
-    let graph = GrainGraph::build(&grains, margin, &cost);
-    let build_time = build_start.elapsed();
-
+    // `mufe run`'s ghost margin (`model::global::ghost_margin`)
+    let margin = 0.25 * RADIUS;
+    let graph = GrainGraph::build(&grains, margin, &CostModel::default());
     let cells = fcc_block_cells(GRAIN_COUNT).unwrap_or([0; 3]);
     println!(
-        "FCC sample: {} grains ({} x {} x {} cells), R = {:.2} mm, margin = {:.3} mm",
+        "FCC sample: {} grains ({} x {} x {} cells), R = {:.2} mm, ghost margin {:.3} mm; {} graph edges",
         grains.len(),
         cells[0],
         cells[1],
         cells[2],
         RADIUS * 1e3,
-        margin * 1e3
+        margin * 1e3,
+        graph.n_edges()
     );
     println!(
-        "grain graph: {} contacts, mean degree {:.2}, built in {:.2} ms",
-        graph.n_edges(),
-        2.0 * graph.n_edges() as f64 / graph.n_grains() as f64,
-        ms(build_time)
+        "measured per step (one core): {:.3e} s per element ({} per grain), {:.3e} s per contact edge, \
+         {:.0} B halo per cut edge at {:.3e} s/B",
+        inputs.element_seconds,
+        inputs.elements_per_grain,
+        inputs.contact_seconds_per_edge,
+        inputs.halo_bytes_per_cut_edge,
+        inputs.halo_seconds_per_byte
+    );
+    let per_grain = 4 * GRAIN_COUNT + 3 + 6 * GRAIN_COUNT;
+    println!(
+        "all-reduces per step: {} + {} + 6 values (surface motion per grain, walls' forces per grain, energy); \
+         network assumed: {:.1} µs latency, {:.1} GB/s per rank",
+        4 * GRAIN_COUNT + 3,
+        6 * GRAIN_COUNT,
+        inputs.latency * 1e6,
+        inputs.bandwidth / 1e9
     );
     println!(
-        "per grain: {} elements, {} surface nodes, cost {} units/step (vertex weight {}); \
-         contact edge weight {} ({:.1} cost units)",
-        ELEMENTS_PER_GRAIN,
-        SURFACE_NODES_PER_GRAIN,
-        cost.grain_cost(&grains[0]),
-        graph.vertex_weights()[0],
-        graph.adjwgt()[0],
-        graph.edge_costs()[0]
+        "the last column: the same with only the energy's 6 values reduced (per-grain values \
+         exchanged between neighbours instead); {per_grain} values are reduced now"
     );
-    println!(
-        "halo: whole surface of each ghost grain, {HALO_BYTES_PER_GHOST_NODE} B per ghost node per step \
-         (48 B x,v forward + 24 B force back)\n\
-         METIS ms = wall time of partition() (METIS + balance repair), best of {TIMING_REPEATS}"
-    );
+    let costs = |reduced_values: Vec<usize>| StepCosts {
+        element_seconds: inputs.element_seconds,
+        contact_seconds_per_edge: inputs.contact_seconds_per_edge,
+        halo_bytes_per_cut_edge: inputs.halo_bytes_per_cut_edge,
+        halo_seconds_per_byte: inputs.halo_seconds_per_byte,
+        reduced_values,
+        latency: inputs.latency,
+        bandwidth: inputs.bandwidth,
+    };
+    let today = costs(vec![4 * GRAIN_COUNT + 3, 6 * GRAIN_COUNT, 6]);
+    let energy_only = costs(vec![6]);
     println!();
     println!(
-        "{:>5} {:>10} {:>9} {:>9} {:>11} {:>12} {:>14} {:>14} {:>10}",
-        "parts",
-        "imbalance",
-        "edge cut",
-        "cut edges",
-        "ghosts max",
-        "ghosts mean",
-        "halo MB/step",
-        "max/part MB",
-        "METIS ms"
+        "| parts | imbalance | cut edges | cut edges/part max | neighbours max | halo kB/step max | METIS ms \
+         | compute ms | halo ms | reduce ms | step ms | run min | efficiency | without per-grain reduce |"
     );
-
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut reference: Option<(f64, f64)> = None;
     for parts in PART_COUNTS {
         let mut best_time = Duration::MAX;
         let mut part = Vec::new();
@@ -106,29 +176,29 @@ fn run() -> Result<(), PartitionError> {
             best_time = best_time.min(start.elapsed());
         }
         let quality = metrics(&graph, &grains, &part, parts)?;
-        let empty_parts = quality.grains_per_part.iter().filter(|&&n| n == 0).count();
+        let step = project_step(&quality, &today);
+        let lean = project_step(&quality, &energy_only);
+        // strong-scaling efficiency against the 2-rank row, the measured configuration
+        let (two_ranks, two_ranks_lean) =
+            *reference.get_or_insert((2.0 * step.total, 2.0 * lean.total));
+        let max = |v: &[usize]| v.iter().copied().max().unwrap_or(0);
         println!(
-            "{:>5} {:>9.2}% {:>9} {:>9} {:>11} {:>12.1} {:>14.3} {:>14.3} {:>10.2}{}",
-            parts,
+            "| {parts} | {:.2} % | {} | {} | {} | {:.1} | {:.1} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} | {:.0} % | {:.0} % |",
             100.0 * quality.imbalance,
-            quality.edge_cut,
             quality.cut_edges,
-            quality.max_ghost_grains(),
-            quality.mean_ghost_grains(),
-            quality.halo_bytes_per_step as f64 / 1e6,
-            quality.max_halo_bytes_per_part() as f64 / 1e6,
+            max(&quality.cut_edges_per_part),
+            max(&quality.neighbour_parts_per_part),
+            step.max_halo_bytes / 1e3,
             ms(best_time),
-            if empty_parts > 0 {
-                format!("  ({empty_parts} empty parts)")
-            } else {
-                String::new()
-            }
+            step.compute * 1e3,
+            step.halo * 1e3,
+            step.reductions * 1e3,
+            step.total * 1e3,
+            step.total * inputs.steps / 60.0,
+            100.0 * two_ranks / (parts as f64 * step.total),
+            100.0 * two_ranks_lean / (parts as f64 * lean.total),
         );
     }
-
-    println!();
-    let part = partition(&graph, 8, SEED)?;
-    println!("{}", metrics(&graph, &grains, &part, 8)?);
     Ok(())
 }
 

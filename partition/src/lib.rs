@@ -8,7 +8,9 @@
 //! into one part per MPI rank with METIS, balancing work and minimising the
 //! weight of cut contacts; [`metrics`] reports balance, cut and the implied
 //! ghost (halo) traffic; [`write_partition`] / [`read_partition`] store a
-//! partition as text. [`fcc_packing`] generates regular test samples.
+//! partition as text; [`project_step`] projects a step's wall time onto many ranks from a
+//! partition's statistics and costs measured on few. [`fcc_packing`] generates regular
+//! test samples.
 //!
 //! The crate is serial and knows nothing about MPI: rank 0 (or an offline
 //! tool) computes the partition and the simulator distributes grains by it.
@@ -36,6 +38,7 @@ mod metrics;
 mod packing;
 mod partition_file;
 mod partitioner;
+mod projection;
 mod rebalance;
 #[cfg(test)]
 mod test_support;
@@ -50,4 +53,5 @@ pub use metrics::{
 pub use packing::{fcc_block_cells, fcc_packing, MAX_FCC_BLOCK_ASPECT, MAX_FCC_GRAINS};
 pub use partition_file::{read_partition, write_partition};
 pub use partitioner::{partition, MAX_PARTS_FOR_RECURSIVE_BISECTION};
+pub use projection::{project_step, StepCosts, StepProjection};
 pub use rebalance::BALANCE_TOLERANCE;

@@ -68,6 +68,15 @@ pub struct PartitionMetrics {
     pub halo_bytes_per_step_per_part: Vec<u64>,
     /// Halo bytes per step over all parts: `halo_nodes × 72`.
     pub halo_bytes_per_step: u64,
+    /// Elements owned by each part.
+    pub elements_per_part: Vec<usize>,
+    /// Edges with both grains in the part (contacts only it evaluates).
+    pub internal_edges_per_part: Vec<usize>,
+    /// Cut edges with one grain in the part: contacts it evaluates with a ghost, and for
+    /// which it sends its own grain's contact zone (each cut edge counts for both parts).
+    pub cut_edges_per_part: Vec<usize>,
+    /// Distinct other parts each part exchanges ghosts with (messages each way per step).
+    pub neighbour_parts_per_part: Vec<usize>,
 }
 
 impl PartitionMetrics {
@@ -131,8 +140,10 @@ pub fn metrics(
 
     let mut grains_per_part = vec![0usize; parts];
     let mut part_weights = vec![0u64; parts];
+    let mut elements_per_part = vec![0usize; parts];
     for (grain, &p) in part.iter().enumerate() {
         grains_per_part[p as usize] += 1;
+        elements_per_part[p as usize] += grains[grain].elements;
         part_weights[p as usize] += u64::from(graph.vertex_weights()[grain]);
     }
     let max_part_weight = part_weights.iter().copied().max().unwrap_or(0);
@@ -148,6 +159,9 @@ pub fn metrics(
     let mut edge_cut = 0u64;
     let mut cut_edges = 0usize;
     let mut ghosts: Vec<(u32, usize)> = Vec::new();
+    let mut internal_edges_per_part = vec![0usize; parts];
+    let mut cut_edges_per_part = vec![0usize; parts];
+    let mut neighbour_parts: Vec<(u32, u32)> = Vec::new();
     for grain in 0..n_grains {
         let own = part[grain];
         for (&neighbour, &weight) in graph
@@ -156,9 +170,14 @@ pub fn metrics(
             .zip(graph.neighbour_weights(grain))
         {
             if part[neighbour] == own {
+                if grain < neighbour {
+                    internal_edges_per_part[own as usize] += 1;
+                }
                 continue;
             }
             ghosts.push((own, neighbour));
+            cut_edges_per_part[own as usize] += 1;
+            neighbour_parts.push((own, part[neighbour]));
             if grain < neighbour {
                 edge_cut += u64::from(weight);
                 cut_edges += 1;
@@ -167,6 +186,12 @@ pub fn metrics(
     }
     ghosts.sort_unstable();
     ghosts.dedup();
+    neighbour_parts.sort_unstable();
+    neighbour_parts.dedup();
+    let mut neighbour_parts_per_part = vec![0usize; parts];
+    for &(p, _) in &neighbour_parts {
+        neighbour_parts_per_part[p as usize] += 1;
+    }
 
     let mut halo_ghost_grains_per_part = vec![0usize; parts];
     let mut halo_nodes_per_part = vec![0u64; parts];
@@ -195,6 +220,10 @@ pub fn metrics(
         halo_nodes,
         halo_bytes_per_step_per_part,
         halo_bytes_per_step: halo_nodes * HALO_BYTES_PER_GHOST_NODE,
+        elements_per_part,
+        internal_edges_per_part,
+        cut_edges_per_part,
+        neighbour_parts_per_part,
     })
 }
 
@@ -309,6 +338,10 @@ mod tests {
         assert_eq!(m.halo_bytes_per_step, 50 * 72);
         assert_eq!(m.halo_bytes_per_step_per_part, vec![30 * 72, 20 * 72]);
         assert_eq!(m.grains_per_part, vec![2, 2]);
+        assert_eq!(m.elements_per_part, vec![200, 200]);
+        assert_eq!(m.internal_edges_per_part, vec![1, 1]);
+        assert_eq!(m.cut_edges_per_part, vec![1, 1]);
+        assert_eq!(m.neighbour_parts_per_part, vec![1, 1]);
         let expected_ratio = m.max_part_weight as f64 / m.mean_part_weight;
         assert!((m.max_to_mean_ratio - expected_ratio).abs() < 1e-12);
         assert!((m.imbalance - (expected_ratio - 1.0)).abs() < 1e-12);
@@ -325,6 +358,10 @@ mod tests {
         // Part 0 = {0, 2} ghosts {1, 3}; part 1 = {1, 3} ghosts {0, 2}.
         assert_eq!(m.halo_ghost_grains_per_part, vec![2, 2]);
         assert_eq!(m.halo_nodes_per_part, vec![20 + 40, 10 + 30]);
+        // all three edges are cut, and each has one grain in each part
+        assert_eq!(m.internal_edges_per_part, vec![0, 0]);
+        assert_eq!(m.cut_edges_per_part, vec![3, 3]);
+        assert_eq!(m.neighbour_parts_per_part, vec![1, 1]);
     }
 
     #[test]
@@ -334,6 +371,9 @@ mod tests {
         assert_eq!(m.edge_cut, 0);
         assert_eq!(m.halo_nodes, 0);
         assert!(m.imbalance.abs() < 1e-12);
+        assert_eq!(m.internal_edges_per_part, vec![3]);
+        assert_eq!(m.cut_edges_per_part, vec![0]);
+        assert_eq!(m.neighbour_parts_per_part, vec![0]);
     }
 
     #[test]
