@@ -99,22 +99,24 @@ fn rolling_soft_rock() {
 /// line naming the scene file and the material field, and the --set that gave it.
 #[test]
 fn hertz_poisson_ratio_outside_the_reference_table_exits_2() {
+    let dir = std::env::temp_dir().join(format!(
+        "mufe_validation_materials_nu_{}",
+        std::process::id()
+    ));
     let out = Command::new(env!("CARGO_BIN_EXE_mufe"))
         .args([
             "validate",
             "hertz",
             "--quick",
             "--out",
-            &std::env::temp_dir()
-                .join("mufe_validation_materials_nu")
-                .display()
-                .to_string(),
+            &dir.display().to_string(),
             "--set",
             "materials.glass.poisson_ratio=-0.2",
         ])
         .env_remove("MUFE_VALIDATION_SCENES")
         .output()
         .expect("mufe runs");
+    let _ = std::fs::remove_dir_all(&dir);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
@@ -131,21 +133,23 @@ fn hertz_poisson_ratio_outside_the_reference_table_exits_2() {
 /// A tangential case without friction cannot scale its drive: exit 2 naming the field.
 #[test]
 fn tangential_case_without_friction_exits_2() {
+    let dir = std::env::temp_dir().join(format!(
+        "mufe_validation_materials_mu_{}",
+        std::process::id()
+    ));
     let out = Command::new(env!("CARGO_BIN_EXE_mufe"))
         .args([
             "validate",
             "torsion",
             "--write-scenes",
-            &std::env::temp_dir()
-                .join("mufe_validation_materials_mu")
-                .display()
-                .to_string(),
+            &dir.display().to_string(),
             "--set",
             "contact.friction=0",
         ])
         .env_remove("MUFE_VALIDATION_SCENES")
         .output()
         .expect("mufe runs");
+    let _ = std::fs::remove_dir_all(&dir);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(
