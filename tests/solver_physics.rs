@@ -504,6 +504,36 @@ fn deformation_damping_removes_vibration_but_not_rigid_motion() {
     );
 }
 
+/// Energy that enters outside the ledger (here: every node kicked after step 3) is what
+/// an unstable integration looks like to the check, which runs every
+/// `ENERGY_CHECK_EVERY` steps: the run stops at the first checked step after the kick,
+/// naming it, and not before.
+#[test]
+fn energy_from_nowhere_stops_the_run_at_the_next_checked_step() {
+    use mufe::solver::step::ENERGY_CHECK_EVERY;
+    let mut solver = solver_from(&sphere_scene("", "", 3e-4));
+    for _ in 0..3 {
+        solver.step().expect("at rest");
+    }
+    for v in solver.state.v.iter_mut() {
+        *v = [1.0, 0.0, 0.0];
+    }
+    let mut failed = None;
+    for _ in 0..3 * ENERGY_CHECK_EVERY {
+        if let Err(e) = solver.step() {
+            failed = Some(e.to_string());
+            break;
+        }
+    }
+    let message = failed.expect("the kick is caught");
+    assert!(message.contains("energy exploded"), "{message}");
+    assert!(
+        message.contains(&format!("(step {ENERGY_CHECK_EVERY})")),
+        "{message}"
+    );
+    assert_eq!(solver.state.step, ENERGY_CHECK_EVERY);
+}
+
 #[test]
 fn a_scene_at_rest_does_not_trip_the_blow_up_check() {
     // A sphere at rest and a plate approaching it across a 0.1 µm gap: until they touch no

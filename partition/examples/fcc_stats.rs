@@ -20,7 +20,7 @@ use std::time::{Duration, Instant};
 
 use partition::{
     fcc_block_cells, fcc_packing, metrics, partition, project_step, CostModel, GrainGraph,
-    GrainInfo, PartitionError, StepCosts,
+    GrainInfo, PartitionError, Reduction, StepCosts,
 };
 
 const GRAIN_COUNT: usize = 2000;
@@ -136,30 +136,38 @@ fn run(inputs: &Inputs) -> Result<(), PartitionError> {
         inputs.halo_bytes_per_cut_edge,
         inputs.halo_seconds_per_byte
     );
-    let per_grain = 4 * GRAIN_COUNT + 3 + 6 * GRAIN_COUNT;
+    // mufe's all-reduces: the surface motion per grain (4 values each, and 3 more) every
+    // step, the walls' normal force per grain (6 walls) every step, the energy check's 6
+    // values every `solver::step::ENERGY_CHECK_EVERY` = 16 steps
+    let every = |values: usize, steps: f64| Reduction {
+        values,
+        every_steps: steps,
+    };
+    let per_grain = [every(4 * GRAIN_COUNT + 3, 1.0), every(6 * GRAIN_COUNT, 1.0)];
+    let energy = every(6, 16.0);
     println!(
-        "all-reduces per step: {} + {} + 6 values (surface motion per grain, walls' forces per grain, energy); \
+        "all-reduces: {} + {} values per step (surface motion per grain, walls' forces per grain), 6 every 16 steps (energy); \
          network assumed: {:.1} µs latency, {:.1} GB/s per rank",
-        4 * GRAIN_COUNT + 3,
-        6 * GRAIN_COUNT,
+        per_grain[0].values,
+        per_grain[1].values,
         inputs.latency * 1e6,
         inputs.bandwidth / 1e9
     );
     println!(
-        "the last column: the same with only the energy's 6 values reduced (per-grain values \
-         exchanged between neighbours instead); {per_grain} values are reduced now"
+        "the last column: the same with the per-grain values exchanged between neighbours in \
+         the halo messages instead of reduced over all ranks"
     );
-    let costs = |reduced_values: Vec<usize>| StepCosts {
+    let costs = |reductions: Vec<Reduction>| StepCosts {
         element_seconds: inputs.element_seconds,
         contact_seconds_per_edge: inputs.contact_seconds_per_edge,
         halo_bytes_per_cut_edge: inputs.halo_bytes_per_cut_edge,
         halo_seconds_per_byte: inputs.halo_seconds_per_byte,
-        reduced_values,
+        reductions,
         latency: inputs.latency,
         bandwidth: inputs.bandwidth,
     };
-    let today = costs(vec![4 * GRAIN_COUNT + 3, 6 * GRAIN_COUNT, 6]);
-    let energy_only = costs(vec![6]);
+    let today = costs(vec![per_grain[0], per_grain[1], energy]);
+    let energy_only = costs(vec![energy]);
     println!();
     println!(
         "| parts | imbalance | cut edges | cut edges/part max | neighbours max | halo kB/step max | METIS ms \

@@ -53,5 +53,5 @@ pub use metrics::{
 pub use packing::{fcc_block_cells, fcc_packing, MAX_FCC_BLOCK_ASPECT, MAX_FCC_GRAINS};
 pub use partition_file::{read_partition, write_partition};
 pub use partitioner::{partition, MAX_PARTS_FOR_RECURSIVE_BISECTION};
-pub use projection::{project_step, StepCosts, StepProjection};
+pub use projection::{project_step, Reduction, StepCosts, StepProjection};
 pub use rebalance::BALANCE_TOLERANCE;

@@ -10,8 +10,9 @@
 //! - halo_p = cut_p · b · t_byte + neighbours_p · α + cut_p · b / β: packing and unpacking
 //!   the b bytes sent per cut edge (as measured, shared-memory transfer included), one
 //!   message per neighbour part, and the bytes over the network;
-//! - reductions = Σ over the step's all-reduces of n values: 2⌈log₂ P⌉ α + 2 (P − 1)/P · 8n / β
-//!   (reduce-scatter then all-gather, the large-message algorithm).
+//! - reductions = Σ over the all-reduces of n values, once every k steps:
+//!   (2⌈log₂ P⌉ α + 2 (P − 1)/P · 8n / β) / k (reduce-scatter then all-gather, the
+//!   large-message algorithm).
 //!
 //! The step takes max_p(compute_p + halo_p) + reductions: every all-reduce waits for the
 //! slowest rank. α and β are the network's, assumed; everything else is measured.
@@ -30,12 +31,19 @@ pub struct StepCosts {
     pub halo_bytes_per_cut_edge: f64,
     /// Packing, sending and unpacking one halo byte as measured (s/B).
     pub halo_seconds_per_byte: f64,
-    /// Values (f64) of each all-reduce in a step.
-    pub reduced_values: Vec<usize>,
+    /// The all-reduces of a run.
+    pub reductions: Vec<Reduction>,
     /// Network latency per message (s), assumed.
     pub latency: f64,
     /// Network bandwidth per rank (B/s), assumed.
     pub bandwidth: f64,
+}
+
+/// An all-reduce of `values` f64, once every `every_steps` steps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reduction {
+    pub values: usize,
+    pub every_steps: f64,
 }
 
 /// One step on the partition's ranks (s).
@@ -74,11 +82,12 @@ pub fn project_step(m: &PartitionMetrics, c: &StepCosts) -> StepProjection {
     let reductions = if m.parts > 1 {
         let ranks = m.parts as f64;
         let rounds = (m.parts as f64).log2().ceil();
-        c.reduced_values
+        c.reductions
             .iter()
-            .map(|&n| {
-                2.0 * rounds * c.latency
-                    + 2.0 * (ranks - 1.0) / ranks * 8.0 * n as f64 / c.bandwidth
+            .map(|r| {
+                let bytes = 8.0 * r.values as f64;
+                (2.0 * rounds * c.latency + 2.0 * (ranks - 1.0) / ranks * bytes / c.bandwidth)
+                    / r.every_steps
             })
             .sum()
     } else {
@@ -104,7 +113,16 @@ mod tests {
             contact_seconds_per_edge: 1e-6,
             halo_bytes_per_cut_edge: 1000.0,
             halo_seconds_per_byte: 1e-9,
-            reduced_values: vec![100, 6],
+            reductions: vec![
+                Reduction {
+                    values: 100,
+                    every_steps: 1.0,
+                },
+                Reduction {
+                    values: 6,
+                    every_steps: 4.0,
+                },
+            ],
             latency: 2e-6,
             bandwidth: 1e10,
         }
@@ -141,7 +159,7 @@ mod tests {
         let halo = 1000.0 * 1e-9 + 2e-6 + 1000.0 / 1e10;
         assert!((p.halo - halo).abs() < 1e-18, "{} {halo}", p.halo);
         let reduce = |n: f64| 2.0 * 2e-6 + 2.0 * 0.5 * 8.0 * n / 1e10;
-        assert!((p.reductions - reduce(100.0) - reduce(6.0)).abs() < 1e-18);
+        assert!((p.reductions - reduce(100.0) - reduce(6.0) / 4.0).abs() < 1e-18);
         assert!((p.total - (p.compute + p.halo + p.reductions)).abs() < 1e-18);
         assert_eq!(p.max_halo_bytes, 1000.0);
     }

@@ -25,6 +25,7 @@
 
 pub mod halo;
 
+use std::cell::RefCell;
 use std::marker::PhantomData;
 use std::os::raw::{c_int, c_void};
 
@@ -40,11 +41,6 @@ use crate::error::MufeError;
 /// Rank 0 holds the root role in every rooted collective (gather, broadcast, file metadata).
 const ROOT: i32 = 0;
 
-/// Reductions of up to this many values use a stack copy for the MPI send buffer, so the
-/// per-step energy/Δt reductions never allocate (MPI_IN_PLACE is not portable from Rust:
-/// its value differs between MPI implementations and rsmpi does not export it).
-const STACK_REDUCE: usize = 32;
-
 /// Largest element count of one MPI message: MPI counts are C `int`s.
 const MAX_COUNT: usize = i32::MAX as usize;
 
@@ -58,6 +54,9 @@ pub struct Domain {
     rank: usize,
     size: usize,
     threading: Threading,
+    /// The send side of all-reduces, kept between calls (rsmpi has no in-place mode): the
+    /// step's per-grain reductions then allocate nothing.
+    reduce_send: RefCell<Vec<f64>>,
     // Declared last so it is dropped last: dropping the Universe calls MPI_Finalize.
     _universe: Universe,
     // Raw-pointer marker: keeps `Domain` !Send and !Sync on every MPI implementation (the
@@ -111,6 +110,7 @@ impl Domain {
             rank,
             size,
             threading: provided,
+            reduce_send: RefCell::new(Vec::new()),
             _universe: universe,
             _funneled: PhantomData,
         })
@@ -178,15 +178,10 @@ impl Domain {
         if self.size == 1 {
             return;
         }
-        let n = values.len();
-        if n <= STACK_REDUCE {
-            let mut send = [0.0f64; STACK_REDUCE];
-            send[..n].copy_from_slice(values);
-            self.world.all_reduce_into(&send[..n], values, op);
-        } else {
-            let send = values.to_vec();
-            self.world.all_reduce_into(&send[..], values, op);
-        }
+        let mut send = self.reduce_send.borrow_mut();
+        send.clear();
+        send.extend_from_slice(values);
+        self.world.all_reduce_into(&send[..], values, op);
     }
 
     /// Sum of one `u64` over ranks, result on every rank (global counts of nodes, elements).

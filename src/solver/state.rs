@@ -58,7 +58,8 @@ pub struct State {
     /// forces of the last step.
     pub stages: StageProgress,
     /// Largest energy supplied so far, |ALLWK| + |initial total| + |ALLVD| summed over
-    /// ranks (J): the blow-up check's bound on kinetic + strain energy.
+    /// ranks (J), as sampled by the blow-up checks (every
+    /// [`super::step::ENERGY_CHECK_EVERY`] steps): their bound on kinetic + strain energy.
     pub supplied_energy: f64,
     /// Owner of every grain and the grain bounds of the last ghost plan (maintained by the
     /// run driver; one part on a serial run).
