@@ -105,7 +105,8 @@ pub fn project_step(m: &PartitionMetrics, c: &StepCosts) -> StepProjection {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{metrics, CostModel, GrainGraph, GrainInfo};
+    use crate::test_support::uniform_grains;
+    use crate::{metrics, CostModel, GrainGraph};
 
     fn costs() -> StepCosts {
         StepCosts {
@@ -130,14 +131,8 @@ mod tests {
 
     /// Four grains in a row, 0-1-2-3, of 100 elements each.
     fn chain_metrics(part: &[u32], parts: usize) -> PartitionMetrics {
-        let grains: Vec<GrainInfo> = (0..4)
-            .map(|i| GrainInfo {
-                centre: [2.0 * i as f64, 0.0, 0.0],
-                bounding_radius: 1.0,
-                elements: 100,
-                surface_nodes: 10,
-            })
-            .collect();
+        let centres: Vec<[f64; 3]> = (0..4).map(|i| [2.0 * i as f64, 0.0, 0.0]).collect();
+        let grains = uniform_grains(&centres, 1.0, 100, 10);
         let graph = GrainGraph::build(&grains, 0.1, &CostModel::default());
         metrics(&graph, &grains, part, parts).unwrap()
     }

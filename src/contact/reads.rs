@@ -123,14 +123,14 @@ mod tests {
             e.end = e.start + 1;
         }
         let lists = &scratch.lists;
+        let at_rest = vec![[0.0; 3]; x.len()];
         let in_contact = |e: &&Entry| {
-            let v = vec![[0.0; 3]; x.len()];
             let ctx = EvalContext {
                 cm,
                 passes: &lists.passes,
                 candidates: &lists.candidates,
                 x: &x,
-                v: &v,
+                v: &at_rest,
                 mass: &model.mass,
                 dt: model.dt,
                 history: &[],
