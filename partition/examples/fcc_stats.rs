@@ -143,7 +143,13 @@ fn run(inputs: &Inputs) -> Result<(), PartitionError> {
         values,
         every_steps: steps,
     };
-    let per_grain = [every(4 * GRAIN_COUNT + 3, 1.0), every(6 * GRAIN_COUNT, 1.0)];
+    // the rebuild decision's values (largest motion, rebuild vote, travel) and the walls
+    const REBUILD_VALUES: usize = 3;
+    const WALLS: usize = 6;
+    let per_grain = [
+        every(4 * GRAIN_COUNT + REBUILD_VALUES, 1.0),
+        every(WALLS * GRAIN_COUNT, 1.0),
+    ];
     let energy = every(6, 16.0);
     println!(
         "all-reduces: {} + {} values per step (surface motion per grain, walls' forces per grain), 6 every 16 steps (energy); \
@@ -170,7 +176,7 @@ fn run(inputs: &Inputs) -> Result<(), PartitionError> {
     let today = costs(vec![per_grain[0], per_grain[1], energy]);
     // what no neighbour exchange can replace: every rank must take the same rebuild
     // decision and move the walls by the same total forces
-    let global_only = costs(vec![every(3, 1.0), every(6, 1.0), energy]);
+    let global_only = costs(vec![every(REBUILD_VALUES, 1.0), every(WALLS, 1.0), energy]);
     println!();
     println!(
         "| parts | imbalance | cut edges | cut edges/part max | neighbours max | halo kB/step max | METIS ms \
