@@ -48,6 +48,11 @@ impl Lanes for F64x4 {
         Self(unsafe { _mm256_fmadd_pd(self.0, a.0, b.0) })
     }
     #[inline(always)]
+    fn neg_mul_add(self, a: Self, b: Self) -> Self {
+        // SAFETY: as `mul_add`
+        Self(unsafe { _mm256_fnmadd_pd(self.0, a.0, b.0) })
+    }
+    #[inline(always)]
     fn where_positive(self, then: Self, otherwise: Self) -> Self {
         // SAFETY: see the type's documentation
         unsafe {

@@ -47,6 +47,11 @@ impl Lanes for F64x8 {
         Self(unsafe { _mm512_fmadd_pd(self.0, a.0, b.0) })
     }
     #[inline(always)]
+    fn neg_mul_add(self, a: Self, b: Self) -> Self {
+        // SAFETY: as `mul_add`
+        Self(unsafe { _mm512_fnmadd_pd(self.0, a.0, b.0) })
+    }
+    #[inline(always)]
     fn where_positive(self, then: Self, otherwise: Self) -> Self {
         // SAFETY: see the type's documentation
         unsafe {

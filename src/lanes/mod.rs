@@ -46,6 +46,12 @@ pub trait Lanes:
     /// `self · a + b` rounded once (fused multiply–add), per lane: the same bits on every
     /// path (`f64::mul_add` is the correctly rounded FMA too).
     fn mul_add(self, a: Self, b: Self) -> Self;
+    /// `b − self · a` rounded once, per lane: bitwise `(−self).mul_add(a, b)` (negation is
+    /// exact), in one instruction on the vector paths.
+    #[inline(always)]
+    fn neg_mul_add(self, a: Self, b: Self) -> Self {
+        (-self).mul_add(a, b)
+    }
     /// Per lane: `then` where `self > 0`, else `otherwise` (NaN is not > 0).
     fn where_positive(self, then: Self, otherwise: Self) -> Self;
     /// Whether every lane is > 0 (NaN is not).
