@@ -11,7 +11,7 @@ use crate::material::elastic::{
     biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym,
 };
 use crate::material::{HyperelasticLaw, MaterialLaw, PlasticPoint, J2};
-use crate::math::det3;
+use crate::math::{det3, det3_fused};
 
 pub mod references;
 pub use references::{ReferenceBlock, TetReferences};
@@ -123,7 +123,7 @@ pub fn tet_forces(
         nodal: nodal_forces(&response.first_piola, &reference.dm_inv, reference.volume),
         strain_energy: reference.volume * response.stored_energy,
         plastic_work: reference.volume * response.dissipation,
-        jacobian: det3(&f),
+        jacobian: det3_fused(&f),
         point: response.point,
     }
 }
@@ -141,7 +141,7 @@ pub fn tet_forces_elastic<L: HyperelasticLaw>(
     (
         nodal_forces(&p, &reference.dm_inv, reference.volume),
         reference.volume * w,
-        det3(&f),
+        det3_fused(&f),
     )
 }
 
@@ -175,7 +175,7 @@ pub fn tet_forces_elastic_lanes<L: HyperelasticLaw, T: Lanes>(
         nodal: nodal_forces(&p, &d, v),
         strain_energy: v * w,
         plastic_work: T::splat(0.0),
-        jacobian: det3(&f),
+        jacobian: det3_fused(&f),
     }
 }
 
@@ -206,7 +206,7 @@ pub fn tet_forces_plastic_lanes<T: Lanes>(
         nodal: nodal_forces(&p, &d, v),
         strain_energy: v * r.stored_energy,
         plastic_work: v * r.dissipation,
-        jacobian: det3(&f),
+        jacobian: det3_fused(&f),
     };
     let state = PlasticLanes {
         strain: r.strain,
