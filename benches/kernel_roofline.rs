@@ -75,7 +75,7 @@ fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize
         }
         best = best.min(t0.elapsed().as_secs_f64());
     }
-    let bytes = bytes_moved_per_element(model, plastic_branch > 0.0);
+    let bytes = bytes_moved_per_element(model, &scratch.schedule, plastic_branch > 0.0);
     (
         (ne * calls) as f64 / best,
         bytes,

@@ -167,7 +167,10 @@ impl SecondOrderBiot {
     pub fn first_piola_and_energy_lanes<T: Lanes>(&self, f: &[T; 9]) -> ([T; 9], T) {
         let e = green_lagrange_sym(f);
         let (t, w) = hooke(self.lambda, self.mu, &biot_strain_from_green(&e));
-        (first_piola_from_second_piola(f, &commuting_biot_stress(&e, &t)), w)
+        (
+            first_piola_from_second_piola(f, &commuting_biot_stress(&e, &t)),
+            w,
+        )
     }
 }
 

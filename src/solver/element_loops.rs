@@ -9,7 +9,7 @@
 //! `std::array::from_fn`, no `map` on arrays, plain loops. `tests/element_kernel.rs`
 //! guards the speed-up.
 
-use super::element_schedule::ElementChunk;
+use super::element_schedule::{ElementChunk, FirstTouches, TOUCH_BLOCK};
 use crate::element::references::BLOCK;
 use crate::element::{
     tet_forces, tet_forces_elastic, tet_forces_elastic_lanes, tet_forces_plastic_lanes,
@@ -354,6 +354,49 @@ impl<'a> ChunkBlocks<'a> {
     }
 }
 
+/// Requests the position and force of each node a chunk's elements first reach, some
+/// groups before the first of them is evaluated, each node once ([`FirstTouches`]).
+struct NodesAhead<'a> {
+    touches: &'a FirstTouches,
+    x: *const [f64; 3],
+    force: *const [f64; 3],
+    /// `touches.nodes[..requested]` were requested.
+    requested: usize,
+}
+
+impl<'a> NodesAhead<'a> {
+    fn of(chunk: &'a ElementChunk, pass: &Pass) -> Self {
+        Self {
+            touches: &chunk.first_touches,
+            x: pass.x.as_ptr(),
+            force: pass.force.as_mut_ptr().cast_const(),
+            requested: 0,
+        }
+    }
+
+    /// Requests the nodes first reached by the chunk's elements below `end` (rounded up
+    /// to a block) not requested yet.
+    #[inline(always)]
+    fn request_below(&mut self, end: usize) {
+        let blocks = end.div_ceil(TOUCH_BLOCK).min(self.touches.block_end.len());
+        let Some(&last) = blocks
+            .checked_sub(1)
+            .and_then(|b| self.touches.block_end.get(b))
+        else {
+            return;
+        };
+        for &n in &self.touches.nodes[self.requested..last as usize] {
+            // both lines a node's 24 bytes may straddle; a prefetch reads nothing
+            for values in [self.x, self.force] {
+                let p = values.wrapping_add(n as usize).cast::<u8>();
+                prefetch(p, 1);
+                prefetch(p.wrapping_add(23), 1);
+            }
+        }
+        self.requested = self.requested.max(last as usize);
+    }
+}
+
 /// Prefetches entries `range` of the `len` entries from `start`, clamped to them.
 #[inline(always)]
 fn prefetch_records<R>(start: *const R, len: usize, range: std::ops::Range<usize>) {
@@ -392,9 +435,12 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     let per_group = ENERGY_SUMS / width;
     let mut group_sums = [T::splat(0.0); ENERGY_SUMS];
     blocks.prefetch_starting_in(0..ahead);
+    let mut nodes_ahead = NodesAhead::of(chunk, pass);
+    nodes_ahead.request_below(ahead);
     for g in 0..groups {
         let first = g * width;
         blocks.prefetch_starting_in(first + ahead..first + ahead + width);
+        nodes_ahead.request_below(first + ahead + width);
         let (block, lane0) = blocks.at(first);
         let out = tet_forces_elastic_lanes::<L, T>(&nodes, first, block, lane0, law);
         // SAFETY: the nodes were checked against x, no longer than the forces; this
@@ -471,9 +517,12 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
         .cast_const();
     blocks.prefetch_starting_in(0..ahead);
     prefetch_records(states, count, 0..ahead);
+    let mut nodes_ahead = NodesAhead::of(chunk, pass);
+    nodes_ahead.request_below(ahead);
     for g in 0..groups {
         let first = g * width;
         blocks.prefetch_starting_in(first + ahead..first + ahead + width);
+        nodes_ahead.request_below(first + ahead + width);
         prefetch_records(states, count, first + ahead..first + ahead + width);
         let old = pass.plastic.slice(first_slot + first, width);
         let (block, lane0) = blocks.at(first);

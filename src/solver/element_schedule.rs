@@ -51,6 +51,44 @@ pub struct ElementChunk {
     /// `State::plastic` slot of the first element (elements of plastic materials), whose
     /// slots follow element order.
     pub plastic_start: Option<usize>,
+    /// The chunk's nodes in the order its elements first reach them.
+    pub first_touches: FirstTouches,
+}
+
+/// A chunk's nodes in the order its elements first reach them, so that the force pass can
+/// request each one's position and force a few element groups before its first use, once:
+/// a chunk of a grain swept colour by colour finds its nodes out of cache (the colours in
+/// between evicted them), and the wait was a fifth of the pass on a 1.5·10⁵-element sphere
+/// (docs/BENCHMARKS.md, session 41). About a quarter of a node per element, 4 B each, and
+/// 2 B per block of eight elements.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FirstTouches {
+    /// Node ids, in the order of first use.
+    pub nodes: Vec<u32>,
+    /// `nodes[..block_end[b]]` are first used by the chunk's elements below 8(b + 1).
+    pub block_end: Vec<u16>,
+}
+
+/// Elements per entry of [`FirstTouches::block_end`] (a reference block's).
+pub const TOUCH_BLOCK: usize = crate::element::references::BLOCK;
+
+impl FirstTouches {
+    /// Of the elements `elements` of `tets`; `stamp` holds, per node, the last chunk that
+    /// reached it (`chunk` is this one's number, different from every earlier one's).
+    fn new(tets: &[[u32; 4]], elements: Range<usize>, stamp: &mut [u32], chunk: u32) -> Self {
+        let mut out = Self::default();
+        for block in tets[elements].chunks(TOUCH_BLOCK) {
+            for &n in block.iter().flatten() {
+                if stamp[n as usize] != chunk {
+                    stamp[n as usize] = chunk;
+                    out.nodes.push(n);
+                }
+            }
+            let end = u16::try_from(out.nodes.len()).expect("a chunk reaches < 2¹⁶ nodes");
+            out.block_end.push(end);
+        }
+        out
+    }
 }
 
 /// Chunks of the owned elements, grouped by colour.
@@ -147,6 +185,7 @@ impl ElementSchedule {
         let mut coloured: Vec<(usize, ElementChunk)> = Vec::new();
         let mut node_colours = vec![0u64; model.owned_nodes];
         let mut own_colours = 0;
+        let mut stamp = vec![u32::MAX; model.num_nodes()];
         for grain in &model.grains[..model.owned_grains] {
             let elements = grain.elements.clone();
             let law = model.tet_law.get(elements.start).copied().unwrap_or(0);
@@ -169,12 +208,16 @@ impl ElementSchedule {
                     .get(range.start)
                     .filter(|&&s| s != NONE)
                     .map(|&s| s as usize);
+                let chunk = u32::try_from(coloured.len()).expect("< 2³² chunks");
+                let first_touches =
+                    FirstTouches::new(&model.tets, range.clone(), &mut stamp, chunk);
                 coloured.push((
                     colour,
                     ElementChunk {
                         elements: range,
                         law,
                         plastic_start,
+                        first_touches,
                     },
                 ));
             }
@@ -247,6 +290,33 @@ shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
         }
         assert!(seen.iter().all(|&s| s == 1));
         assert!(schedule.colours.len() > 1);
+    }
+
+    /// A chunk's first-touch list holds each of its nodes once, in the order its elements
+    /// first reach them, and each block's end counts the nodes its elements and the earlier
+    /// ones reach.
+    #[test]
+    fn first_touches_list_each_node_of_a_chunk_once_in_order_of_first_use() {
+        let model = two_sphere_model();
+        let schedule = ElementSchedule::new(&model);
+        for chunk in &schedule.chunks {
+            let touches = &chunk.first_touches;
+            let tets = &model.tets[chunk.elements.clone()];
+            let mut expected: Vec<u32> = Vec::new();
+            let mut block_end = Vec::new();
+            for (k, tet) in tets.iter().enumerate() {
+                for &n in tet {
+                    if !expected.contains(&n) {
+                        expected.push(n);
+                    }
+                }
+                if (k + 1) % TOUCH_BLOCK == 0 || k + 1 == tets.len() {
+                    block_end.push(expected.len() as u16);
+                }
+            }
+            assert_eq!(touches.nodes, expected);
+            assert_eq!(touches.block_end, block_end);
+        }
     }
 
     #[test]

@@ -126,10 +126,16 @@ pub fn compute_internal_forces_into(
 /// position read (24 B), its force zeroed (24 B) and then read and written by its
 /// elements (48 B), at the mesh's nodes per element; for plastic elements the state read
 /// (56 B) and, when the plastic branch is taken (`plastic_written`), written back (56 B;
-/// an elastic step leaves it untouched). Each node's data is counted once per pass: the
-/// Morton order keeps a node's elements close enough for the caches to catch the rest.
-/// This is the denominator of the bandwidth ceiling in `benches/kernel_roofline.rs`.
-pub fn bytes_moved_per_element(model: &Model, plastic_written: bool) -> f64 {
+/// an elastic step leaves it untouched); and the schedule's first-touch lists that the
+/// node prefetch reads (4 B a node, 2 B a block of eight elements). Each node's data is
+/// counted once per pass: the Morton order keeps a node's elements close enough for the
+/// caches to catch the rest. This is the denominator of the bandwidth ceiling in
+/// `benches/kernel_roofline.rs`.
+pub fn bytes_moved_per_element(
+    model: &Model,
+    schedule: &ElementSchedule,
+    plastic_written: bool,
+) -> f64 {
     let elements = model.owned_elements.max(1) as f64;
     let per_element = (std::mem::size_of::<[u32; 4]>()
         + std::mem::size_of::<crate::element::TetReference>()) as f64;
@@ -137,9 +143,16 @@ pub fn bytes_moved_per_element(model: &Model, plastic_written: bool) -> f64 {
     let plastic_elements = model.plastic_slot.iter().filter(|&&s| s != NONE).count() as f64;
     let state = std::mem::size_of::<PlasticPoint>() as f64;
     let per_plastic = if plastic_written { 2.0 * state } else { state };
+    let first_touches: usize = (schedule.chunks.iter())
+        .map(|c| {
+            let t = &c.first_touches;
+            std::mem::size_of_val(&t.nodes[..]) + std::mem::size_of_val(&t.block_end[..])
+        })
+        .sum();
     per_element
         + per_node * model.owned_nodes as f64 / elements
         + per_plastic * plastic_elements / elements
+        + first_touches as f64 / elements
 }
 
 /// Deformation gradient and stress response of element `e` at positions `x` from the
