@@ -58,8 +58,8 @@ pub struct ElementChunk {
 /// A chunk's nodes in the order its elements first reach them, so that the force pass can
 /// request each one's position and force a few element groups before its first use, once:
 /// a chunk of a grain swept colour by colour finds its nodes out of cache (the colours in
-/// between evicted them), and the wait was a fifth of the pass on a 1.5·10⁵-element sphere
-/// (docs/BENCHMARKS.md, session 41). About a quarter of a node per element, 4 B each, and
+/// between evicted them; docs/BENCHMARKS.md, session 41). About half a node per element
+/// (a node on a chunk's border is listed by every chunk that reaches it), 4 B each, and
 /// 2 B per block of eight elements.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FirstTouches {
