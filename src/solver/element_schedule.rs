@@ -51,7 +51,8 @@ pub struct ElementChunk {
     /// `State::plastic` slot of the first element (elements of plastic materials), whose
     /// slots follow element order.
     pub plastic_start: Option<usize>,
-    /// The chunk's nodes in the order its elements first reach them.
+    /// The chunk's nodes in the order its elements first reach them; none for a grain
+    /// that runs whole (its task fetches all of the grain's node data first).
     pub first_touches: FirstTouches,
 }
 
@@ -230,8 +231,12 @@ impl ElementSchedule {
                 _ => colours.push(k..k + 1),
             }
         }
-        let chunks: Vec<ElementChunk> = coloured.into_iter().map(|(_, chunk)| chunk).collect();
+        let mut chunks: Vec<ElementChunk> = coloured.into_iter().map(|(_, chunk)| chunk).collect();
         let tasks = ScheduleTasks::new(model, &chunks, &colours, whole_limit);
+        // a whole grain's task brings all its positions and forces into cache first
+        for &k in &tasks.whole_chunks {
+            chunks[k].first_touches = FirstTouches::default();
+        }
         Self {
             chunks,
             colours,
@@ -292,15 +297,21 @@ shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
         assert!(schedule.colours.len() > 1);
     }
 
-    /// A chunk's first-touch list holds each of its nodes once, in the order its elements
+    /// A chunk swept by colour lists each of its nodes once, in the order its elements
     /// first reach them, and each block's end counts the nodes its elements and the earlier
-    /// ones reach.
+    /// ones reach; a chunk of a grain that runs whole lists none.
     #[test]
     fn first_touches_list_each_node_of_a_chunk_once_in_order_of_first_use() {
         let model = two_sphere_model();
-        let schedule = ElementSchedule::new(&model);
-        for chunk in &schedule.chunks {
+        // the small sphere whole, the large one by colour
+        let schedule = ElementSchedule::with_whole_limit(&model, model.grains[1].elements.len());
+        assert!(!schedule.tasks.whole_chunks.is_empty());
+        for (k, chunk) in schedule.chunks.iter().enumerate() {
             let touches = &chunk.first_touches;
+            if schedule.tasks.whole_chunks.contains(&k) {
+                assert_eq!(*touches, FirstTouches::default());
+                continue;
+            }
             let tets = &model.tets[chunk.elements.clone()];
             let mut expected: Vec<u32> = Vec::new();
             let mut block_end = Vec::new();
@@ -326,7 +337,13 @@ shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
         let limit = model.grains[1].elements.len();
         assert!(model.grains[0].elements.len() > limit);
         let schedule = ElementSchedule::with_whole_limit(&model, limit);
-        assert_eq!(schedule.chunks, ElementSchedule::new(&model).chunks);
+        // the same chunks and colours whichever grains run whole
+        let cut = |s: &ElementSchedule| -> Vec<_> {
+            (s.chunks.iter())
+                .map(|c| (c.elements.clone(), c.law, c.plastic_start))
+                .collect()
+        };
+        assert_eq!(cut(&schedule), cut(&ElementSchedule::new(&model)));
         let tasks = &schedule.tasks;
         assert!(
             !tasks.whole_grains.is_empty(),
