@@ -179,18 +179,12 @@ mod tests {
         // 2(24 + 10) + 1(0 − 5) + 3(0 − 4) = 68 − 5 − 12
         assert_eq!(det3_fused(&integers), 51.0);
         assert_eq!(det3(&integers), 51.0);
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut uniform = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut random = SplitMix64(7);
         for size in [1e-9, 1e-3, 0.3, 2.0] {
             for _ in 0..200 {
                 let mut f: [f64; 9] = [0.0; 9];
                 for (k, v) in f.iter_mut().enumerate() {
-                    *v = size * uniform() + if k % 4 == 0 { 1.0 } else { 0.0 };
+                    *v = size * (2.0 * random.unit() - 1.0) + if k % 4 == 0 { 1.0 } else { 0.0 };
                 }
                 let scale = f.iter().fold(0.0f64, |m, v| m.max(v.abs())).powi(3);
                 assert!((det3_fused(&f) - det3(&f)).abs() <= 16.0 * f64::EPSILON * scale);

@@ -215,10 +215,17 @@ pub fn prefetch<T>(start: *const T, count: usize) {
 #[inline(always)]
 pub fn touch_value<T>(array: &[T], n: usize) {
     if let Some(value) = array.get(n) {
-        let p = (value as *const T).cast::<u8>();
-        prefetch(p, 1);
-        prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
+        touch_pointee(value);
     }
+}
+
+/// Hints both lines the value at `p` may straddle: a prefetch, so `p` is only computed
+/// and need not be valid.
+#[inline(always)]
+pub fn touch_pointee<T>(p: *const T) {
+    let p = p.cast::<u8>();
+    prefetch(p, 1);
+    prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
 }
 
 /// Node positions and tetrahedra whose node ids were all checked, once, to be below

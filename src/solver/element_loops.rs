@@ -16,7 +16,7 @@ use crate::element::{
     PlasticLanes, ReferenceBlock, TetReferences,
 };
 use crate::error::InputError;
-use crate::lanes::{prefetch, Lanes, TetNodes};
+use crate::lanes::{prefetch, touch_pointee, Lanes, TetNodes};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::{F64x4, F64x8};
 use crate::material::{
@@ -386,12 +386,8 @@ impl<'a> NodesAhead<'a> {
             return;
         };
         for &n in &self.touches.nodes[self.requested..last as usize] {
-            // both lines a node's 24 bytes may straddle; a prefetch reads nothing
-            for values in [self.x, self.force] {
-                let p = values.wrapping_add(n as usize).cast::<u8>();
-                prefetch(p, 1);
-                prefetch(p.wrapping_add(23), 1);
-            }
+            touch_pointee(self.x.wrapping_add(n as usize));
+            touch_pointee(self.force.wrapping_add(n as usize));
         }
         self.requested = self.requested.max(last as usize);
     }

@@ -186,7 +186,6 @@ impl ElementSchedule {
         let mut coloured: Vec<(usize, ElementChunk)> = Vec::new();
         let mut node_colours = vec![0u64; model.owned_nodes];
         let mut own_colours = 0;
-        let mut stamp = vec![u32::MAX; model.num_nodes()];
         for grain in &model.grains[..model.owned_grains] {
             let elements = grain.elements.clone();
             let law = model.tet_law.get(elements.start).copied().unwrap_or(0);
@@ -209,16 +208,13 @@ impl ElementSchedule {
                     .get(range.start)
                     .filter(|&&s| s != NONE)
                     .map(|&s| s as usize);
-                let chunk = u32::try_from(coloured.len()).expect("< 2³² chunks");
-                let first_touches =
-                    FirstTouches::new(&model.tets, range.clone(), &mut stamp, chunk);
                 coloured.push((
                     colour,
                     ElementChunk {
                         elements: range,
                         law,
                         plastic_start,
-                        first_touches,
+                        first_touches: FirstTouches::default(),
                     },
                 ));
             }
@@ -233,9 +229,14 @@ impl ElementSchedule {
         }
         let mut chunks: Vec<ElementChunk> = coloured.into_iter().map(|(_, chunk)| chunk).collect();
         let tasks = ScheduleTasks::new(model, &chunks, &colours, whole_limit);
-        // a whole grain's task brings all its positions and forces into cache first
-        for &k in &tasks.whole_chunks {
-            chunks[k].first_touches = FirstTouches::default();
+        // only chunks swept colour by colour: a whole grain's task brings all its
+        // positions and forces into cache first
+        let mut stamp = vec![u32::MAX; model.num_nodes()];
+        for &k in &tasks.large_chunks {
+            let chunk = &mut chunks[k];
+            let number = u32::try_from(k).expect("< 2³² chunks");
+            chunk.first_touches =
+                FirstTouches::new(&model.tets, chunk.elements.clone(), &mut stamp, number);
         }
         Self {
             chunks,
