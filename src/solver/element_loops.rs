@@ -345,12 +345,12 @@ impl<'a> ChunkBlocks<'a> {
         (&self.blocks[k / BLOCK], k % BLOCK)
     }
 
-    /// Prefetches the blocks whose first element lies in `elements` (chunk indices): over
-    /// consecutive ranges, every block once.
+    /// Prefetches block `b` of the chunk (its ten lines, one per field), if there is one.
     #[inline(always)]
-    fn prefetch_starting_in(&self, elements: std::ops::Range<usize>) {
-        let blocks = elements.start.div_ceil(BLOCK)..elements.end.div_ceil(BLOCK);
-        prefetch_records(self.blocks.as_ptr(), self.blocks.len(), blocks);
+    fn prefetch_block(&self, b: usize) {
+        if let Some(block) = self.blocks.get(b) {
+            prefetch(block as *const ReferenceBlock, 1);
+        }
     }
 }
 
@@ -360,8 +360,6 @@ struct NodesAhead<'a> {
     touches: &'a FirstTouches,
     x: *const [f64; 3],
     force: *const [f64; 3],
-    /// `touches.nodes[..requested]` were requested.
-    requested: usize,
 }
 
 impl<'a> NodesAhead<'a> {
@@ -370,35 +368,89 @@ impl<'a> NodesAhead<'a> {
             touches: &chunk.first_touches,
             x: pass.x.as_ptr(),
             force: pass.force.as_mut_ptr().cast_const(),
-            requested: 0,
         }
     }
 
-    /// Requests the nodes first reached by the chunk's elements below `end` (rounded up
-    /// to a block) not requested yet.
+    /// Requests the nodes first reached by the elements of touch block `b` (chunk elements
+    /// `TOUCH_BLOCK·b..`), if the chunk lists any.
     #[inline(always)]
-    fn request_below(&mut self, end: usize) {
-        let blocks = end.div_ceil(TOUCH_BLOCK).min(self.touches.block_end.len());
-        let Some(&last) = blocks
-            .checked_sub(1)
-            .and_then(|b| self.touches.block_end.get(b))
-        else {
+    fn request_block(&self, b: usize) {
+        let block_end = &self.touches.block_end;
+        let Some(&end) = block_end.get(b) else {
             return;
         };
-        for &n in &self.touches.nodes[self.requested..last as usize] {
+        // block b − 1's end, none before block 0 (b − 1 wraps to a missing entry)
+        let start = block_end.get(b.wrapping_sub(1)).copied().unwrap_or(0);
+        for &n in &self.touches.nodes[start as usize..end as usize] {
             touch_pointee(self.x.wrapping_add(n as usize));
             touch_pointee(self.force.wrapping_add(n as usize));
         }
-        self.requested = self.requested.max(last as usize);
     }
 }
 
-/// Prefetches entries `range` of the `len` entries from `start`, clamped to them.
-#[inline(always)]
-fn prefetch_records<R>(start: *const R, len: usize, range: std::ops::Range<usize>) {
-    let end = range.end.min(len);
-    if range.start < end {
-        prefetch(start.wrapping_add(range.start), end - range.start);
+/// What a chunk's loop requests ahead of its groups: the reference block and first-touched
+/// nodes of the elements [`PREFETCH_GROUPS`] groups on, once per block of eight, and
+/// their plastic states (elements of plastic materials) group by group. Requested at fixed
+/// block boundaries, with no running bounds to update: the bookkeeping of a range-based
+/// version was a tenth of the kernel's instructions (docs/BENCHMARKS.md, session 42).
+struct Ahead<'a, T> {
+    blocks: &'a ChunkBlocks<'a>,
+    nodes: NodesAhead<'a>,
+    /// The chunk's first plastic state and how many it has (none for an elastic law):
+    /// a pointer, not a slice, as the loop writes the states meanwhile.
+    states: (*const PlasticPoint, usize),
+    lanes: std::marker::PhantomData<T>,
+}
+
+impl<'a, T: Lanes> Ahead<'a, T> {
+    /// Elements requested ahead: a whole number of blocks (four groups of four or eight
+    /// lanes are).
+    const ELEMENTS: usize = {
+        assert!(BLOCK == TOUCH_BLOCK);
+        (PREFETCH_GROUPS * T::WIDTH).next_multiple_of(BLOCK)
+    };
+
+    fn of(blocks: &'a ChunkBlocks<'a>, nodes: NodesAhead<'a>) -> Self {
+        Self {
+            blocks,
+            nodes,
+            states: (std::ptr::null(), 0),
+            lanes: std::marker::PhantomData,
+        }
+    }
+
+    /// Requests the first [`Self::ELEMENTS`] elements' data.
+    #[inline(always)]
+    fn start(&self) {
+        for b in 0..Self::ELEMENTS / BLOCK {
+            self.blocks.prefetch_block(b);
+            self.nodes.request_block(b);
+        }
+        for k in (0..Self::ELEMENTS).step_by(T::WIDTH) {
+            self.request_states(k);
+        }
+    }
+
+    /// Before the group of `T::WIDTH` elements from `first`: requests the data of the group
+    /// [`PREFETCH_GROUPS`] on.
+    #[inline(always)]
+    fn before_group(&self, first: usize) {
+        let k = first + Self::ELEMENTS;
+        if k % BLOCK == 0 {
+            self.blocks.prefetch_block(k / BLOCK);
+            self.nodes.request_block(k / TOUCH_BLOCK);
+        }
+        self.request_states(k);
+    }
+
+    /// The plastic states of elements `k..k + T::WIDTH`, if the chunk has them all (a
+    /// fixed count, so the prefetches unroll; the last groups' states are not requested).
+    #[inline(always)]
+    fn request_states(&self, k: usize) {
+        let (first, count) = self.states;
+        if k + T::WIDTH <= count {
+            prefetch(first.wrapping_add(k), T::WIDTH);
+        }
     }
 }
 
@@ -426,17 +478,16 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     } else {
         0
     };
-    let ahead = PREFETCH_GROUPS * width;
     // a group's energies go to sums (g mod `per_group`)·width + lane = element mod 8
     let per_group = ENERGY_SUMS / width;
     let mut group_sums = [T::splat(0.0); ENERGY_SUMS];
-    blocks.prefetch_starting_in(0..ahead);
-    let mut nodes_ahead = NodesAhead::of(chunk, pass);
-    nodes_ahead.request_below(ahead);
+    let ahead = Ahead::<T>::of(&blocks, NodesAhead::of(chunk, pass));
+    if groups > 0 {
+        ahead.start();
+    }
     for g in 0..groups {
         let first = g * width;
-        blocks.prefetch_starting_in(first + ahead..first + ahead + width);
-        nodes_ahead.request_below(first + ahead + width);
+        ahead.before_group(first);
         let (block, lane0) = blocks.at(first);
         let out = tet_forces_elastic_lanes::<L, T>(&nodes, first, block, lane0, law);
         // SAFETY: the nodes were checked against x, no longer than the forces; this
@@ -504,22 +555,19 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     };
     let width = T::WIDTH;
     let groups = if width > 1 { tets.len() / width } else { 0 };
-    let ahead = PREFETCH_GROUPS * width;
-    let count = tets.len();
-    let states = pass
-        .plastic
-        .as_mut_ptr()
-        .wrapping_add(first_slot)
-        .cast_const();
-    blocks.prefetch_starting_in(0..ahead);
-    prefetch_records(states, count, 0..ahead);
-    let mut nodes_ahead = NodesAhead::of(chunk, pass);
-    nodes_ahead.request_below(ahead);
+    let ahead = Ahead::<T> {
+        states: (
+            pass.plastic.as_mut_ptr().wrapping_add(first_slot),
+            tets.len(),
+        ),
+        ..Ahead::of(&blocks, NodesAhead::of(chunk, pass))
+    };
+    if groups > 0 {
+        ahead.start();
+    }
     for g in 0..groups {
         let first = g * width;
-        blocks.prefetch_starting_in(first + ahead..first + ahead + width);
-        nodes_ahead.request_below(first + ahead + width);
-        prefetch_records(states, count, first + ahead..first + ahead + width);
+        ahead.before_group(first);
         let old = pass.plastic.slice(first_slot + first, width);
         let (block, lane0) = blocks.at(first);
         let (out, state) = tet_forces_plastic_lanes::<T>(&nodes, first, block, lane0, j2, old);
