@@ -436,7 +436,7 @@ impl<'a, T: Lanes> Ahead<'a, T> {
     #[inline(always)]
     fn before_group(&self, first: usize) {
         let k = first + Self::ELEMENTS;
-        if k % BLOCK == 0 {
+        if k.is_multiple_of(BLOCK) {
             self.blocks.prefetch_block(k / BLOCK);
             self.nodes.request_block(k / TOUCH_BLOCK);
         }
