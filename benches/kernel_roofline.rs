@@ -10,6 +10,10 @@
 //!         or:  cargo bench --bench kernel_roofline -- [--tetbench UPDATES_PER_S] [--threads N]
 //!                  [--seeding M]   (the large mesh's seeding, m; default 7e-5)
 //!                  [--law NAME]    (one law only, e.g. biot, to profile it)
+//!                  [--passes N]    (no timing: N force passes of each law on the large
+//!                                   mesh, for an instruction counter;
+//!                                   `scripts/kernel_instructions` runs it under callgrind)
+//!                  [--list-laws]   (the laws' names, one a line)
 //!
 //! Model: one glass sphere R = 1.1 mm at seeding 70 µm (≈ 1.5·10⁵ tets, the mesh of
 //! `benches/internal_force.rs`), built the way `mufe run` builds it; one call of
@@ -84,6 +88,46 @@ fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize
     )
 }
 
+/// `passes` force passes of one law on one thread, untimed, printing what an instruction
+/// count is divided by: "law NAME elements N passes P path PATH".
+fn run_passes(name: &str, law_lines: &str, seeding: f64, passes: usize) {
+    let (model_text, scene) = (
+        "kernel_roofline.rs",
+        common::sphere_scene(law_lines, RADIUS, seeding),
+    );
+    let loaded = parse_scene(model_text, &scene, &[]).expect("benchmark scene");
+    let solver = build_solver(&loaded).expect("benchmark model");
+    let model = &solver.model;
+    let configurations = [
+        common::deformed(&model.x0, 1.0),
+        common::deformed(&model.x0, -1.0),
+    ];
+    let single = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("rayon pool");
+    single.install(|| {
+        let mut scratch = ElementScratch::new(model);
+        let mut plastic = solver.state.plastic.clone();
+        let mut force = vec![[0.0; 3]; model.num_nodes()];
+        for k in 0..passes {
+            let s = compute_internal_forces_into(
+                model,
+                &configurations[k % 2],
+                &mut plastic,
+                &mut scratch,
+                &mut force,
+            );
+            assert!(s.bad_element.is_none());
+        }
+        println!(
+            "law {name} elements {} passes {passes} path {}",
+            model.num_elements(),
+            scratch.path.name()
+        );
+    });
+}
+
 /// STREAM triad a = b + s·c over arrays far beyond the caches: bytes/s counted as
 /// STREAM does (24 B per index, no write-allocate), best of 5 after a first pass that
 /// faults the pages in. Each thread of the pool streams one fixed part of the arrays, as
@@ -132,6 +176,18 @@ fn main() {
     let seeding = value_of("--seeding").unwrap_or(SEEDING);
     // one law only, e.g. to profile it
     let only_law = (args.iter().position(|a| a == "--law")).and_then(|i| args.get(i + 1).cloned());
+    if args.iter().any(|a| a == "--list-laws") {
+        common::LAWS.iter().for_each(|(name, _)| println!("{name}"));
+        return;
+    }
+    if let Some(passes) = value_of("--passes") {
+        for (name, lines) in common::LAWS {
+            if only_law.as_ref().is_none_or(|only| only == name) {
+                run_passes(name, lines, seeding, passes as usize);
+            }
+        }
+        return;
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
