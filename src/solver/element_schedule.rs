@@ -21,6 +21,7 @@
 //! of a rank with too few grains to keep the threads busy, are swept colour by colour,
 //! chunks of one colour in parallel.
 
+use super::chunk_order::ChunkOrder;
 use crate::model::{Model, NONE};
 use std::ops::Range;
 
@@ -119,6 +120,9 @@ pub struct ScheduleTasks {
     /// `large_chunks[large_colours[c]]`: the chunks of large grains of one colour.
     pub large_colours: Vec<Range<usize>>,
     pub large_chunks: Vec<usize>,
+    /// Which large chunks (positions in `large_chunks`) wait for which: each for those of
+    /// earlier colours it shares a node with.
+    pub large_order: ChunkOrder,
 }
 
 impl ScheduleTasks {
@@ -167,6 +171,11 @@ impl ScheduleTasks {
                 tasks.large_colours.push(start..tasks.large_chunks.len());
             }
         }
+        let large = tasks
+            .large_chunks
+            .iter()
+            .map(|&k| chunks[k].elements.clone());
+        tasks.large_order = ChunkOrder::new(&model.tets, large, model.num_nodes());
         tasks
     }
 }

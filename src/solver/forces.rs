@@ -1,11 +1,12 @@
 //! Internal forces: one pass over the elements that computes each element's forces and
 //! adds them straight into the node force array. Chunks of elements that share no node
-//! run in parallel, colour after colour ([`ElementSchedule`]), so every node receives its
-//! forces in a fixed order and 1 and N threads give bitwise identical forces and energies
+//! run in parallel, and chunks that do in colour order ([`ElementSchedule`]), so every node
+//! receives its forces in a fixed order and 1 and N threads give bitwise identical forces and energies
 //! (no atomics, no reduction whose order follows scheduling). Each chunk is evaluated by a
 //! loop compiled for its grain's law, so the hot loop has no per-element dispatch
 //! ([`super::element_loops`]).
 
+use super::chunk_order::ChunkQueue;
 use super::element_loops::{evaluate_chunk, Disjoint, Pass};
 pub use super::element_loops::{BadElement, ChunkResult, KernelPath, MAX_PLASTIC_INCREMENT};
 use super::element_schedule::ElementSchedule;
@@ -26,6 +27,8 @@ pub struct ElementScratch {
     /// Per-chunk partial results (strain energy, plastic work, first failure), in
     /// schedule order.
     pub chunk_results: Vec<ChunkResult>,
+    /// Runs the large grains' chunks in their order ([`ElementSchedule`]'s `large_order`).
+    queue: ChunkQueue,
 }
 
 /// Result of an internal-force evaluation.
@@ -44,6 +47,7 @@ impl ElementScratch {
         let schedule = ElementSchedule::new(model);
         Self {
             chunk_results: vec![ChunkResult::default(); schedule.chunks.len()],
+            queue: ChunkQueue::new(&schedule.tasks.large_order),
             schedule,
             path: KernelPath::detect(),
         }
@@ -81,8 +85,8 @@ pub fn compute_internal_forces_into(
     let run = |k: usize| {
         // SAFETY: every chunk is one task's (`ScheduleTasks`); tasks that run at the same
         // time share no node and own disjoint element (hence plastic slot) ranges: whole
-        // grains share nothing with each other or with the large grains, and chunks of
-        // one colour of the large grains share no node; colours run one after another
+        // grains share nothing with each other or with the large grains, and a chunk of a
+        // large grain runs only after the chunks of earlier colours it shares a node with
         unsafe { *results.get(k) = evaluate_chunk(path, &pass, &schedule.chunks[k]) };
     };
     tasks
@@ -96,11 +100,10 @@ pub fn compute_internal_forces_into(
             crate::lanes::prefetch(x[nodes.clone()].as_ptr(), nodes.len());
             tasks.whole_chunks[g.clone()].iter().for_each(|&k| run(k));
         });
-    for colour in &tasks.large_colours {
-        tasks.large_chunks[colour.clone()]
-            .par_iter()
-            .for_each(|&k| run(k));
-    }
+    // a chunk starts once the chunks of earlier colours it shares a node with have
+    // finished (`ChunkOrder`): chunks running together share no node, and each node
+    // receives its forces in colour order, as in a sweep colour by colour
+    (scratch.queue).run_all(&tasks.large_order, |p| run(tasks.large_chunks[p]));
 
     let mut strain_energy = 0.0;
     let mut plastic_work = 0.0;

@@ -13,6 +13,7 @@
 //! Nothing here knows about output, partitioning or the command line (that is
 //! `crate::driver`); what a step needs from other ranks comes through [`StepHooks`].
 
+mod chunk_order;
 pub mod damping;
 pub mod diagnose;
 mod element_loops;
