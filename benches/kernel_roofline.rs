@@ -54,7 +54,7 @@ fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize
     let mut scratch = ElementScratch::new(model);
     let schedule = &scratch.schedule;
     println!(
-        "kernel_roofline: {ne} tets in {} chunks of ≤ 512 in {} colours (one barrier each)",
+        "kernel_roofline: {ne} tets in {} chunks of ≤ 512 in {} colours",
         schedule.chunks.len(),
         schedule.colours.len()
     );

@@ -214,9 +214,9 @@ impl<T> Disjoint<T> {
     }
 }
 
-/// What every chunk of one force pass reads and writes. Chunks of one colour share no
-/// node and own disjoint element (hence plastic-slot) ranges (`ElementSchedule`), and
-/// colours run one after another, so no two tasks touch the same force or state.
+/// What every chunk of one force pass reads and writes. Chunks own disjoint element (hence
+/// plastic-slot) ranges, and chunks that share a node never run at once (`ElementSchedule`,
+/// `ChunkOrder`), so no two tasks touch the same force or state.
 pub(super) struct Pass<'a> {
     pub model: &'a Model,
     pub x: &'a [[f64; 3]],

@@ -3,10 +3,11 @@
 //! The force kernel scatters each element's four nodal forces straight into the node
 //! force array (one pass, no per-element force buffer: that buffer was two thirds of the
 //! bytes a step moved). Two chunks that share a node must then not run concurrently, so
-//! the chunks are coloured: chunks of one colour share no node and run in parallel, the
-//! colours run one after another. Every node therefore receives its element forces in a
-//! fixed order — colour by colour, element by element — whatever the number of threads,
-//! and 1 and N threads give bitwise identical forces.
+//! the chunks are coloured: chunks of one colour share no node and may run in parallel,
+//! and a chunk runs after the chunks of earlier colours it shares a node with
+//! (`super::chunk_order`). Every node therefore receives its element forces in a fixed
+//! order — colour by colour, element by element — whatever the number of threads, and 1
+//! and N threads give bitwise identical forces.
 //!
 //! Chunks never span two grains and are cut and coloured from each grain's own elements,
 //! so a grain's summation order does not depend on which other grains share its rank:
@@ -17,9 +18,9 @@
 //! once per pass, not once per colour (a colour-by-colour sweep over a rank of a thousand
 //! grains had evicted them between colours). Its nodes receive their forces in the same
 //! order as in the colour-by-colour sweep, so the results are the same to the bit, and
-//! which grains run whole may depend on the thread count. Larger grains, and every grain
-//! of a rank with too few grains to keep the threads busy, are swept colour by colour,
-//! chunks of one colour in parallel.
+//! which grains run whole may depend on the thread count. The chunks of larger grains, and
+//! of every grain of a rank with too few grains to keep the threads busy, run in
+//! dependency order across threads.
 
 use super::chunk_order::ChunkOrder;
 use crate::model::{Model, NONE};
