@@ -392,7 +392,8 @@ impl<'a> NodesAhead<'a> {
 /// nodes of the elements [`PREFETCH_GROUPS`] groups on, once per block of eight, and
 /// their plastic states (elements of plastic materials) group by group. Requested at fixed
 /// block boundaries, with no running bounds to update: the bookkeeping of a range-based
-/// version was a tenth of the kernel's instructions (docs/BENCHMARKS.md, session 42).
+/// version was 7 % (Biot) to 14 % (J2) of the kernel's instructions (docs/BENCHMARKS.md,
+/// session 42).
 struct Ahead<'a, T> {
     blocks: &'a ChunkBlocks<'a>,
     nodes: NodesAhead<'a>,
