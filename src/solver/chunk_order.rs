@@ -11,7 +11,7 @@
 //! sweep, on any number of threads.
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 
 /// Which chunks must finish before each chunk of the large grains starts. Chunks are
 /// named by their position in the colour-ordered list of large chunks.
@@ -85,6 +85,20 @@ pub struct ChunkQueue {
     /// Slots filled, slots claimed by a thread.
     pushed: AtomicUsize,
     claimed: AtomicUsize,
+    /// Set when a chunk panicked: the chunks waiting for it will never be ready, so the
+    /// other threads stop taking chunks and the panic reaches the caller (not a hang).
+    abandoned: AtomicBool,
+}
+
+/// Sets its flag if dropped while its thread unwinds from a panic.
+struct FlagOnPanic<'a>(&'a AtomicBool);
+
+impl Drop for FlagOnPanic<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            self.0.store(true, Ordering::Release);
+        }
+    }
 }
 
 /// Polls of a slot not yet filled before a thread yields its core (to the thread that
@@ -100,6 +114,7 @@ impl ChunkQueue {
             ready: (0..count).map(|_| AtomicU32::new(0)).collect(),
             pushed: AtomicUsize::new(0),
             claimed: AtomicUsize::new(0),
+            abandoned: AtomicBool::new(false),
         }
     }
 
@@ -117,6 +132,7 @@ impl ChunkQueue {
         }
         self.pushed.store(0, Ordering::Relaxed);
         self.claimed.store(0, Ordering::Relaxed);
+        self.abandoned.store(false, Ordering::Relaxed);
         for (p, &count) in order.waits_for.iter().enumerate() {
             if count == 0 {
                 self.push(p);
@@ -133,14 +149,18 @@ impl ChunkQueue {
         }
     }
 
-    /// Claims slots and runs their chunks until every slot is claimed.
+    /// Claims slots and runs their chunks until every slot is claimed (or a chunk
+    /// panicked).
     fn take_and_run(&self, order: &ChunkOrder, run: &impl Fn(usize)) {
+        let _flag = FlagOnPanic(&self.abandoned);
         loop {
             let slot = self.claimed.fetch_add(1, Ordering::Relaxed);
             let Some(entry) = self.ready.get(slot) else {
                 return;
             };
-            let p = Self::wait_until_filled(entry);
+            let Some(p) = self.wait_until_filled(entry) else {
+                return;
+            };
             run(p);
             for &s in order.successors_of(p) {
                 // the last chunk s waited for makes it ready; its forces are seen by
@@ -158,12 +178,16 @@ impl ChunkQueue {
         self.ready[slot].store(value, Ordering::Release);
     }
 
-    fn wait_until_filled(entry: &AtomicU32) -> usize {
+    /// The chunk in `entry` once it is filled; `None` if a chunk panicked meanwhile.
+    fn wait_until_filled(&self, entry: &AtomicU32) -> Option<usize> {
         let mut polls = 0;
         loop {
             let value = entry.load(Ordering::Acquire);
             if value != 0 {
-                return value as usize - 1;
+                return Some(value as usize - 1);
+            }
+            if self.abandoned.load(Ordering::Acquire) {
+                return None;
             }
             if polls < SPINS_BEFORE_YIELD {
                 std::hint::spin_loop();
@@ -262,6 +286,25 @@ shape = { sphere = { radius = 1e-3, seeding = 1e-4 } }
                 })
             });
             assert!(runs.iter().all(|r| r.load(Ordering::Relaxed) == 1));
+        }
+        // a chunk that panics: the panic reaches the caller, and the queue runs again
+        let middle = order.waits_for.len() / 2;
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                pool.install(|| queue.run_all(order, |p| assert_ne!(p, middle, "a bad chunk")))
+            }));
+            assert!(outcome.is_err(), "{threads} threads");
+            let count = AtomicUsize::new(0);
+            pool.install(|| {
+                queue.run_all(order, |_| {
+                    count.fetch_add(1, Ordering::Relaxed);
+                })
+            });
+            assert_eq!(count.load(Ordering::Relaxed), order.waits_for.len());
         }
     }
 }
