@@ -23,9 +23,10 @@
 
 mod common;
 
+use mufe::material::PlasticPoint;
 use mufe::scene::parse_scene;
-use mufe::solver::build_solver;
 use mufe::solver::forces::{bytes_moved_per_element, compute_internal_forces_into, ElementScratch};
+use mufe::solver::{build_solver, Solver};
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -36,30 +37,63 @@ const SEEDING: f64 = 7.0e-5;
 /// Seeding of the in-cache mesh (a few thousand tets, < 1 MiB of model data).
 const SEEDING_IN_CACHE: f64 = 2.6e-4;
 
+/// One law's glass sphere at one seeding, its two deformed configurations, and what a force
+/// pass writes.
+struct SpherePasses {
+    solver: Solver,
+    configurations: [Vec<[f64; 3]>; 2],
+    scratch: ElementScratch,
+    plastic: Vec<PlasticPoint>,
+    force: Vec<[f64; 3]>,
+}
+
+impl SpherePasses {
+    /// Built in the pool that will run the passes: the chunk schedule follows its threads.
+    fn new(law_lines: &str, seeding: f64) -> Self {
+        let loaded = parse_scene(
+            "kernel_roofline.rs",
+            &common::sphere_scene(law_lines, RADIUS, seeding),
+            &[],
+        )
+        .expect("benchmark scene");
+        let solver = build_solver(&loaded).expect("benchmark model");
+        let model = &solver.model;
+        Self {
+            configurations: [
+                common::deformed(&model.x0, 1.0),
+                common::deformed(&model.x0, -1.0),
+            ],
+            scratch: ElementScratch::new(model),
+            plastic: solver.state.plastic.clone(),
+            force: vec![[0.0; 3]; model.num_nodes()],
+            solver,
+        }
+    }
+
+    /// Force pass `k` (the configurations alternate); its plastic work (J).
+    fn run(&mut self, k: usize) -> f64 {
+        let s = compute_internal_forces_into(
+            &self.solver.model,
+            &self.configurations[k % 2],
+            &mut self.plastic,
+            &mut self.scratch,
+            &mut self.force,
+        );
+        assert!(s.bad_element.is_none());
+        s.plastic_work
+    }
+}
+
 /// Tet updates per second of one law on one mesh, best of `rounds`.
 fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize, String) {
-    let loaded = parse_scene(
-        "kernel_roofline.rs",
-        &common::sphere_scene(law_lines, RADIUS, seeding),
-        &[],
-    )
-    .expect("benchmark scene");
-    let solver = build_solver(&loaded).expect("benchmark model");
-    let model = &solver.model;
-    let ne = model.num_elements();
-    let configurations = [
-        common::deformed(&model.x0, 1.0),
-        common::deformed(&model.x0, -1.0),
-    ];
-    let mut scratch = ElementScratch::new(model);
-    let schedule = &scratch.schedule;
+    let mut passes = SpherePasses::new(law_lines, seeding);
+    let ne = passes.solver.model.num_elements();
+    let schedule = &passes.scratch.schedule;
     println!(
         "kernel_roofline: {ne} tets in {} chunks of ≤ 512 in {} colours",
         schedule.chunks.len(),
         schedule.colours.len()
     );
-    let mut plastic = solver.state.plastic.clone();
-    let mut force = vec![[0.0; 3]; model.num_nodes()];
     // enough calls per round for ~0.2 s
     let calls = (30_000_000 / ne).clamp(4, 20_000);
     let mut best = f64::INFINITY;
@@ -67,18 +101,11 @@ fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize
     for _ in 0..rounds {
         let t0 = Instant::now();
         for k in 0..calls {
-            let s = compute_internal_forces_into(
-                model,
-                &configurations[k % 2],
-                &mut plastic,
-                &mut scratch,
-                &mut force,
-            );
-            assert!(s.bad_element.is_none());
-            plastic_branch = s.plastic_work;
+            plastic_branch = passes.run(k);
         }
         best = best.min(t0.elapsed().as_secs_f64());
     }
+    let (model, scratch) = (&passes.solver.model, &passes.scratch);
     let bytes = bytes_moved_per_element(model, &scratch.schedule, plastic_branch > 0.0);
     (
         (ne * calls) as f64 / best,
@@ -88,42 +115,22 @@ fn kernel_rate(law_lines: &str, seeding: f64, rounds: usize) -> (f64, f64, usize
     )
 }
 
-/// `passes` force passes of one law on one thread, untimed, printing what an instruction
+/// `count` force passes of one law on one thread, untimed, printing what an instruction
 /// count is divided by: "law NAME elements N passes P path PATH".
-fn run_passes(name: &str, law_lines: &str, seeding: f64, passes: usize) {
-    let (model_text, scene) = (
-        "kernel_roofline.rs",
-        common::sphere_scene(law_lines, RADIUS, seeding),
-    );
-    let loaded = parse_scene(model_text, &scene, &[]).expect("benchmark scene");
-    let solver = build_solver(&loaded).expect("benchmark model");
-    let model = &solver.model;
-    let configurations = [
-        common::deformed(&model.x0, 1.0),
-        common::deformed(&model.x0, -1.0),
-    ];
+fn run_passes(name: &str, law_lines: &str, seeding: f64, count: usize) {
     let single = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .expect("rayon pool");
     single.install(|| {
-        let mut scratch = ElementScratch::new(model);
-        let mut plastic = solver.state.plastic.clone();
-        let mut force = vec![[0.0; 3]; model.num_nodes()];
-        for k in 0..passes {
-            let s = compute_internal_forces_into(
-                model,
-                &configurations[k % 2],
-                &mut plastic,
-                &mut scratch,
-                &mut force,
-            );
-            assert!(s.bad_element.is_none());
-        }
+        let mut passes = SpherePasses::new(law_lines, seeding);
+        (0..count).for_each(|k| {
+            passes.run(k);
+        });
         println!(
-            "law {name} elements {} passes {passes} path {}",
-            model.num_elements(),
-            scratch.path.name()
+            "law {name} elements {} passes {count} path {}",
+            passes.solver.model.num_elements(),
+            passes.scratch.path.name()
         );
     });
 }

@@ -10,7 +10,6 @@
 //! receives its forces in colour order, so the forces are bitwise those of the colour
 //! sweep, on any number of threads.
 
-use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
 
 /// Which chunks must finish before each chunk of the large grains starts. Chunks are
@@ -25,29 +24,23 @@ pub struct ChunkOrder {
 }
 
 impl ChunkOrder {
-    /// Of the chunks whose elements `chunks` gives, p = 0, 1, … in colour order (chunks of
-    /// one colour share no node), elements of `tets` over `num_nodes` nodes.
-    pub fn new(
-        tets: &[[u32; 4]],
-        chunks: impl ExactSizeIterator<Item = Range<usize>>,
-        num_nodes: usize,
-    ) -> Self {
+    /// Of the chunks p = 0, 1, … in colour order (chunks of one colour share no node),
+    /// given by their nodes, each listed once (their `FirstTouches`), of `num_nodes`.
+    pub fn new<'a>(chunks: impl ExactSizeIterator<Item = &'a [u32]>, num_nodes: usize) -> Self {
         let count = chunks.len();
         // a chunk waits for the last earlier chunk at each of its nodes; along a node's
         // chunks these links order them all
         const NONE: u32 = u32::MAX;
         let mut last = vec![NONE; num_nodes];
         let mut links: Vec<(u32, u32)> = Vec::new();
-        for (p, elements) in chunks.enumerate() {
+        for (p, nodes) in chunks.enumerate() {
             let p = u32::try_from(p).expect("< 2³² chunks");
-            for e in elements {
-                for n in tets[e] {
-                    let at = &mut last[n as usize];
-                    if *at != NONE && *at != p {
-                        links.push((*at, p));
-                    }
-                    *at = p;
+            for &n in nodes {
+                let at = &mut last[n as usize];
+                if *at != NONE {
+                    links.push((*at, p));
                 }
+                *at = p;
             }
         }
         links.sort_unstable();
@@ -202,8 +195,7 @@ impl ChunkQueue {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::parse_scene;
-    use crate::solver::build_solver;
+    use crate::solver::element_schedule::tests::glass_spheres_model;
     use crate::solver::element_schedule::ElementSchedule;
     use std::sync::atomic::AtomicU64;
 
@@ -212,20 +204,7 @@ mod tests {
     /// order.
     #[test]
     fn chunks_that_share_a_node_never_overlap_and_reach_it_in_colour_order() {
-        let text = r#"
-[simulation]
-duration = 1e-6
-[materials.glass]
-youngs_modulus = 63e9
-poisson_ratio = 0.22
-density = 2500.0
-[[grains]]
-name = "a"
-material = "glass"
-shape = { sphere = { radius = 1e-3, seeding = 1e-4 } }
-"#;
-        let loaded = parse_scene("chunk_order.toml", text, &[]).unwrap();
-        let model = build_solver(&loaded).unwrap().model;
+        let model = glass_spheres_model(&[(0.0, 1e-3, 1e-4)]);
         let schedule = ElementSchedule::with_whole_limit(&model, 0);
         let tasks = &schedule.tasks;
         let order = &tasks.large_order;

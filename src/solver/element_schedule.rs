@@ -172,11 +172,6 @@ impl ScheduleTasks {
                 tasks.large_colours.push(start..tasks.large_chunks.len());
             }
         }
-        let large = tasks
-            .large_chunks
-            .iter()
-            .map(|&k| chunks[k].elements.clone());
-        tasks.large_order = ChunkOrder::new(&model.tets, large, model.num_nodes());
         tasks
     }
 }
@@ -238,7 +233,7 @@ impl ElementSchedule {
             }
         }
         let mut chunks: Vec<ElementChunk> = coloured.into_iter().map(|(_, chunk)| chunk).collect();
-        let tasks = ScheduleTasks::new(model, &chunks, &colours, whole_limit);
+        let mut tasks = ScheduleTasks::new(model, &chunks, &colours, whole_limit);
         // only chunks swept colour by colour: a whole grain's task brings all its
         // positions and forces into cache first
         let mut stamp = vec![u32::MAX; model.num_nodes()];
@@ -248,6 +243,9 @@ impl ElementSchedule {
             chunk.first_touches =
                 FirstTouches::new(&model.tets, chunk.elements.clone(), &mut stamp, number);
         }
+        // the same lists give each chunk's nodes once, for the order between chunks
+        let large = (tasks.large_chunks.iter()).map(|&k| &chunks[k].first_touches.nodes[..]);
+        tasks.large_order = ChunkOrder::new(large, model.num_nodes());
         Self {
             chunks,
             colours,
@@ -257,31 +255,30 @@ impl ElementSchedule {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::scene::parse_scene;
     use crate::solver::build_solver;
 
-    fn two_sphere_model() -> Model {
-        let text = r#"
-[simulation]
-duration = 1e-6
-[materials.glass]
-youngs_modulus = 63e9
-poisson_ratio = 0.22
-density = 2500.0
-[[grains]]
-name = "a"
-material = "glass"
-shape = { sphere = { radius = 1e-3, seeding = 1.5e-4 } }
-[[grains]]
-name = "b"
-material = "glass"
-centre = [3e-3, 0.0, 0.0]
-shape = { sphere = { radius = 0.5e-3, seeding = 1e-4 } }
-"#;
-        let loaded = parse_scene("element_schedule.toml", text, &[]).unwrap();
+    /// The model of glass spheres (x-coordinate of the centre, radius, seeding; m), for
+    /// the schedule's tests.
+    pub(in crate::solver) fn glass_spheres_model(spheres: &[(f64, f64, f64)]) -> Model {
+        let mut text = String::from(
+            "[simulation]\nduration = 1e-6\n[materials.glass]\nyoungs_modulus = 63e9\n\
+             poisson_ratio = 0.22\ndensity = 2500.0\n",
+        );
+        for (k, (x, radius, seeding)) in spheres.iter().enumerate() {
+            text += &format!(
+                "[[grains]]\nname = \"g{k}\"\nmaterial = \"glass\"\ncentre = [{x:e}, 0.0, 0.0]\n\
+                 shape = {{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}\n"
+            );
+        }
+        let loaded = parse_scene("element_schedule.toml", &text, &[]).unwrap();
         build_solver(&loaded).unwrap().model
+    }
+
+    fn two_sphere_model() -> Model {
+        glass_spheres_model(&[(0.0, 1e-3, 1.5e-4), (3e-3, 0.5e-3, 1e-4)])
     }
 
     #[test]

@@ -1,8 +1,8 @@
 //! Internal forces: one pass over the elements that computes each element's forces and
 //! adds them straight into the node force array. Chunks of elements that share no node
-//! run in parallel, and chunks that do in colour order ([`ElementSchedule`]), so every node
-//! receives its forces in a fixed order and 1 and N threads give bitwise identical forces and energies
-//! (no atomics, no reduction whose order follows scheduling). Each chunk is evaluated by a
+//! run in parallel, and chunks that do in colour order ([`ElementSchedule`]), so every
+//! node receives its forces in a fixed order and 1 and N threads give bitwise identical
+//! forces and energies (no atomics, no reduction whose order follows scheduling). Each chunk is evaluated by a
 //! loop compiled for its grain's law, so the hot loop has no per-element dispatch
 //! ([`super::element_loops`]).
 
@@ -103,7 +103,9 @@ pub fn compute_internal_forces_into(
     // a chunk starts once the chunks of earlier colours it shares a node with have
     // finished (`ChunkOrder`): chunks running together share no node, and each node
     // receives its forces in colour order, as in a sweep colour by colour
-    (scratch.queue).run_all(&tasks.large_order, |p| run(tasks.large_chunks[p]));
+    scratch
+        .queue
+        .run_all(&tasks.large_order, |p| run(tasks.large_chunks[p]));
 
     let mut strain_energy = 0.0;
     let mut plastic_work = 0.0;
