@@ -21,8 +21,6 @@ mod common;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use mufe::driver::summary::estimate_memory_bytes;
-use mufe::scene::parse_scene;
-use mufe::solver::build_solver;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch};
 use std::time::Duration;
 
@@ -43,13 +41,7 @@ fn internal_force(c: &mut Criterion) {
         .collect();
     let mut group = c.benchmark_group("internal_force");
     for (law, lines) in common::LAWS {
-        let loaded = parse_scene(
-            "benches/internal_force.rs",
-            &common::sphere_scene(lines, RADIUS, SEEDING),
-            &[],
-        )
-        .expect("scene");
-        let solver = build_solver(&loaded).expect("model");
+        let solver = common::sphere_solver("benches/internal_force.rs", lines, RADIUS, SEEDING);
         let model = &solver.model;
         let (ne, nn) = (model.num_elements(), model.num_nodes());
         assert!(ne >= 100_000, "benchmark mesh has only {ne} tets");

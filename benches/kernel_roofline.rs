@@ -24,9 +24,8 @@
 mod common;
 
 use mufe::material::PlasticPoint;
-use mufe::scene::parse_scene;
 use mufe::solver::forces::{bytes_moved_per_element, compute_internal_forces_into, ElementScratch};
-use mufe::solver::{build_solver, Solver};
+use mufe::solver::Solver;
 use std::sync::Mutex;
 use std::time::Instant;
 
@@ -50,13 +49,7 @@ struct SpherePasses {
 impl SpherePasses {
     /// Built in the pool that will run the passes: the chunk schedule follows its threads.
     fn new(law_lines: &str, seeding: f64) -> Self {
-        let loaded = parse_scene(
-            "kernel_roofline.rs",
-            &common::sphere_scene(law_lines, RADIUS, seeding),
-            &[],
-        )
-        .expect("benchmark scene");
-        let solver = build_solver(&loaded).expect("benchmark model");
+        let solver = common::sphere_solver("kernel_roofline.rs", law_lines, RADIUS, seeding);
         let model = &solver.model;
         Self {
             configurations: [

@@ -1,4 +1,4 @@
-//! What the kernel benchmarks share: the glass-sphere scene and its deformed
+//! What the kernel benchmarks share: the glass-sphere scene, its solver and its deformed
 //! configurations.
 
 /// (name, extra material lines) of the laws compared: the default `biot`,
@@ -32,6 +32,19 @@ material = "glass"
 shape = {{ sphere = {{ radius = {radius:e}, seeding = {seeding:e} }} }}
 "#
     )
+}
+
+/// The solver of [`sphere_scene`], built through the real scene path (`parse_scene` +
+/// `build_solver`); `bench` names the benchmark in error messages.
+pub fn sphere_solver(
+    bench: &str,
+    law_lines: &str,
+    radius: f64,
+    seeding: f64,
+) -> mufe::solver::Solver {
+    let text = sphere_scene(law_lines, radius, seeding);
+    let loaded = mufe::scene::parse_scene(bench, &text, &[]).expect("benchmark scene");
+    mufe::solver::build_solver(&loaded).expect("benchmark model")
 }
 
 /// x = Q (I + ε) X: rotation 0.3 rad about (1, 1, 1)/√3 after a stretch

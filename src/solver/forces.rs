@@ -2,9 +2,9 @@
 //! adds them straight into the node force array. Chunks of elements that share no node
 //! run in parallel, and chunks that do in colour order ([`ElementSchedule`]), so every
 //! node receives its forces in a fixed order and 1 and N threads give bitwise identical
-//! forces and energies (no atomics, no reduction whose order follows scheduling). Each chunk is evaluated by a
-//! loop compiled for its grain's law, so the hot loop has no per-element dispatch
-//! ([`super::element_loops`]).
+//! forces and energies (no atomics, no reduction whose order follows scheduling). Each
+//! chunk is evaluated by a loop compiled for its grain's law, so the hot loop has no
+//! per-element dispatch ([`super::element_loops`]).
 
 use super::chunk_order::ChunkQueue;
 use super::element_loops::{evaluate_chunk, Disjoint, Pass};
