@@ -8,7 +8,7 @@
 
 use crate::lanes::{build, dot3, Lanes, TetNodes};
 use crate::material::elastic::{
-    biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym,
+    biot_strain_from_green, first_piola_from_biot_stress, green_lagrange_sym, Sym,
 };
 use crate::material::{HyperelasticLaw, MaterialLaw, PlasticPoint, J2};
 use crate::math::{det3, det3_fused};
@@ -179,20 +179,22 @@ pub fn tet_forces_elastic_lanes<L: HyperelasticLaw, T: Lanes>(
     }
 }
 
-/// [`tet_forces`] of elements `first..first + T::WIDTH` of `tets`, of a J2 material, one
-/// per lane of `T` (bitwise equal to [`tet_forces`] in each), from their committed plastic
-/// states `old` (one per lane, from `first`; the reference data are lanes `lane0..` of
-/// `reference`). Returns the forces and
-/// energies and the states after the step.
+/// The return mapping of elements `first..first + T::WIDTH` of `tets`, of a J2 material,
+/// one per lane of `T`, from their committed plastic states `old` (one per lane, from
+/// `first`; the reference data are lanes `lane0..` of `reference`): what their forces need
+/// ([`PlasticStress::forces`]) and their states after the step. Each lane is bitwise equal
+/// to [`tet_forces`]. The forces are a separate call so that the caller can store the
+/// states first: a state held across the force computation does not fit in AVX2's sixteen
+/// registers and spills (docs/BENCHMARKS.md, session 44).
 #[inline(always)]
-pub fn tet_forces_plastic_lanes<T: Lanes>(
+pub fn plastic_return_lanes<T: Lanes>(
     tets: &TetNodes,
     first: usize,
     reference: &ReferenceBlock,
     lane0: usize,
     j2: &J2,
     old: &[PlasticPoint],
-) -> (ElementLanes<T>, PlasticLanes<T>) {
+) -> (PlasticStress<T>, PlasticLanes<T>) {
     let (f, d, v) = deformation_lanes::<T>(tets, first, reference, lane0);
     let e = green_lagrange_sym(&f);
     let eps = biot_strain_from_green(&e);
@@ -201,12 +203,14 @@ pub fn tet_forces_plastic_lanes<T: Lanes>(
     old_strain.copy_from_slice(&old_record[..6]);
     let old_equivalent = old_record[6];
     let r = j2.return_map_lanes(&eps, &old_strain, old_equivalent);
-    let p = first_piola_from_biot_stress(&f, &e, &r.stress);
-    let forces = ElementLanes {
-        nodal: nodal_forces(&p, &d, v),
-        strain_energy: v * r.stored_energy,
-        plastic_work: v * r.dissipation,
-        jacobian: det3_fused(&f),
+    let stress = PlasticStress {
+        f,
+        d,
+        v,
+        e,
+        stress: r.stress,
+        stored_energy: r.stored_energy,
+        dissipation: r.dissipation,
     };
     let state = PlasticLanes {
         strain: r.strain,
@@ -214,7 +218,33 @@ pub fn tet_forces_plastic_lanes<T: Lanes>(
         increment: r.equivalent - old_equivalent,
         yielding: r.excess,
     };
-    (forces, state)
+    (stress, state)
+}
+
+/// The returned stress of J2 elements, one per lane, with what their forces need.
+#[derive(Debug, Clone, Copy)]
+pub struct PlasticStress<T> {
+    f: [T; 9],
+    d: [T; 9],
+    v: T,
+    e: Sym<T>,
+    stress: Sym<T>,
+    stored_energy: T,
+    dissipation: T,
+}
+
+impl<T: Lanes> PlasticStress<T> {
+    /// The elements' nodal forces and energies.
+    #[inline(always)]
+    pub fn forces(&self) -> ElementLanes<T> {
+        let p = first_piola_from_biot_stress(&self.f, &self.e, &self.stress);
+        ElementLanes {
+            nodal: nodal_forces(&p, &self.d, self.v),
+            strain_energy: self.v * self.stored_energy,
+            plastic_work: self.v * self.dissipation,
+            jacobian: det3_fused(&self.f),
+        }
+    }
 }
 
 /// Plastic states after a step, one element per lane.

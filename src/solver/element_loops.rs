@@ -12,7 +12,7 @@
 use super::element_schedule::{ElementChunk, FirstTouches, TOUCH_BLOCK};
 use crate::element::references::BLOCK;
 use crate::element::{
-    tet_forces, tet_forces_elastic, tet_forces_elastic_lanes, tet_forces_plastic_lanes,
+    plastic_return_lanes, tet_forces, tet_forces_elastic, tet_forces_elastic_lanes,
     PlasticLanes, ReferenceBlock, TetReferences,
 };
 use crate::error::InputError;
@@ -543,16 +543,14 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     assert!(pass.x.len() <= pass.force.len());
     let blocks = ChunkBlocks::of(&pass.model.tet_reference, range.clone());
     let mut tally = Tally::new(range.start);
-    // the state after the step into slot `k`, and the equivalent plastic strain it gained
+    // the state after the step into slot `k`
     let commit = |k: usize, p: PlasticPoint| {
         let point = pass.plastic.get(first_slot + k);
-        let plastic_increment = p.equivalent - point.equivalent;
         // an elastic step returns the state unchanged: not writing it back saves the
         // memory traffic of a dirty cache line
         if p != *point {
             *point = p;
         }
-        plastic_increment
     };
     let width = T::WIDTH;
     let groups = if width > 1 { tets.len() / width } else { 0 };
@@ -571,41 +569,51 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
         ahead.before_group(first);
         let old = pass.plastic.slice(first_slot + first, width);
         let (block, lane0) = blocks.at(first);
-        let (out, state) = tet_forces_plastic_lanes::<T>(&nodes, first, block, lane0, j2, old);
+        let (stress, state) = plastic_return_lanes::<T>(&nodes, first, block, lane0, j2, old);
+        // the states are stored before the forces are computed, so that none is held in
+        // registers across that computation (the stored states are the same whether or
+        // not an element then fails)
+        let all_elastic = (-state.yielding).all_positive();
+        let all_plastic = state.yielding.all_positive();
+        if all_elastic {
+            // the common group: each state is its old one, bit for bit
+        } else if all_plastic {
+            // the common plastic group: every state changed, stored as rows
+            let states = pass.plastic.slice_mut(first_slot + first, width);
+            T::scatter_records(&state.rows(), PlasticPoint::as_records_mut(states));
+        } else {
+            let states = state.to_arrays();
+            for l in 0..width {
+                commit(first + l, PlasticLanes::<T>::point(&states, l));
+            }
+        }
+        let out = stress.forces();
         // SAFETY: as in `evaluate_elastic_chunk`
         T::add_corner_forces(&out.nodal, &nodes, first, pass.force.as_mut_ptr());
         let strain_energy = out.strain_energy.to_array();
-        if (-state.yielding).all_positive()
-            && out.jacobian.all_positive()
-            && out.strain_energy.all_finite()
-        {
-            // the common case: no lane yielded (each state is its old one, bit for bit,
-            // its plastic work and increment zero) and none failed: only the energy to sum
+        let sound = out.jacobian.all_positive() && out.strain_energy.all_finite();
+        if all_elastic && sound {
+            // no lane yielded (plastic work and increment zero) and none failed: only the
+            // energy to sum
             for l in 0..width {
                 tally.result.strain_energy += strain_energy[l];
             }
-        } else if state.yielding.all_positive()
-            && out.jacobian.all_positive()
-            && out.strain_energy.all_finite()
+        } else if all_plastic
+            && sound
             && (T::splat(MAX_PLASTIC_INCREMENT) - state.increment).all_positive()
         {
-            // the common plastic group: every lane yielded (so every state changed) and none
-            // failed: the states stored as rows, what the per-lane commit below would store
-            let states = pass.plastic.slice_mut(first_slot + first, width);
-            T::scatter_records(&state.rows(), PlasticPoint::as_records_mut(states));
             let plastic_work = out.plastic_work.to_array();
             for l in 0..width {
                 tally.result.strain_energy += strain_energy[l];
                 tally.result.plastic_work += plastic_work[l];
             }
         } else {
-            let states = state.to_arrays();
             let plastic_work = out.plastic_work.to_array();
             let jacobian = out.jacobian.to_array();
+            let increment = state.increment.to_array();
             for l in 0..width {
-                let increment = commit(first + l, PlasticLanes::<T>::point(&states, l));
                 let energy = strain_energy[l];
-                tally.record(first + l, energy, plastic_work[l], jacobian[l], increment);
+                tally.record(first + l, energy, plastic_work[l], jacobian[l], increment[l]);
             }
         }
     }
@@ -616,7 +624,10 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
         let forces = tet_forces(&nodes.corners_of(k), &reference, law, Some(&point));
         // SAFETY: as for the groups above
         f64::add_corner_forces(&forces.nodal, &nodes, k, pass.force.as_mut_ptr());
-        let increment = forces.point.map_or(0.0, |p| commit(k, p));
+        let increment = forces.point.map_or(0.0, |p| {
+            commit(k, p);
+            p.equivalent - point.equivalent
+        });
         let (energy, work, jacobian) = (forces.strain_energy, forces.plastic_work, forces.jacobian);
         tally.record(k, energy, work, jacobian, increment);
     }
