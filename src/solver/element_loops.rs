@@ -12,8 +12,8 @@
 use super::element_schedule::{ElementChunk, FirstTouches, TOUCH_BLOCK};
 use crate::element::references::BLOCK;
 use crate::element::{
-    plastic_return_lanes, tet_forces, tet_forces_elastic, tet_forces_elastic_lanes,
-    PlasticLanes, ReferenceBlock, TetReferences,
+    plastic_return_lanes, tet_forces, tet_forces_elastic, tet_forces_elastic_lanes, PlasticLanes,
+    ReferenceBlock, TetReferences,
 };
 use crate::error::InputError;
 use crate::lanes::{prefetch, touch_pointee, Lanes, TetNodes};
@@ -613,7 +613,13 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
             let increment = state.increment.to_array();
             for l in 0..width {
                 let energy = strain_energy[l];
-                tally.record(first + l, energy, plastic_work[l], jacobian[l], increment[l]);
+                tally.record(
+                    first + l,
+                    energy,
+                    plastic_work[l],
+                    jacobian[l],
+                    increment[l],
+                );
             }
         }
     }
