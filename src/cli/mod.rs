@@ -211,7 +211,7 @@ pub enum Command {
         #[arg(long = "set", value_name = "PATH=VALUE")]
         set: Vec<String>,
         /// Set a dimensionless scene-generator parameter, e.g. `hertz.v_plate=1e-4`
-        /// (units and defaults: src/validate/scenes.rs).
+        /// (units and defaults: src/validate/scenes/).
         #[arg(long = "param", value_name = "CASE.KEY=VALUE")]
         param: Vec<String>,
         /// Write the generated scenes of the cases to DIR (for the material, radius and

@@ -22,6 +22,12 @@ use crate::error::{num, InputError};
 use crate::material::ElasticParameters;
 use crate::scene::{LoadedScene, ShapeSpec};
 
+mod params;
+mod profiles;
+
+pub use params::{HertzEllipsoidParams, HertzParams, Params, TwoSphereParams};
+use profiles::{fmt_hist, merge, plate_exponential, plate_ramp, sci, trapezoid, Points};
+
 /// The paper's material and geometry (docs/THEORY.md, Conventions), the origin of the default
 /// dimensionless parameters: the shipped scenes are generated for them.
 pub mod paper {
@@ -250,473 +256,7 @@ pub fn with_override_note(mut e: InputError, overrides: &[String]) -> InputError
     e
 }
 
-/// Hertz: one sphere squeezed between two rigid frictionless plates.
-#[derive(Debug, Clone, PartialEq)]
-pub struct HertzParams {
-    /// Plate speed after the ramp (c_p).
-    pub v_plate: f64,
-    /// Raised-cosine ramp of the plate speed (R/c_p; 0: constant speed from t = 0).
-    pub ramp: f64,
-    /// Exponential drive when > 0 (then `v_plate` and `ramp` are unused): each plate's
-    /// travel from first touch is δ(t) = δ0 (e^{t/τ} − 1), so its speed (δ + δ0)/τ and
-    /// acceleration (δ + δ0)/τ² grow with δ and the relative inertia of the contact zone,
-    /// ∝ (v²/δ + a)/δ, is uniform over the load range (τ in R/c_p).
-    pub tau: f64,
-    /// δ0 of the exponential drive (R): the speed at first touch is δ0/τ.
-    pub delta0: f64,
-    /// Initial gap between each plate and its pole (R).
-    pub gap: f64,
-    /// Plate travel covered by the duration, as the Hertz contact radius √(δR) it gives (R).
-    pub a_end: f64,
-    /// Mass scaling of the fine contact elements (R/c_p).
-    pub target_dt: f64,
-    /// Global surface seeding (R).
-    pub seeding: f64,
-    /// Seeding of the pole patches as written (R); `mufe validate` sets it from MR.
-    pub refine_seeding: f64,
-    /// Radius of the fine zone around each pole, chord distance (R).
-    pub refine_radius: f64,
-    /// Growth of the edge length beyond the fine zone (–).
-    pub growth: f64,
-    /// Deformation damping (c_p/R).
-    pub damping: f64,
-    /// History sampling interval (R/c_p).
-    pub history_interval: f64,
-}
-
-impl Default for HertzParams {
-    /// On the paper's glass: an exponential drive δ = δ0 (e^{t/τ} − 1) with δ0 = 0.03 µm
-    /// and τ such that the travel to 7.2 µm (F_ref ≈ 55 N) takes 15 µs, target_dt 3 ns,
-    /// seeding 150 µm, patches of radius 0.02 R = 22 µm (1.2 × the contact radius at the
-    /// window's low end) with growth 0.12, history every 25 ns. The original study's
-    /// raised-cosine ramp (0.6 m/s after 6 µs) stays available as `tau = 0` with
-    /// `v_plate`, `ramp` (docs/BENCHMARKS.md, "Hertz bias").
-    fn default() -> Self {
-        let u = Units::paper();
-        let (delta0, delta_end, duration): (f64, f64, f64) = (3.0e-8, 7.2e-6, 15.0e-6);
-        Self {
-            v_plate: 0.6 / u.speed,
-            ramp: 6.0e-6 / u.time,
-            tau: duration / (1.0 + delta_end / delta0).ln() / u.time,
-            delta0: delta0 / u.length,
-            gap: 0.0,
-            a_end: (delta_end / u.length).sqrt(),
-            target_dt: 3.0e-9 / u.time,
-            seeding: 1.5e-4 / u.length,
-            refine_seeding: 1.0e-5 / u.length,
-            refine_radius: 0.02,
-            growth: 0.12,
-            damping: 0.0,
-            history_interval: 2.5e-8 / u.time,
-        }
-    }
-}
-
-/// `hertz_ellipsoid` (an ellipsoid between plates, `super::hertz_ellipsoid`): generator
-/// parameters (`--param hertz_ellipsoid.KEY=VALUE`), lengths in R_e, times in
-/// R_e/c_p: the same dimensionless drive as the sphere case's (`hertz`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct HertzEllipsoidParams {
-    /// Exponential drive δ = δ0 (e^{t/τ} − 1) of each plate (R_e/c_p, R_e).
-    pub tau: f64,
-    pub delta0: f64,
-    /// Mass scaling of the fine tip elements (R_e/c_p).
-    pub target_dt: f64,
-    /// Facet edge away from the tips (R_e).
-    pub seeding: f64,
-    /// Radius of the fine tip patch (R_e) and growth of the edge beyond it (–).
-    pub tip_radius: f64,
-    pub growth: f64,
-    /// History sampling interval (R_e/c_p).
-    pub history_interval: f64,
-}
-
-impl Default for HertzEllipsoidParams {
-    /// The `hertz` case's τ, δ0 and target_dt in units of R_e instead of R; a tip patch of
-    /// 1.2 × the major semi-axis at the window's low end (as the sphere's pole patch),
-    /// growth 0.12, bulk facets of R_e/7.
-    fn default() -> Self {
-        let sphere = HertzParams::default();
-        Self {
-            tau: sphere.tau,
-            delta0: sphere.delta0,
-            target_dt: sphere.target_dt,
-            seeding: 0.14,
-            tip_radius: 0.014,
-            growth: 0.12,
-            history_interval: sphere.history_interval,
-        }
-    }
-}
-
-impl HertzEllipsoidParams {
-    fn fields(&mut self) -> Vec<(&'static str, &mut f64)> {
-        vec![
-            ("tau", &mut self.tau),
-            ("delta0", &mut self.delta0),
-            ("target_dt", &mut self.target_dt),
-            ("seeding", &mut self.seeding),
-            ("tip_radius", &mut self.tip_radius),
-            ("growth", &mut self.growth),
-            ("history_interval", &mut self.history_interval),
-        ]
-    }
-}
-
-/// Two identical spheres touching at the origin (Mindlin, torsion, rolling).
-#[derive(Debug, Clone, PartialEq)]
-pub struct TwoSphereParams {
-    /// Nominal normal load, as its Hertz contact radius (R).
-    pub a_over_r: f64,
-    /// Fraction of the Hertz approach at that load the drive moves down: the held parts at
-    /// ±clamp·R make the pair stiffer than two half-spaces, and this brings the measured N
-    /// close to the nominal one.
-    pub approach_scale: f64,
-    /// Normal approach speed (c_p), its ramps (R/c_p) and the rest after it (R/c_p).
-    pub vn: f64,
-    pub n_ramp: f64,
-    pub settle: f64,
-    /// Mindlin: tangential speed (δt,max per R/c_p, so the legs take the same time for any
-    /// μ and material), amplitude (δt,max) and reversals (1: unload to −amplitude; 2: then
-    /// reload to +amplitude).
-    pub vt: f64,
-    pub amplitude: f64,
-    pub reversals: f64,
-    /// Torsion: final G a² β/(μN) per sphere.
-    pub twist_param: f64,
-    /// Torsion and rolling: constant-speed time of the case motion (R/c_p).
-    pub cruise: f64,
-    /// Raised-cosine ramps of the case motion (R/c_p).
-    pub t_ramp: f64,
-    /// Time after the case motion (R/c_p).
-    pub tail: f64,
-    /// Mass scaling of the fine contact elements (R/c_p).
-    pub target_dt: f64,
-    /// Deformation damping (c_p/R).
-    pub damping: f64,
-    /// Global seeding (R), patch seeding as written (R), patch radius (R), growth (–).
-    pub seeding: f64,
-    pub refine_seeding: f64,
-    pub refine_radius: f64,
-    pub growth: f64,
-    /// History sampling interval (R/c_p).
-    pub history_interval: f64,
-    /// Held/driven parts: beyond the planes at ∓clamp·R from the contact (1 = the far
-    /// hemispheres). See docs/BENCHMARKS.md (Validation) for its effect.
-    pub clamp: f64,
-}
-
-impl TwoSphereParams {
-    /// Parameters shared by the three cases on the paper's glass: approach at 1 m/s (5 N)
-    /// or 4 m/s (70 N) with 2 µs ramps, 2 µs rest, target_dt 2 ns, damping 2×10⁶ 1/s,
-    /// seeding 275 µm, history every 20 ns, clamp R/2, 0.2 µs tail.
-    fn paper_common(force: f64, vn: f64, refine_radius: f64, growth: f64) -> Self {
-        let u = Units::paper();
-        Self {
-            a_over_r: u.a_over_r(force),
-            approach_scale: 0.92,
-            vn: vn / u.speed,
-            n_ramp: 2.0e-6 / u.time,
-            settle: 2.0e-6 / u.time,
-            vt: 0.0,
-            amplitude: 0.0,
-            reversals: 0.0,
-            twist_param: 0.0,
-            cruise: 0.0,
-            t_ramp: 2.0e-6 / u.time,
-            tail: 0.2e-6 / u.time,
-            target_dt: 2.0e-9 / u.time,
-            damping: 2.0e6 * u.time,
-            seeding: 2.75e-4 / u.length,
-            refine_seeding: 1.0e-5 / u.length,
-            refine_radius: refine_radius / u.length,
-            growth,
-            history_interval: 2.0e-8 / u.time,
-            clamp: 0.5,
-        }
-    }
-
-    /// Mindlin on the paper's glass: N = 5 N, 0.4 m/s tangential with 1.5 µs ramps to
-    /// ±1.2 δt,max and back (two reversals), patch 20 µm with growth 0.15.
-    pub fn mindlin() -> Self {
-        let u = Units::paper();
-        let mut p = Self::paper_common(5.0, 1.0, 2.0e-5, 0.15);
-        let dtmax = u.slip_displacement(paper::FRICTION, p.a_over_r);
-        p.vt = 0.4 / (dtmax / u.time);
-        p.t_ramp = 1.5e-6 / u.time;
-        p.amplitude = 1.2;
-        p.reversals = 2.0;
-        p
-    }
-
-    /// The full cycle of `mindlin_cyclic`: as [`Self::mindlin`], to ±0.8 δt,max (partial
-    /// slip throughout, Q*/μN = 0.91) and back twice, at 3/4 of its tangential speed (the
-    /// shorter legs still fit their ramps).
-    pub fn mindlin_cyclic() -> Self {
-        let mut p = Self::mindlin();
-        p.amplitude = 0.8;
-        p.vt *= 0.75;
-        p
-    }
-
-    /// Torsion on the paper's glass: N = 70 N, relative twist to G a² β/(μN) = 0.6 (c/a ≈
-    /// 0.1) in 9 µs, patch 110 µm with growth 0.3.
-    pub fn torsion() -> Self {
-        let u = Units::paper();
-        let mut p = Self::paper_common(70.0, 4.0, 1.1e-4, 0.3);
-        p.twist_param = 0.6;
-        p.cruise = 5.0e-6 / u.time;
-        p
-    }
-
-    /// Rolling on the paper's glass: N = 70 N, rotation to 1.5 θ_slip in 9 µs, patch
-    /// 110 µm with growth 0.3.
-    pub fn rolling() -> Self {
-        let u = Units::paper();
-        let mut p = Self::paper_common(70.0, 4.0, 1.1e-4, 0.3);
-        p.amplitude = 1.5;
-        p.cruise = 5.0e-6 / u.time;
-        p
-    }
-}
-
-/// The generator parameters of all four cases (`mufe validate --param CASE.KEY=VALUE`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Params {
-    pub hertz: HertzParams,
-    pub mindlin: TwoSphereParams,
-    pub mindlin_cyclic: TwoSphereParams,
-    pub torsion: TwoSphereParams,
-    pub rolling: TwoSphereParams,
-    pub thornton_walls: super::thornton_scene::ThorntonParams,
-    pub thornton: super::thornton_scene::ThorntonParams,
-    pub hertz_ellipsoid: HertzEllipsoidParams,
-}
-
-impl Default for Params {
-    fn default() -> Self {
-        Self {
-            hertz: HertzParams::default(),
-            mindlin: TwoSphereParams::mindlin(),
-            mindlin_cyclic: TwoSphereParams::mindlin_cyclic(),
-            torsion: TwoSphereParams::torsion(),
-            rolling: TwoSphereParams::rolling(),
-            thornton_walls: Default::default(),
-            thornton: super::thornton_scene::ThorntonParams::periodic(),
-            hertz_ellipsoid: Default::default(),
-        }
-    }
-}
-
-impl HertzParams {
-    fn fields(&mut self) -> Vec<(&'static str, &mut f64)> {
-        vec![
-            ("v_plate", &mut self.v_plate),
-            ("ramp", &mut self.ramp),
-            ("tau", &mut self.tau),
-            ("delta0", &mut self.delta0),
-            ("gap", &mut self.gap),
-            ("a_end", &mut self.a_end),
-            ("target_dt", &mut self.target_dt),
-            ("seeding", &mut self.seeding),
-            ("refine_seeding", &mut self.refine_seeding),
-            ("refine_radius", &mut self.refine_radius),
-            ("growth", &mut self.growth),
-            ("damping", &mut self.damping),
-            ("history_interval", &mut self.history_interval),
-        ]
-    }
-}
-
-impl TwoSphereParams {
-    fn fields(&mut self) -> Vec<(&'static str, &mut f64)> {
-        vec![
-            ("a_over_r", &mut self.a_over_r),
-            ("approach_scale", &mut self.approach_scale),
-            ("vn", &mut self.vn),
-            ("n_ramp", &mut self.n_ramp),
-            ("settle", &mut self.settle),
-            ("vt", &mut self.vt),
-            ("amplitude", &mut self.amplitude),
-            ("reversals", &mut self.reversals),
-            ("twist_param", &mut self.twist_param),
-            ("cruise", &mut self.cruise),
-            ("t_ramp", &mut self.t_ramp),
-            ("tail", &mut self.tail),
-            ("target_dt", &mut self.target_dt),
-            ("damping", &mut self.damping),
-            ("seeding", &mut self.seeding),
-            ("refine_seeding", &mut self.refine_seeding),
-            ("refine_radius", &mut self.refine_radius),
-            ("growth", &mut self.growth),
-            ("history_interval", &mut self.history_interval),
-            ("clamp", &mut self.clamp),
-        ]
-    }
-}
-
-impl Params {
-    /// Applies `CASE.KEY=VALUE` (dimensionless, in the units documented on the field).
-    pub fn set(&mut self, assignment: &str) -> Result<(), InputError> {
-        let item = format!("--param {}", crate::error::echo(assignment));
-        let bad = |m: String| InputError::new("<command line>", &item, m);
-        let (key, value) = assignment
-            .split_once('=')
-            .ok_or_else(|| bad("expected CASE.KEY=VALUE".into()))?;
-        let (case, field) = key
-            .trim()
-            .split_once('.')
-            .ok_or_else(|| bad("expected CASE.KEY=VALUE".into()))?;
-        let value: f64 = value
-            .trim()
-            .parse()
-            .ok()
-            .filter(|v: &f64| v.is_finite())
-            .ok_or_else(|| bad(format!("'{}' is not a finite number", value.trim())))?;
-        let mut fields = match case {
-            "hertz" => self.hertz.fields(),
-            "mindlin" => self.mindlin.fields(),
-            "mindlin_cyclic" => self.mindlin_cyclic.fields(),
-            "torsion" => self.torsion.fields(),
-            "rolling" => self.rolling.fields(),
-            "thornton_walls" => self.thornton_walls.fields(),
-            "thornton" => self.thornton.fields(),
-            "hertz_ellipsoid" => self.hertz_ellipsoid.fields(),
-            other => {
-                return Err(bad(format!(
-                    "unknown case '{other}' (known: {})",
-                    super::CASE_NAMES.join(", ")
-                )))
-            }
-        };
-        let names: Vec<&str> = fields.iter().map(|f| f.0).collect();
-        let names = names.join(", ");
-        let slot = fields
-            .iter_mut()
-            .find(|f| f.0 == field.trim())
-            .ok_or_else(|| bad(format!("unknown parameter (known: {names})")))?;
-        *slot.1 = value;
-        Ok(())
-    }
-}
-
-/// `x` in C/Python `%.{prec}e` style (`7.500000000e-07`): a sign and two exponent digits.
-fn sci(x: f64, prec: usize) -> String {
-    let s = format!("{x:.prec$e}");
-    match s.split_once('e') {
-        Some((mant, exp)) => {
-            let e: i32 = exp.parse().unwrap_or(0);
-            format!("{mant}e{}{:02}", if e < 0 { '-' } else { '+' }, e.abs())
-        }
-        None => s,
-    }
-}
-
-/// Points of the raised-cosine ramps.
-const RAMP_POINTS: usize = 8;
-
-type Points = Vec<(f64, f64)>;
-
-/// Velocity-time points moving `distance` (signed) from t0 at speed `vmax`: raised-cosine
-/// ramps of duration `ramp` up and down, constant speed between. Returns (points, end time).
-fn trapezoid(
-    t0: f64,
-    distance: f64,
-    vmax: f64,
-    ramp: f64,
-    what: &str,
-) -> Result<(Points, f64), String> {
-    let v = vmax.copysign(distance);
-    // each raised-cosine ramp covers v·ramp/2
-    let cruise = distance.abs() / vmax - ramp;
-    if !(cruise > 0.0 && ramp >= 0.0) {
-        return Err(format!(
-            "{what}: the motion ({} over ramps of {} s at {}) is too short for its ramps",
-            num(distance),
-            num(ramp),
-            num(vmax)
-        ));
-    }
-    let n = RAMP_POINTS as f64;
-    let mut pts: Points = (0..=RAMP_POINTS)
-        .map(|k| {
-            let k = k as f64;
-            (
-                t0 + ramp * k / n,
-                v * 0.5 * (1.0 - (std::f64::consts::PI * k / n).cos()),
-            )
-        })
-        .collect();
-    let t2 = t0 + ramp + cruise;
-    pts.extend((0..=RAMP_POINTS).map(|k| {
-        let k = k as f64;
-        (
-            t2 + ramp * k / n,
-            v * 0.5 * (1.0 + (std::f64::consts::PI * k / n).cos()),
-        )
-    }));
-    Ok((pts, t2 + ramp))
-}
-
-fn fmt_hist(points: &[(f64, f64)], axis: usize) -> String {
-    let times: Vec<String> = points.iter().map(|p| sci(p.0, 9)).collect();
-    let values: Vec<String> = points
-        .iter()
-        .map(|p| {
-            let mut v = [0.0; 3];
-            v[axis] = p.1;
-            format!("[{}, {}, {}]", sci(v[0], 6), sci(v[1], 6), sci(v[2], 6))
-        })
-        .collect();
-    format!(
-        "{{ times = [{}], values = [{}] }}",
-        times.join(", "),
-        values.join(", ")
-    )
-}
-
-/// Piecewise-linear value of a velocity history at t (held constant outside).
-fn value_at(pts: &[(f64, f64)], t: f64) -> f64 {
-    if t <= pts[0].0 {
-        return pts[0].1;
-    }
-    for w in pts.windows(2) {
-        let ((t0, v0), (t1, v1)) = (w[0], w[1]);
-        if t0 <= t && t <= t1 {
-            return if t1 > t0 {
-                v0 + (v1 - v0) * (t - t0) / (t1 - t0)
-            } else {
-                v1
-            };
-        }
-    }
-    pts[pts.len() - 1].1
-}
-
-/// Normal (z) and tangential (x) velocity histories on one time base.
-fn merge(z: &[(f64, f64)], x: &[(f64, f64)]) -> String {
-    let mut times: Vec<f64> = z.iter().chain(x.iter()).map(|p| p.0).collect();
-    times.sort_by(f64::total_cmp);
-    times.dedup();
-    let ts: Vec<String> = times.iter().map(|&t| sci(t, 9)).collect();
-    let vs: Vec<String> = times
-        .iter()
-        .map(|&t| {
-            format!(
-                "[{}, 0.0, {}]",
-                sci(value_at(x, t), 6),
-                sci(value_at(z, t), 6)
-            )
-        })
-        .collect();
-    format!(
-        "{{ times = [{}], values = [{}] }}",
-        ts.join(", "),
-        vs.join(", ")
-    )
-}
-
-fn invalid(inputs: &SceneInputs, case: &str, message: String) -> InputError {
+pub(super) fn invalid(inputs: &SceneInputs, case: &str, message: String) -> InputError {
     InputError::new(
         &inputs.file,
         format!("validation case {case}"),
@@ -733,97 +273,6 @@ fn invalid(inputs: &SceneInputs, case: &str, message: String) -> InputError {
 }
 
 /// Plate speed: raised-cosine ramp to `v_plate`, then constant; the plates start `gap`
-/// away from the poles. Returns (velocity points, duration, description).
-fn plate_ramp(
-    inputs: &SceneInputs,
-    p: &HertzParams,
-    v_plate: f64,
-    ramp: f64,
-    gap: f64,
-    delta_end: f64,
-) -> Result<(Points, f64, String), InputError> {
-    let (up, travel_ramp): (Points, f64) = if ramp > 0.0 {
-        let n = RAMP_POINTS as f64;
-        (
-            (0..=RAMP_POINTS)
-                .map(|k| {
-                    let k = k as f64;
-                    (
-                        ramp * k / n,
-                        v_plate * 0.5 * (1.0 - (std::f64::consts::PI * k / n).cos()),
-                    )
-                })
-                .collect(),
-            0.5 * v_plate * ramp,
-        )
-    } else {
-        (vec![(0.0, v_plate)], 0.0)
-    };
-    let duration = ramp + (gap + delta_end - travel_ramp) / v_plate;
-    if duration <= ramp {
-        return Err(invalid(
-            inputs,
-            "hertz",
-            "the plate travel ends inside the speed ramp".into(),
-        ));
-    }
-    let motion = if ramp > 0.0 {
-        format!(
-            "raised-cosine ramp to {:.4} m/s = {:.3e} c_p over {:.3} µs, then constant",
-            v_plate,
-            p.v_plate,
-            ramp * 1e6
-        )
-    } else {
-        format!(
-            "constant {v_plate:.4} m/s = {:.3e} c_p from t = 0",
-            p.v_plate
-        )
-    };
-    Ok((up, duration, motion))
-}
-
-/// Points of the exponential plate speed.
-const EXPONENTIAL_POINTS: usize = 48;
-
-/// Exponential drive: δ(t) = δ0 (e^{t/τ} − 1) from first touch at t = 0 (no gap), speed
-/// sampled piecewise linearly. Returns (velocity points, duration, description).
-fn plate_exponential(
-    inputs: &SceneInputs,
-    p: &HertzParams,
-    delta_end: f64,
-) -> Result<(Points, f64, String), InputError> {
-    let u = inputs.units();
-    let (tau, delta0) = (p.tau * u.time, p.delta0 * u.length);
-    if !(delta0 > 0.0 && delta0 < delta_end && p.gap == 0.0) {
-        return Err(invalid(
-            inputs,
-            "hertz",
-            "the exponential drive needs 0 < delta0 < a_end² and gap = 0".into(),
-        ));
-    }
-    let duration = tau * (1.0 + delta_end / delta0).ln();
-    let n = EXPONENTIAL_POINTS as f64;
-    // the piecewise-linear speed overestimates the travel by ≈ (Δt/τ)²/12 (0.1 % with the
-    // defaults): the plates reach δ_end a little before the end of the duration
-    let up: Points = (0..=EXPONENTIAL_POINTS)
-        .map(|k| {
-            let t = duration * k as f64 / n;
-            (t, delta0 / tau * (t / tau).exp())
-        })
-        .collect();
-    let motion = format!(
-        "exponential, δ = δ0 (e^(t/τ) − 1), τ = {:.4} µs = {:.4} R/c_p, δ0 = {:.4} µm,\n\
-         # from {:.3e} to {:.4} m/s",
-        tau * 1e6,
-        p.tau,
-        delta0 * 1e6,
-        delta0 / tau,
-        (delta_end + delta0) / tau
-    );
-    Ok((up, duration, motion))
-}
-
 /// The Hertz scene for the given material and radius.
 pub fn hertz(inputs: &SceneInputs, p: &HertzParams) -> Result<String, InputError> {
     let u = inputs.units();
@@ -875,7 +324,7 @@ pub fn hertz(inputs: &SceneInputs, p: &HertzParams) -> Result<String, InputError
 #
 # How to run:  mufe validate hertz            (sweep of meshing ratios, plots, JSON)
 #              mufe run jobs/validation/hertz.toml --out out/hertz   (one run)
-# Generated by `mufe validate --write-scenes DIR` (src/validate/scenes.rs, edit there) for
+# Generated by `mufe validate --write-scenes DIR` (src/validate/scenes/, edit there) for
 # the material and radius below; `mufe validate` regenerates the scene from the material,
 # radius and friction of this file (after --set), with drives, times and meshes scaled by
 # R and R/c_p. Meshing: fine seeding only around the two poles (refine[0], refine[1]);
@@ -1040,7 +489,7 @@ pub fn two_sphere(
 #
 # How to run:  mufe validate {name}          (sweep of meshing ratios, plots, JSON)
 #              mufe run jobs/validation/{name}.toml --out out/{name}
-# Generated by `mufe validate --write-scenes DIR` (src/validate/scenes.rs, edit there) for
+# Generated by `mufe validate --write-scenes DIR` (src/validate/scenes/, edit there) for
 # the material, radius and friction below; `mufe validate` regenerates the scene from
 # those of this file (after --set), with drives, times and meshes scaled by R, R/c_p and
 # δt,max. Normal force target N = {force:.4} N (a/R = {a_over_r:.4}, contact radius
@@ -1161,10 +610,10 @@ mod tests {
     #[test]
     fn shipped_scenes_are_the_generator_output_for_the_paper_glass() {
         let shipped = [
-            ("hertz", super::super::hertz::SCENE),
-            ("mindlin", super::super::two_sphere::MINDLIN_SCENE),
-            ("torsion", super::super::two_sphere::TORSION_SCENE),
-            ("rolling", super::super::two_sphere::ROLLING_SCENE),
+            ("hertz", crate::validate::hertz::SCENE),
+            ("mindlin", crate::validate::two_sphere::MINDLIN_SCENE),
+            ("torsion", crate::validate::two_sphere::TORSION_SCENE),
+            ("rolling", crate::validate::two_sphere::ROLLING_SCENE),
         ];
         for (name, text) in shipped {
             let generated = case_scene(name, &SceneInputs::paper(), &Params::default()).unwrap();
@@ -1292,7 +741,7 @@ mod tests {
     fn the_material_law_and_other_material_fields_are_carried() {
         let loaded = parse_scene(
             "hertz",
-            super::super::hertz::SCENE,
+            crate::validate::hertz::SCENE,
             &["materials.glass.law=\"corotational\"".to_string()],
         )
         .unwrap();
@@ -1328,7 +777,7 @@ mod tests {
     fn a_tangential_case_without_friction_is_an_input_error() {
         let loaded = parse_scene(
             "jobs/validation/mindlin.toml",
-            super::super::two_sphere::MINDLIN_SCENE,
+            crate::validate::two_sphere::MINDLIN_SCENE,
             &["contact.friction=0".to_string()],
         )
         .unwrap();
