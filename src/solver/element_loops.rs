@@ -524,8 +524,8 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
 }
 
 /// The element loop of a J2 material: `T::WIDTH` elements per pass with lanes `T` wider
-/// than one ([`tet_forces_plastic_lanes`]), the rest one by one. A state is written back
-/// only where the step changed it.
+/// than one ([`plastic_return_lanes`], the states stored, then the forces), the rest one
+/// by one. A state is written back only where the step changed it.
 ///
 /// # Safety
 /// As [`evaluate_chunk`]; the CPU must support the instructions of `T`.
