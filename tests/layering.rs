@@ -1,7 +1,8 @@
 //! The crate's modules depend one way (docs/ARCHITECTURE.md §1): no import cycle between
 //! source files or between top-level modules, and the lower layers never reach up.
 //! Reads every `crate::…`/`super::…` path in `src/` (up to a file's `#[cfg(test)]`
-//! module, where tests may use any layer) and resolves it to the file that defines it.
+//! module, where tests may use any layer; a unit-test module in a file of its own is
+//! skipped whole) and resolves it to the file that defines it.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -15,6 +16,34 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
             out.push(p);
         }
     }
+}
+
+/// The files of unit-test modules declared on their own (`#[cfg(test)] mod tests;`): test
+/// code, which may use any layer, like an inline `#[cfg(test)]` module.
+fn unit_test_files(files: &[PathBuf]) -> BTreeSet<PathBuf> {
+    let mut out = BTreeSet::new();
+    for f in files {
+        let text = std::fs::read_to_string(f).unwrap();
+        // a `mod.rs` or `lib.rs` holds its submodules beside it, `x.rs` in `x/`
+        let dir = match f.file_stem().and_then(|s| s.to_str()) {
+            Some("mod" | "lib") => f.parent().unwrap().to_path_buf(),
+            _ => f.with_extension(""),
+        };
+        for after in text.split("#[cfg(test)]").skip(1) {
+            let Some(name) = after
+                .trim_start()
+                .strip_prefix("mod ")
+                .and_then(|rest| rest.split_once(';'))
+                .map(|(name, _)| name.trim())
+                .filter(|name| name.chars().all(|c| c.is_alphanumeric() || c == '_'))
+            else {
+                continue;
+            };
+            out.insert(dir.join(format!("{name}.rs")));
+            out.insert(dir.join(name).join("mod.rs"));
+        }
+    }
+    out
 }
 
 /// Module path of a file relative to `src` (`solver/step.rs` → [solver, step]).
@@ -101,6 +130,8 @@ fn graph() -> Graph {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = Vec::new();
     rust_files(&src, &mut files);
+    let unit_tests = unit_test_files(&files);
+    files.retain(|f| !unit_tests.contains(f));
     let mut g = Graph {
         files: BTreeMap::new(),
         modules: BTreeMap::new(),
