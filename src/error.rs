@@ -136,6 +136,17 @@ fn readable(s: &str, max_total: usize) -> String {
 
 impl std::error::Error for InputError {}
 
+/// Writes `line` and a newline to stderr in one `write` call.
+///
+/// `eprintln!` writes each piece of its format separately, so the lines of two MPI ranks
+/// reporting at once come out interleaved mid-word when they share a pipe; a single write
+/// of at most `PIPE_BUF` (4 KiB) bytes is atomic, and a reported line is far shorter.
+pub fn report_line(line: impl std::fmt::Display) {
+    use std::io::Write;
+    let whole = format!("{line}\n");
+    let _ = std::io::stderr().lock().write_all(whole.as_bytes());
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

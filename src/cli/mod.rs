@@ -231,18 +231,18 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> i32
                 let _ = e.print();
                 return 0;
             }
-            eprintln!("error: {}", clap_error(&e));
+            crate::error::report_line(format_args!("error: {}", clap_error(&e)));
             return 2;
         }
     };
     match dispatch(cli) {
         Ok(()) => 0,
         Err(e @ MufeError::Stopped { .. }) => {
-            eprintln!("stopped: {e}");
+            crate::error::report_line(format_args!("stopped: {e}"));
             e.exit_code()
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            crate::error::report_line(format_args!("error: {e}"));
             e.exit_code()
         }
     }

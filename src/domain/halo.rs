@@ -499,12 +499,12 @@ impl<'d> Halo<'d> {
             self.trimmed_once = true;
             if self.dormant_drift > self.drift_limit && !self.warned {
                 self.warned = true;
-                eprintln!(
+                crate::error::report_line(format_args!(
                     "rank {}: warning: ghost nodes outside the trimmed halo moved {:.3e} m between two balance checks (more than a quarter of the ghost margin, {:.3e} m); a contact may have been missed: lower parallel.check_interval or set parallel.trim_ghosts = false",
                     self.domain.rank(),
                     self.dormant_drift,
                     self.drift_limit
-                );
+                ));
             }
         }
         self.buffers = Some(buffers);

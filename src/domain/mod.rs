@@ -334,7 +334,7 @@ fn install_abort_hook(rank: usize) {
             .location()
             .map(|l| format!(" at {}:{}:{}", l.file(), l.line(), l.column()))
             .unwrap_or_default();
-        eprintln!("rank {rank}: panicked{location}: {message}");
+        crate::error::report_line(format_args!("rank {rank}: panicked{location}: {message}"));
         // The default hook adds the thread name and the backtrace hint.
         previous(info);
         // After MPI_Finalize (Domain dropped) an abort is neither allowed nor needed: the

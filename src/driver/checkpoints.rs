@@ -344,10 +344,10 @@ pub fn load_restart(
                         Err(e) => e.error.to_string(),
                         Ok(_) => format!("unreadable on rank {r}"),
                     };
-                    eprintln!(
+                    crate::error::report_line(format_args!(
                         "warning: skipping damaged checkpoint {}: {why}",
                         path.display()
-                    );
+                    ));
                 }
             }
             (Err(e), _) => return Err(e.error),

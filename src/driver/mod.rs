@@ -299,7 +299,10 @@ impl Run<'_, '_> {
         while self.solver.state.step < last_step && !self.solver.state.stages.finished {
             if let Err(e) = self.solver.step_with(&mut self.hooks) {
                 if self.domain.size() > 1 {
-                    eprintln!("rank {}: error: {e}", self.domain.rank());
+                    crate::error::report_line(format_args!(
+                        "rank {}: error: {e}",
+                        self.domain.rank()
+                    ));
                     self.domain.abort(e.exit_code().max(1));
                 }
                 return Ok(LoopEnd::Failed(e));

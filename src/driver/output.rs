@@ -255,11 +255,11 @@ impl<'a, 'd> Output<'a, 'd> {
             );
         }
         if all_bad > 0 {
-            eprintln!(
+            crate::error::report_line(format_args!(
                 "warning: {}: {all_bad} of {} dataset writes fell back to independent MPI-IO",
                 self.writer.path().display(),
                 all_ok + all_bad
-            );
+            ));
         }
     }
 
@@ -314,7 +314,7 @@ impl<'a, 'd> Output<'a, 'd> {
                 },
             );
             if let Err(e) = written {
-                eprintln!("warning: {}: {e}", path.display());
+                crate::error::report_line(format_args!("warning: {}: {e}", path.display()));
             }
         }
         Ok(())

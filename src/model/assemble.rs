@@ -46,10 +46,10 @@ pub fn premesh_surfaces(loaded: &LoadedScene) {
     let start = std::time::Instant::now();
     let meshed = mesh::import::premesh_in_workers(&specs, workers);
     if meshed > 0 {
-        eprintln!(
+        crate::error::report_line(format_args!(
             "note: meshed {meshed} distinct surface shapes in up to {workers} worker processes ({:.2} s)",
             start.elapsed().as_secs_f64()
-        );
+        ));
     }
 }
 

@@ -304,7 +304,7 @@ pub fn prepare(spec: &SurfaceSpec, report: bool) -> Result<(Prepared, Vec<u8>), 
             if spec.repair {
                 let r = checks::repair(&mut s);
                 if report && !r.is_empty() {
-                    eprintln!("note: {}: repaired: {r}", spec.file);
+                    crate::error::report_line(format_args!("note: {}: repaired: {r}", spec.file));
                 }
                 // Drop the vertices merged away (TetGen would keep them as loose points).
                 s = formats::surface_from_soup(
@@ -551,10 +551,10 @@ fn fill(s: &Surface, spec: &SurfaceSpec) -> Result<TetMesh, MeshError> {
             Ok(()) => remeshed,
             Err((place, defect)) => {
                 // never expected; the file's own facets are a valid surface to mesh
-                eprintln!(
+                crate::error::report_line(format_args!(
                     "warning: {}: remeshing gave an invalid surface ({place}: {defect}); meshing the file's facets subdivided instead",
                     spec.file
-                );
+                ));
                 subdivided()?
             }
         }
