@@ -19,7 +19,7 @@
 //! (L/c_p)²/T² effect.
 
 use super::record::{recorded_mesh, CaseOutput, Recorder};
-use super::runner::{load_case_scene, Case, CaseOutcome, Probe};
+use super::runner::{drive_scene_header, load_case_scene, Case, CaseOutcome, Probe};
 use super::scenes::Params;
 use crate::error::{MufeError, Result};
 use crate::io::plot::{Plot, Scale, Series};
@@ -222,11 +222,19 @@ impl Case for PlasticCubeCase {
         SCENE
     }
 
-    /// The scene at the default meshing ratio (the mesh does not change the answer).
+    /// The run scene at the default meshing ratio (the mesh does not change the answer).
     fn generated_scene(&self, overrides: &[String], _params: &Params) -> Result<String> {
         let base = load_case_scene("plastic_cube", SCENE, overrides)?;
         let setup = Self::setup(&base.scene)?;
-        Ok(Self::scene_text(&setup, 2).0)
+        Ok(
+            drive_scene_header("plastic_cube", "the material and the cube", 0.5)
+                + &Self::scene_text(&setup, 2).0,
+        )
+    }
+
+    /// jobs/validation/plastic_cube.toml is the input the run scene is built from.
+    fn generated_file_name(&self) -> String {
+        "plastic_cube_drive.toml".to_string()
     }
 
     /// MR = cell edge / cube edge.

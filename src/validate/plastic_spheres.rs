@@ -45,7 +45,9 @@
 //! units above; `stop` ends the run after that many R/c_p, for first-yield checks).
 
 use super::record::{recorded_mesh, CaseOutput, Recorder};
-use super::runner::{deformation_kinetic_energy, load_case_scene, Case, CaseOutcome};
+use super::runner::{
+    deformation_kinetic_energy, drive_scene_header, load_case_scene, Case, CaseOutcome,
+};
 use crate::error::{InputError, MufeError, Result};
 use crate::io::plot::{Plot, Scale, Series};
 use crate::material::ElasticParameters;
@@ -547,7 +549,7 @@ impl Case for PlasticSpheresCase {
         SCENE
     }
 
-    /// The scene at the quick meshing ratio.
+    /// The run scene at the quick meshing ratio.
     fn generated_scene(
         &self,
         overrides: &[String],
@@ -556,7 +558,16 @@ impl Case for PlasticSpheresCase {
         let base = load_case_scene("plastic_spheres", SCENE, overrides)?;
         let setup = Self::setup(&base.scene)?;
         let params = Params::from_env()?;
-        Ok(Self::scene_text(&setup, &params, self.default_mrs(true)[0]).0)
+        let mr = self.default_mrs(true)[0];
+        Ok(
+            drive_scene_header("plastic_spheres", "the material and the spheres", mr)
+                + &Self::scene_text(&setup, &params, mr).0,
+        )
+    }
+
+    /// jobs/validation/plastic_spheres.toml is the input the run scene is built from.
+    fn generated_file_name(&self) -> String {
+        "plastic_spheres_drive.toml".to_string()
     }
 
     /// MR = seeding at the poles / ac.
