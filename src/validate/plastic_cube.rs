@@ -19,7 +19,9 @@
 //! (L/c_p)²/T² effect.
 
 use super::record::{recorded_mesh, CaseOutput, Recorder};
-use super::runner::{drive_scene_header, load_case_scene, Case, CaseOutcome, Probe};
+use super::runner::{
+    drive_file_name, drive_scene_header, load_case_scene, Case, CaseOutcome, Probe,
+};
 use super::scenes::Params;
 use crate::error::{MufeError, Result};
 use crate::io::plot::{Plot, Scale, Series};
@@ -234,7 +236,7 @@ impl Case for PlasticCubeCase {
 
     /// jobs/validation/plastic_cube.toml is the input the run scene is built from.
     fn generated_file_name(&self) -> String {
-        "plastic_cube_drive.toml".to_string()
+        drive_file_name("plastic_cube")
     }
 
     /// MR = cell edge / cube edge.

@@ -46,7 +46,8 @@
 
 use super::record::{recorded_mesh, CaseOutput, Recorder};
 use super::runner::{
-    deformation_kinetic_energy, drive_scene_header, load_case_scene, Case, CaseOutcome,
+    deformation_kinetic_energy, drive_file_name, drive_scene_header, load_case_scene, Case,
+    CaseOutcome,
 };
 use crate::error::{InputError, MufeError, Result};
 use crate::io::plot::{Plot, Scale, Series};
@@ -567,7 +568,7 @@ impl Case for PlasticSpheresCase {
 
     /// jobs/validation/plastic_spheres.toml is the input the run scene is built from.
     fn generated_file_name(&self) -> String {
-        "plastic_spheres_drive.toml".to_string()
+        drive_file_name("plastic_spheres")
     }
 
     /// MR = seeding at the poles / ac.
