@@ -7,6 +7,7 @@ pub mod elliptic_hertz;
 pub mod hertz;
 pub mod hertz_ellipsoid;
 pub mod mindlin_cyclic;
+pub mod plastic_contact;
 pub mod plastic_cube;
 pub mod plastic_spheres;
 pub mod record;
