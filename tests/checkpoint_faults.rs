@@ -11,7 +11,7 @@
 //!   a readable `results.h5`, and the restart ends equal to the uninterrupted run;
 //! - a changed scene is refused naming the first difference (output settings and the end
 //!   time may change), and so is a `results.h5` of another format version; `--branch`
-//!   starts a new run from the checkpoint with other physics.
+//!   starts a new run from the checkpoint with other physics, but not with other grains.
 
 #[path = "common/mpi_launch.rs"]
 mod mpi_launch;
@@ -49,10 +49,14 @@ fn dir(name: &str) -> PathBuf {
 
 /// `mufe run ASSEMBLY --out OUT ARGS PLASTIC` on `ranks` ranks (1: under mpirun too).
 fn mufe(ranks: usize, out: &Path, args: &[&str]) -> Output {
-    let s = scene();
+    mufe_with_scene(ranks, &scene(), out, args)
+}
+
+/// `mufe run SCENE --out OUT ARGS PLASTIC` on `ranks` ranks.
+fn mufe_with_scene(ranks: usize, s: &str, out: &Path, args: &[&str]) -> Output {
     let mut all = vec![
         "run",
-        s.as_str(),
+        s,
         "--threads",
         "1",
         "--quiet",
@@ -222,6 +226,28 @@ fn a_changed_scene_is_refused_and_a_branch_starts_a_new_run() {
         err.contains("first difference: contact.friction = 0.3") && err.contains("--branch"),
         "{err}"
     );
+    // a branch keeps the grains: a scene without the last one is refused, on the
+    // checkpoint's rank count and on another, naming the grain counts
+    let text = std::fs::read_to_string(scene()).unwrap();
+    let last = text.rfind("[[grains]]").unwrap();
+    let fewer = d.with_file_name("assembly_26_grains.toml");
+    std::fs::write(&fewer, &text[..last]).unwrap();
+    for ranks in [2, 1] {
+        let out = dir(&format!("branch_fewer_grains_{ranks}"));
+        let o = mufe_with_scene(
+            ranks,
+            fewer.to_str().unwrap(),
+            &out,
+            &["--restart", from, "--branch", "--max-steps", STEPS],
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{ranks} ranks: {err}");
+        assert!(
+            err.contains("grains: the checkpoint holds 27 grains")
+                && err.contains("has 26; a restart or branch needs the same grains"),
+            "{ranks} ranks: {err}"
+        );
+    }
     // a results file of another layout version is not continued
     let other = dir("other_results_version");
     copy_dir(&d, &other);

@@ -82,8 +82,9 @@
 //! by grain, slave nodes ascending). 1 and N threads give bitwise identical results.
 //!
 //! # Use from the solver (see `solver::step`)
-//! 1. [`evaluate`] at x_n, v_{n−½} (stage `contact`), before internal forces;
-//! 2. [`add_forces`] after internal forces have been written into the force buffer;
+//! 1. [`evaluate`] at x_n, v_{n−½} (stage `contact`; the step calls `evaluate_with` with
+//!    the ranks' rebuild decision), after the internal forces;
+//! 2. [`add_forces`] into the force buffer that holds the internal forces;
 //! 3. [`enforce_walls`] after v_{n+½} has been predicted and prescribed motions applied;
 //! 4. the ledger reads [`ContactState::friction_dissipation_total`],
 //!    [`ContactStats::energy`] and [`ContactState::wall_external_work`].

@@ -73,17 +73,18 @@ impl CheckpointSchedule {
 
     /// Whether a checkpoint is due after step `step` (`forced`: now, e.g. on a stop
     /// signal, unless this step's is written already). The wall-time decision is reduced
-    /// over ranks (clocks differ); `forced` must be the same on all ranks. All ranks must
-    /// call.
+    /// over ranks (clocks differ), every [`super::COLLECTIVE_CHECK_EVERY`] steps; `forced`
+    /// must be the same on all ranks. All ranks must call.
     pub fn due(&self, domain: &Domain, step: u64, forced: bool) -> bool {
         let by_steps = self.every_steps.is_some_and(|n| step.is_multiple_of(n));
+        let clock_read = domain.size() == 1 || step.is_multiple_of(super::COLLECTIVE_CHECK_EVERY);
         let by_time = match self.every_seconds {
-            Some(t) => {
+            Some(t) if clock_read => {
                 let mut elapsed = [self.last.elapsed().as_secs_f64()];
                 domain.max_in_place(&mut elapsed);
                 elapsed[0] >= t
             }
-            None => false,
+            _ => false,
         };
         (by_steps || by_time || forced) && self.last_step != Some(step)
     }
@@ -419,6 +420,23 @@ fn read_restart(
                 damaged: false,
             });
         }
+    }
+    // a branch may change the physics, not which grains there are: the grain packages
+    // are found by global id
+    let scene_grains = loaded.scene.grains.len() as u64;
+    if file.info.grains != scene_grains {
+        return Err(ReadError {
+            error: InputError::new(
+                &name,
+                "grains",
+                format!(
+                    "the checkpoint holds {} grains and the scene {} has {scene_grains}; a restart or branch needs the same grains",
+                    file.info.grains, loaded.path
+                ),
+            )
+            .into(),
+            damaged: false,
+        });
     }
     let parse_state = |bytes: Vec<u8>| -> std::result::Result<State, ReadError> {
         serde_json::from_slice(&bytes).map_err(|e| {

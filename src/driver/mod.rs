@@ -39,6 +39,11 @@ use rank::{build_rank_solver, partition_grains, RankHooks};
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// Steps between the time loop's own all-reduces (the stop signal, the wall-time
+/// checkpoint clock): each costs a network latency, which at cluster scale is a
+/// noticeable part of a step, while a signal or a clock can wait a few steps.
+pub const COLLECTIVE_CHECK_EVERY: u64 = 16;
+
 pub use history::{history_columns, history_row};
 pub use summary::{print_model_summary, print_representative_summary};
 
@@ -296,6 +301,7 @@ impl Run<'_, '_> {
         let check_interval = self.loaded.scene.parallel.check_interval;
         let mut reported_stages = self.solver.state.stages.done.len();
         let mut stages_kept = reported_stages;
+        let mut labelled_stage = None;
         while self.solver.state.step < last_step && !self.solver.state.stages.finished {
             if let Err(e) = self.solver.step_with(&mut self.hooks) {
                 if self.domain.size() > 1 {
@@ -309,7 +315,7 @@ impl Run<'_, '_> {
             }
             let n = self.solver.state.step;
             let t_out = Instant::now();
-            let stop = self.stop_signal();
+            let stop = self.stop_signal(n);
             let last = n == last_step || self.solver.state.stages.finished;
             output.after_step(&self.solver, last)?;
             let mut written = None;
@@ -339,12 +345,15 @@ impl Run<'_, '_> {
                         reported_stages = s.stages.done.len();
                     }
                     let i = s.stages.index.min(plan.stages.len() - 1);
-                    progress.set_label(&format!(
-                        "stage {}/{} {}",
-                        i + 1,
-                        plan.stages.len(),
-                        plan.stages[i].name
-                    ));
+                    if labelled_stage != Some(i) {
+                        labelled_stage = Some(i);
+                        progress.set_label(&format!(
+                            "stage {}/{} {}",
+                            i + 1,
+                            plan.stages.len(),
+                            plan.stages[i].name
+                        ));
+                    }
                     let fraction = plan.stage_fraction(&s.stages, s.time);
                     progress.update(fraction, n, s.time, || plan.waiting_on(&s.stages, s.time));
                 }
@@ -402,10 +411,15 @@ impl Run<'_, '_> {
     }
 
     /// A stop signal received by any rank (the largest signal number if several), the
-    /// same on all ranks. All ranks must call.
-    fn stop_signal(&self) -> Option<i32> {
+    /// same on all ranks. With several ranks it takes an all-reduce, so the ranks ask only
+    /// every [`COLLECTIVE_CHECK_EVERY`] steps: a signal then stops the run within that many
+    /// steps. All ranks must call.
+    fn stop_signal(&self, step: u64) -> Option<i32> {
         let mut s = [f64::from(stop_signal::received().unwrap_or(0))];
         if self.domain.size() > 1 {
+            if !step.is_multiple_of(COLLECTIVE_CHECK_EVERY) {
+                return None;
+            }
             self.domain.max_in_place(&mut s);
         }
         (s[0] > 0.0).then_some(s[0] as i32)

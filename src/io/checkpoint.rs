@@ -77,6 +77,8 @@ pub struct CheckpointInfo {
     pub step: u64,
     pub time: f64,
     pub ranks: u64,
+    /// Grains of the run (all ranks'), which a restart's scene must have too.
+    pub grains: u64,
     pub scene: String,
 }
 
@@ -295,6 +297,7 @@ impl CheckpointFile {
             step: u64_attr("step")?,
             time,
             ranks: u64_attr("ranks")?,
+            grains: u64_attr("grains")?,
             scene,
         };
         Ok(Self { file, name, info })

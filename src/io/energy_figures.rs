@@ -96,21 +96,33 @@ impl RunHistory {
                 "no rows: the run wrote no history".into(),
             ));
         }
+        // a job killed while it flushed its history can leave columns of other lengths
+        let rows = time.len();
+        let row_column = |name: &str| -> Result<Vec<f64>> {
+            let values = column(name)?;
+            if values.len() != rows {
+                return Err(bad(
+                    &format!("/history/{name}"),
+                    format!("has {} rows where /history/time has {rows}", values.len()),
+                ));
+            }
+            Ok(values)
+        };
         let stress_ratio = if file.dataset("history/stress_ratio").is_ok() {
-            Some(column("stress_ratio")?)
+            Some(row_column("stress_ratio")?)
         } else {
             None
         };
         Ok(Self {
             label: label.to_string(),
             time,
-            external_work: column("external_work")?,
-            kinetic: column("kinetic_energy")?,
-            recoverable: column("recoverable_strain_energy")?,
-            plastic: column("plastic_dissipation")?,
-            friction: column("friction_dissipation")?,
-            damping: column("damping_dissipation")?,
-            balance: column("energy_balance")?,
+            external_work: row_column("external_work")?,
+            kinetic: row_column("kinetic_energy")?,
+            recoverable: row_column("recoverable_strain_energy")?,
+            plastic: row_column("plastic_dissipation")?,
+            friction: row_column("friction_dissipation")?,
+            damping: row_column("damping_dissipation")?,
+            balance: row_column("energy_balance")?,
             stress_ratio,
         })
     }
@@ -371,6 +383,44 @@ mod tests {
         for p in &written {
             assert_eq!(&std::fs::read(p).unwrap()[1..4], b"PNG");
         }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_history_column_shorter_than_time_is_an_input_error_naming_it() {
+        let dir = std::env::temp_dir().join(format!("mufe_short_column_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("results.h5");
+        {
+            let file = hdf5::File::create(&path).unwrap();
+            let history = file.create_group("history").unwrap();
+            for name in [
+                "time",
+                "external_work",
+                "kinetic_energy",
+                "recoverable_strain_energy",
+                "plastic_dissipation",
+                "friction_dissipation",
+                "damping_dissipation",
+                "energy_balance",
+            ] {
+                // as a job killed in the middle of a flush leaves it
+                let rows = if name == "friction_dissipation" { 2 } else { 3 };
+                let values = vec![1.0f64; rows];
+                history
+                    .new_dataset_builder()
+                    .with_data(&values)
+                    .create(name)
+                    .unwrap();
+            }
+        }
+        let e = RunHistory::read(&path, "x").err().unwrap();
+        assert_eq!(e.exit_code(), 2);
+        let line = e.to_string();
+        assert!(
+            line.contains("/history/friction_dissipation: has 2 rows where /history/time has 3"),
+            "{line}"
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 

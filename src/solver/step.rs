@@ -1,6 +1,6 @@
 //! The explicit central-difference step as named, timed stages:
-//! contact (detection, grain–grain forces at x_n) → internal forces (+ contact forces)
-//! → boundary (prescribed motions; gravity and damping join a node's force wherever its
+//! internal forces (owned data only, overlapping the ghost exchange begun by the previous
+//! step) → contact (detection, grain–grain forces at x_n, added to the force) → boundary (prescribed motions; gravity and damping join a node's force wherever its
 //! v_{n+½} is read, `crate::kinematics`) → contact (kinematic walls on
 //! v_{n+½}; servo walls move to t_{n+1} from their force summed over ranks) → integrate
 //! → energy. Time in both contact parts is charged to `contact`; the ghost exchange to
@@ -29,7 +29,8 @@ use crate::model::periodic::CellKinematics;
 use crate::model::Model;
 
 /// What a step needs from other ranks. The serial implementation ([`Serial`]) does
-/// nothing; the MPI one lives in `crate::domain` (the only module that talks to MPI).
+/// nothing; the MPI one is `crate::driver::rank::RankHooks`, which calls `crate::domain`
+/// (the only module that talks to MPI).
 pub trait StepHooks {
     /// Completes the ghost update: ghost surface x_n and v_{n−½} from their owners.
     fn ghosts_in(&mut self, _x: &mut [[f64; 3]], _v: &mut [[f64; 3]]) -> Result<(), MufeError> {

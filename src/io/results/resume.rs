@@ -83,6 +83,15 @@ impl<'d> ResultsWriter<'d> {
                 .map(|k| values[k].clone())
                 .unwrap_or_default();
             let keep = steps.iter().take_while(|&&s| s < step as f64).count();
+            // every column reached the rows before the checkpoint (they were flushed
+            // before it was written); one that did not is a damaged file, not a panic
+            if let Some((c, v)) = columns.iter().zip(&values).find(|(_, v)| v.len() < keep) {
+                return Err(format!(
+                    "/history/{} has {} rows where /history/step has {keep} before the checkpoint: the file is damaged",
+                    c.name,
+                    v.len()
+                ));
+            }
             Ok((datasets, values, keep))
         })();
         agree(

@@ -174,7 +174,9 @@ fn read_msh(bytes: &[u8]) -> Result<Imported, ReadError> {
                     if b[2] != 0 {
                         return Err((format!("line {ln}"), "parametric nodes are not read".into()));
                     }
-                    let mut tags = Vec::with_capacity(b[3]);
+                    // the count is read from the file: it bounds nothing until the tags
+                    // are there (a damaged header must end in "ends early", not an abort)
+                    let mut tags = Vec::with_capacity(b[3].min(text.len()));
                     for _ in 0..b[3] {
                         let (ln, l) = next("a node tag")?;
                         tags.push(numbers::<usize>(ln, l, 1)?[0]);
@@ -453,6 +455,13 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.0, "line 5");
+        // a node block that claims more nodes than memory can hold ends early, no abort
+        let e = read(
+            Format::Msh,
+            b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n2 1 0 100000000000000000\n1\n",
+        )
+        .unwrap_err();
+        assert!(e.1.contains("ends early, expected a node tag"), "{e:?}");
         let mut m = Vec::new();
         write_msh_volume(
             &TetMesh {
