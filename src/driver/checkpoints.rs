@@ -77,7 +77,7 @@ impl CheckpointSchedule {
     /// must be the same on all ranks. All ranks must call.
     pub fn due(&self, domain: &Domain, step: u64, forced: bool) -> bool {
         let by_steps = self.every_steps.is_some_and(|n| step.is_multiple_of(n));
-        let clock_read = domain.size() == 1 || step.is_multiple_of(super::COLLECTIVE_CHECK_EVERY);
+        let clock_read = super::loop_collective_due(domain, step);
         let by_time = match self.every_seconds {
             Some(t) if clock_read => {
                 let mut elapsed = [self.last.elapsed().as_secs_f64()];

@@ -44,6 +44,12 @@ use std::time::Instant;
 /// noticeable part of a step, while a signal or a clock can wait a few steps.
 pub const COLLECTIVE_CHECK_EVERY: u64 = 16;
 
+/// Whether the time loop's own all-reduces run after `step`: every step on one rank (no
+/// collective), every [`COLLECTIVE_CHECK_EVERY`] steps on several.
+fn loop_collective_due(domain: &Domain, step: u64) -> bool {
+    domain.size() == 1 || step.is_multiple_of(COLLECTIVE_CHECK_EVERY)
+}
+
 pub use history::{history_columns, history_row};
 pub use summary::{print_model_summary, print_representative_summary};
 
@@ -416,10 +422,10 @@ impl Run<'_, '_> {
     /// steps. All ranks must call.
     fn stop_signal(&self, step: u64) -> Option<i32> {
         let mut s = [f64::from(stop_signal::received().unwrap_or(0))];
+        if !loop_collective_due(self.domain, step) {
+            return None;
+        }
         if self.domain.size() > 1 {
-            if !step.is_multiple_of(COLLECTIVE_CHECK_EVERY) {
-                return None;
-            }
             self.domain.max_in_place(&mut s);
         }
         (s[0] > 0.0).then_some(s[0] as i32)

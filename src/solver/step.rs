@@ -1,6 +1,7 @@
 //! The explicit central-difference step as named, timed stages:
 //! internal forces (owned data only, overlapping the ghost exchange begun by the previous
-//! step) → contact (detection, grain–grain forces at x_n, added to the force) → boundary (prescribed motions; gravity and damping join a node's force wherever its
+//! step) → contact (detection, grain–grain forces at x_n, added to the force)
+//! → boundary (prescribed motions; gravity and damping join a node's force wherever its
 //! v_{n+½} is read, `crate::kinematics`) → contact (kinematic walls on
 //! v_{n+½}; servo walls move to t_{n+1} from their force summed over ranks) → integrate
 //! → energy. Time in both contact parts is charged to `contact`; the ghost exchange to
