@@ -279,13 +279,20 @@ fn assert_last_frame_equal(a: &Path, b: &Path, label: &str) {
 /// The trimmed halo (default) against whole ghost surfaces, 2 ranks, on
 /// `jobs/tests/assembly_fine.toml` (8 uniformly fine spheres meeting across the cut),
 /// contact zones re-aimed every 25 steps: the same history and last frame bit for bit,
-/// fewer bytes sent.
+/// fewer bytes sent, also after a restart.
 #[test]
 fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("jobs/tests/assembly_fine.toml");
     let go = |name: &str, trim: &str| {
         let trim = format!("parallel.trim_ghosts={trim}");
-        let every = ["--set", "parallel.check_interval=25", "--set", &trim];
+        let every = [
+            "--set",
+            "parallel.check_interval=25",
+            "--set",
+            &trim,
+            "--checkpoint-every",
+            "600",
+        ];
         let (path, o) = run_scene(&scene, "1200", 2, 1, name, &every);
         mpi_launch::assert_success(&o);
         (path, o)
@@ -349,6 +356,53 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         assert!(
             t[2 + r] < t[4 + r] && t[4 + r] < t[6 + r],
             "rank {r}: {t:?}"
+        );
+    }
+    // Restarted half-way, the trimmed run restores its contact lists (this scene rebuilds
+    // them only at step 0) and tells the owners what they read on its first step: it sends
+    // what the uninterrupted run sends, not whole zones, and continues it bit for bit.
+    let resumed = out_dir("trimmed_resumed");
+    std::fs::create_dir_all(resumed.join("checkpoints")).unwrap();
+    let from = trimmed.parent().unwrap();
+    for file in ["results.h5", "checkpoints/step_000000000600.h5"] {
+        std::fs::copy(from.join(file), resumed.join(file)).unwrap();
+    }
+    let (out_s, ckpt) = (
+        resumed.to_string_lossy().into_owned(),
+        resumed.join("checkpoints/step_000000000600.h5"),
+    );
+    let args = [
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        &out_s,
+        "--max-steps",
+        "1200",
+        "--threads",
+        "1",
+        "--restart",
+        ckpt.to_str().unwrap(),
+        "--set",
+        "parallel.check_interval=25",
+        "--set",
+        "parallel.trim_ghosts=true",
+    ];
+    let out_r = mpi_launch::run_mufe(2, &args, Duration::from_secs(240));
+    mpi_launch::assert_success(&out_r);
+    let r = numbers(&halo_line(&out_r));
+    for k in 0..2 {
+        assert!(
+            r[2 + k] == t[2 + k] && r[k] < 0.8 * r[4 + k],
+            "rank {k} after a restart: {r:?}, uninterrupted {t:?}"
+        );
+    }
+    for ((name, a), (_, b)) in history(&trimmed)
+        .iter()
+        .zip(&history(&resumed.join("results.h5")))
+    {
+        assert!(
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "/history/{name} differs after a restart"
         );
     }
     let (drift, limit) = (t[8], t[9]);

@@ -106,7 +106,7 @@ pub use crate::model::contact_layout::{
     DEFAULT_MARGIN_FRACTION, DEFAULT_PENALTY_FACTOR, NONE,
 };
 pub use overlap::check_initial_overlap;
-pub use reads::mark_nodes_the_lists_read;
+pub use reads::{mark_nodes_the_lists_read, NodeReadMarks};
 pub use walls::GrainWallForces;
 
 use crate::boundary::servo::ServoState;

@@ -12,12 +12,31 @@ use super::vertex_normals::fan_around;
 use super::{ContactModel, ContactScratch, NONE};
 use crate::model::Model;
 
-/// Marks in `read` (one flag per model node, cleared first) every node the lists in
-/// `scratch` let the narrow phase read (module docs). Runs at rebuilds only.
-pub fn mark_nodes_the_lists_read(model: &Model, scratch: &ContactScratch, read: &mut Vec<bool>) {
+/// Per model node: whether the contact lists read it, and the facet corners whose rings
+/// are added to it; kept between rebuilds so that marking allocates nothing once grown.
+#[derive(Debug, Default)]
+pub struct NodeReadMarks {
+    read: Vec<bool>,
+    corners: Vec<bool>,
+}
+
+impl NodeReadMarks {
+    /// One flag per model node: read by the lists of the last marking.
+    pub fn read(&self) -> &[bool] {
+        &self.read
+    }
+}
+
+/// Marks in `marks` (cleared first) every node the lists in `scratch` let the narrow
+/// phase read (module docs). Runs at rebuilds only.
+pub fn mark_nodes_the_lists_read(
+    model: &Model,
+    scratch: &ContactScratch,
+    marks: &mut NodeReadMarks,
+) {
     let lists = &scratch.lists;
     let cm = &model.contact;
-    mark_nodes_read_by(cm, &lists.entries, &lists.candidates, model.x0.len(), read);
+    mark_nodes_read_by(cm, &lists.entries, &lists.candidates, model.x0.len(), marks);
 }
 
 /// [`mark_nodes_the_lists_read`] for `entries` with their `candidates`, in a model of
@@ -27,11 +46,13 @@ fn mark_nodes_read_by(
     entries: &[Entry],
     candidates: &[u32],
     nodes: usize,
-    read: &mut Vec<bool>,
+    marks: &mut NodeReadMarks,
 ) {
-    read.clear();
-    read.resize(nodes, false);
-    let mut corners = vec![false; nodes];
+    let NodeReadMarks { read, corners } = marks;
+    for flags in [&mut *read, &mut *corners] {
+        flags.clear();
+        flags.resize(nodes, false);
+    }
     for e in entries {
         read[cm.node[e.slave as usize] as usize] = true;
         for &f in &candidates[e.start as usize..e.end as usize] {
@@ -44,7 +65,7 @@ fn mark_nodes_read_by(
             }
         }
     }
-    add_one_ring(cm, &corners, read);
+    add_one_ring(cm, corners, read);
 }
 
 /// Marks in `into` every node marked in `from` and its surface neighbours.
@@ -92,9 +113,9 @@ mod tests {
         let cm = &model.contact;
         let scratch = &mut solver.scratch.contact;
         let b = model.grains[1].nodes.clone();
-        let mut read = Vec::new();
-        mark_nodes_the_lists_read(model, scratch, &mut read);
-        let marked = read.iter().filter(|&&r| r).count();
+        let mut marks = NodeReadMarks::default();
+        mark_nodes_the_lists_read(model, scratch, &mut marks);
+        let marked = marks.read().iter().filter(|&&r| r).count();
         assert!(
             2 * marked < cm.node.len(),
             "{marked} of {} surface nodes read",
@@ -108,7 +129,7 @@ mod tests {
                 lists,
                 &lists.entries,
                 &x,
-                &read,
+                marks.read(),
                 motion,
             );
             assert!(active > 100, "{active} active evaluations");
@@ -141,10 +162,11 @@ mod tests {
         let mut active = 0;
         for e in lists.entries.iter().filter(in_contact) {
             let one = std::slice::from_ref(e);
-            mark_nodes_read_by(cm, one, &lists.candidates, x.len(), &mut read);
+            mark_nodes_read_by(cm, one, &lists.candidates, x.len(), &mut marks);
             let motion = (skin, 0.5 * seeding, b.clone());
+            let read = marks.read();
             active +=
-                evaluations_agree_without_the_unread_nodes(model, lists, one, &x, &read, motion);
+                evaluations_agree_without_the_unread_nodes(model, lists, one, &x, read, motion);
         }
         assert!(active > 100, "{active} active evaluations");
     }

@@ -213,6 +213,8 @@ pub struct Halo<'d> {
     stepped_sends: Vec<Vec<u32>>,
     stepped_receives: Vec<Vec<u32>>,
     read_exchange: Exchange,
+    /// The read-flag exchange's buffers between rebuilds.
+    read_buffers: Option<ExchangeBuffers>,
     /// The next exchange sends every node (after a plan or a retarget).
     full_next: bool,
     full_in_flight: bool,
@@ -256,6 +258,7 @@ impl<'d> Halo<'d> {
             stepped_sends: vec![Vec::new(); ns],
             stepped_receives: vec![Vec::new(); nr],
             read_exchange: Exchange::new(READS_TAG),
+            read_buffers: None,
             full_next: true,
             full_in_flight: false,
             zones_next: false,
@@ -311,24 +314,35 @@ impl<'d> Halo<'d> {
         if !self.plan.trims || self.pending.is_some() {
             return Ok(());
         }
-        let flag = |on: bool| if on { 1.0 } else { 0.0 };
-        let told: Vec<(usize, Vec<f64>)> = (self.plan.receives.iter())
-            .map(|(q, nodes)| (*q, nodes.iter().map(|&n| flag(read[n as usize])).collect()))
-            .collect();
-        let counts: Vec<(usize, usize)> = (self.plan.sends.iter())
-            .map(|(q, nodes)| (*q, nodes.len()))
-            .collect();
-        let pending = self.read_exchange.begin(self.domain, &told, &counts)?;
-        let heard = self.read_exchange.end(pending)?;
-        let flags = |messages: &[(usize, Vec<f64>)]| -> Vec<Vec<bool>> {
-            (messages.iter())
-                .map(|(_, flags)| flags.iter().map(|&f| f != 0.0).collect())
-                .collect()
-        };
-        let read = self.read.insert(ReadFlags {
-            sends: flags(&heard),
-            receives: flags(&told),
-        });
+        // what this rank reads of each receive list goes back to its sender; the send and
+        // receive counts of the forward exchange are free while nothing is in flight
+        let mut buffers = self.read_buffers.take().unwrap_or_default();
+        buffers.send.clear();
+        self.send_counts.clear();
+        for (q, nodes) in &self.plan.receives {
+            let flags = nodes
+                .iter()
+                .map(|&n| if read[n as usize] { 1.0 } else { 0.0 });
+            buffers.send.extend(flags);
+            self.send_counts.push((*q, nodes.len()));
+        }
+        self.recv_counts.clear();
+        (self.recv_counts).extend(self.plan.sends.iter().map(|(q, nodes)| (*q, nodes.len())));
+        let pending = (self.read_exchange).begin_reusing(
+            self.domain,
+            buffers,
+            &self.send_counts,
+            &self.recv_counts,
+        )?;
+        let buffers = self.read_exchange.end_reusing(pending)?;
+        let flags = self.read.get_or_insert_with(ReadFlags::default);
+        let heard = buffers.received().map(|(_, f)| f.iter().map(|&f| f != 0.0));
+        refill(&mut flags.sends, heard);
+        let told =
+            (self.plan.receives.iter()).map(|(_, nodes)| nodes.iter().map(|&n| read[n as usize]));
+        refill(&mut flags.receives, told);
+        self.read_buffers = Some(buffers);
+        let read = &*flags;
         for (i, active) in self.active_sends.iter().enumerate() {
             step_only_what_is_read(active, Some(&read.sends[i]), &mut self.stepped_sends[i]);
         }
@@ -541,10 +555,24 @@ impl<'d> Halo<'d> {
 }
 
 /// Per send / receive list and node: whether the receiver's contact lists read it.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 struct ReadFlags {
     sends: Vec<Vec<bool>>,
     receives: Vec<Vec<bool>>,
+}
+
+/// `lists` = one list per item of `from`, refilled in place (no allocation once grown).
+fn refill<I: Iterator<Item = bool>>(lists: &mut Vec<Vec<bool>>, from: impl Iterator<Item = I>) {
+    let mut n = 0;
+    for flags in from {
+        if n == lists.len() {
+            lists.push(Vec::new());
+        }
+        lists[n].clear();
+        lists[n].extend(flags);
+        n += 1;
+    }
+    lists.truncate(n);
 }
 
 /// `stepped` = the positions of `active` that are `read` (all of them while unknown).
@@ -730,6 +758,12 @@ mod tests {
             (read[5], read[7]) = (true, true);
             halo.send_only_what_is_read(&read).unwrap();
             // only node 1 is in the zone and read
+            assert_eq!(halo.bytes_per_step(), VALUES_PER_NODE * 8);
+            // the next rebuild's flags travel in the same buffers: nothing is allocated
+            let flag_buffer = |h: &Halo| h.read_buffers.as_ref().map(|b| b.send.as_ptr());
+            let first = flag_buffer(&halo);
+            halo.send_only_what_is_read(&read).unwrap();
+            assert!(first.is_some() && flag_buffer(&halo) == first);
             assert_eq!(halo.bytes_per_step(), VALUES_PER_NODE * 8);
             assert_eq!(halo.zone_bytes_per_step(), 3 * VALUES_PER_NODE * 8);
             let before = x.clone();

@@ -104,7 +104,7 @@ pub struct Scratch {
     wall_grain_forces: Vec<f64>,
     wall_forces: Vec<f64>,
     /// Per model node: whether the contact lists read it (marked at rebuilds, for the halo).
-    read_by_contact: Vec<bool>,
+    read_by_contact: crate::contact::NodeReadMarks,
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
     pub(super) grain_rigid: Vec<RigidVelocity>,
@@ -178,7 +178,7 @@ impl Solver {
             contact: ContactScratch::default(),
             wall_grain_forces: Vec::new(),
             wall_forces: Vec::new(),
-            read_by_contact: Vec::new(),
+            read_by_contact: Default::default(),
             node_partials: vec![NodePartials::default(); model.owned_nodes.div_ceil(NODE_CHUNK)],
             grain_rigid: vec![RigidVelocity::default(); model.grains.len()],
             grain_centres: Vec::with_capacity(model.grains.len()),
@@ -297,11 +297,12 @@ impl Solver {
                 broad.moved,
                 f64::from(u8::from(local)),
                 broad.travel_into(state.step),
+                f64::from(u8::from(!broad.built)),
             ]);
         });
         timers.time(Stage::Sync, || hooks.max(over_ranks));
-        let [moved, rebuild, travel] = over_ranks[over_ranks.len() - 3..] else {
-            unreachable!("three values were appended")
+        let [moved, rebuild, travel, restoring] = over_ranks[over_ranks.len() - 4..] else {
+            unreachable!("four values were appended")
         };
         scratch.contact.broad.moved = moved;
         scratch.contact.lists.advance_odometer(travel);
@@ -316,9 +317,11 @@ impl Solver {
         timers.time(Stage::Contact, || {
             crate::contact::take_surface_motion(model, &scratch.over_ranks, &mut scratch.contact)
         });
-        // a rebuild sees whole contact zones; the lists it builds say what is read after
-        let tells_reads = rebuild.is_some() && hooks.sends_only_what_is_read();
-        if tells_reads {
+        // A rebuild sees whole contact zones; the lists it builds say what is read after.
+        // Lists restored on a restart or after a migration say it as well: the new halo
+        // sends whole zones until told, which would otherwise last until the next rebuild.
+        let tells_reads = (rebuild.is_some() || restoring > 0.0) && hooks.sends_only_what_is_read();
+        if tells_reads && rebuild.is_some() {
             timers.time(Stage::Halo, || {
                 hooks.refresh_ghosts(&mut state.x, &mut state.v, &cell_before)
             })?;
@@ -338,9 +341,9 @@ impl Solver {
         })?;
         if tells_reads {
             timers.time(Stage::Halo, || {
-                let read = &mut scratch.read_by_contact;
-                crate::contact::mark_nodes_the_lists_read(model, &scratch.contact, read);
-                hooks.ghosts_read(read)
+                let marks = &mut scratch.read_by_contact;
+                crate::contact::mark_nodes_the_lists_read(model, &scratch.contact, marks);
+                hooks.ghosts_read(marks.read())
             })?;
         }
         timers.time(Stage::Contact, || {
