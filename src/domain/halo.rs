@@ -32,8 +32,9 @@
 //! until the next rebuild. Before a rebuild the whole zone is refreshed
 //! ([`Halo::refresh_zones`]) with the values the step began with, so the broad phase sees
 //! what it would have seen had every zone node been sent every step: lists, forces and
-//! results are the same to the bit. After a plan, a restart or a re-partition the reads
-//! are unknown and the zones are sent until the next rebuild; a plan that does not trim
+//! results are the same to the bit. A new halo (at the start, a restart or a re-partition)
+//! does not know the reads and sends whole zones until the first step's lists, built or
+//! restored, tell them (`crate::solver::step`); a plan that does not trim
 //! (a periodic cell, or `parallel.trim_ghosts = false`) sends whole surfaces throughout.
 
 use super::{Domain, Exchange, ExchangeBuffers, PendingExchange};
