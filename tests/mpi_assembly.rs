@@ -47,6 +47,19 @@ fn run_scene(
     extra: &[&str],
 ) -> (PathBuf, std::process::Output) {
     let out = out_dir(name);
+    let output = run_in(&out, scene, steps, ranks, threads, extra);
+    (out.join("results.h5"), output)
+}
+
+/// `mufe run` into the directory `out` as it is (a restart continues its results.h5).
+fn run_in(
+    out: &Path,
+    scene: &Path,
+    steps: &str,
+    ranks: usize,
+    threads: usize,
+    extra: &[&str],
+) -> std::process::Output {
     let out_s = out.to_string_lossy().into_owned();
     let threads_s = threads.to_string();
     let mut args = vec![
@@ -60,8 +73,7 @@ fn run_scene(
         &threads_s,
     ];
     args.extend_from_slice(extra);
-    let output = mpi_launch::run_mufe(ranks, &args, Duration::from_secs(240));
-    (out.join("results.h5"), output)
+    mpi_launch::run_mufe(ranks, &args, Duration::from_secs(240))
 }
 
 /// `/mesh/owner_rank_of_grain`: the rank that owns each grain at the start.
@@ -367,19 +379,8 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
     for file in ["results.h5", "checkpoints/step_000000000600.h5"] {
         std::fs::copy(from.join(file), resumed.join(file)).unwrap();
     }
-    let (out_s, ckpt) = (
-        resumed.to_string_lossy().into_owned(),
-        resumed.join("checkpoints/step_000000000600.h5"),
-    );
-    let args = [
-        "run",
-        scene.to_str().unwrap(),
-        "--out",
-        &out_s,
-        "--max-steps",
-        "1200",
-        "--threads",
-        "1",
+    let ckpt = resumed.join("checkpoints/step_000000000600.h5");
+    let extra = [
         "--restart",
         ckpt.to_str().unwrap(),
         "--set",
@@ -387,8 +388,13 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         "--set",
         "parallel.trim_ghosts=true",
     ];
-    let out_r = mpi_launch::run_mufe(2, &args, Duration::from_secs(240));
+    let out_r = run_in(&resumed, &scene, "1200", 2, 1, &extra);
     mpi_launch::assert_success(&out_r);
+    // the premise: the lists were built once, at step 0, and the restart restored them
+    for out in [&out_t, &out_r] {
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(stdout.contains("; 1 broad-phase rebuilds,"), "{stdout}");
+    }
     let r = numbers(&halo_line(&out_r));
     for k in 0..2 {
         assert!(

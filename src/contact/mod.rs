@@ -310,6 +310,12 @@ pub fn evaluate(
     evaluate_with(model, x, v, time, step, dt, rebuild, state, scratch)
 }
 
+/// Whether this rank's contact lists are still to be made: [`evaluate_with`] rebuilds or
+/// restores them at its next call (after a restart or a re-partition).
+pub fn has_no_lists_yet(model: &Model, scratch: &ContactScratch) -> bool {
+    model.contact.active() && !scratch.broad.built
+}
+
 /// The skin of the lists rebuilt at step `step`, or `None` when they are kept: see
 /// [`broad::next_skin`]. `voted`: some rank's [`needs_rebuild`] found that its lists may
 /// miss a contact; `moved`: the largest surface displacement since the rebuild over all

@@ -28,7 +28,7 @@ impl NodeReadMarks {
 }
 
 /// Marks in `marks` (cleared first) every node the lists in `scratch` let the narrow
-/// phase read (module docs). Runs at rebuilds only.
+/// phase read (module docs). Runs when the lists are rebuilt or restored.
 pub fn mark_nodes_the_lists_read(
     model: &Model,
     scratch: &ContactScratch,

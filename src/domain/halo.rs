@@ -760,7 +760,7 @@ mod tests {
             halo.send_only_what_is_read(&read).unwrap();
             // only node 1 is in the zone and read
             assert_eq!(halo.bytes_per_step(), VALUES_PER_NODE * 8);
-            // the next rebuild's flags travel in the same buffers: nothing is allocated
+            // the next rebuild's flags travel in the same send buffer
             let flag_buffer = |h: &Halo| h.read_buffers.as_ref().map(|b| b.send.as_ptr());
             let first = flag_buffer(&halo);
             halo.send_only_what_is_read(&read).unwrap();

@@ -48,11 +48,11 @@ pub trait StepHooks {
         Ok(())
     }
     /// Whether [`StepHooks::ghosts_read`] uses what it is told: then the caller marks,
-    /// after every rebuild of the contact lists, the nodes the lists read.
+    /// after every rebuild or restore of the contact lists, the nodes the lists read.
     fn sends_only_what_is_read(&self) -> bool {
         false
     }
-    /// The contact lists were rebuilt at this step and read the nodes marked in `read`
+    /// The contact lists were rebuilt or restored at this step and read the nodes marked in `read`
     /// (one flag per model node): from now on only those ghost nodes need be sent. All
     /// ranks call at the same step.
     fn ghosts_read(&mut self, _read: &[bool]) -> Result<(), MufeError> {
@@ -103,7 +103,8 @@ pub struct Scratch {
     /// summed over ranks (N), and each wall's total (`crate::contact::wall_normal_forces`).
     wall_grain_forces: Vec<f64>,
     wall_forces: Vec<f64>,
-    /// Per model node: whether the contact lists read it (marked at rebuilds, for the halo).
+    /// Per model node: whether the contact lists read it (marked when they are built or
+    /// restored, for the halo).
     read_by_contact: crate::contact::NodeReadMarks,
     node_partials: Vec<NodePartials>,
     /// Rigid-body velocity field of each grain (for deformation damping).
@@ -297,11 +298,14 @@ impl Solver {
                 broad.moved,
                 f64::from(u8::from(local)),
                 broad.travel_into(state.step),
-                f64::from(u8::from(!broad.built)),
+                f64::from(u8::from(crate::contact::has_no_lists_yet(
+                    model,
+                    &scratch.contact,
+                ))),
             ]);
         });
         timers.time(Stage::Sync, || hooks.max(over_ranks));
-        let [moved, rebuild, travel, restoring] = over_ranks[over_ranks.len() - 4..] else {
+        let [moved, rebuild, travel, no_lists] = over_ranks[over_ranks.len() - 4..] else {
             unreachable!("four values were appended")
         };
         scratch.contact.broad.moved = moved;
@@ -318,10 +322,12 @@ impl Solver {
             crate::contact::take_surface_motion(model, &scratch.over_ranks, &mut scratch.contact)
         });
         // A rebuild sees whole contact zones; the lists it builds say what is read after.
-        // Lists restored on a restart or after a migration say it as well: the new halo
-        // sends whole zones until told, which would otherwise last until the next rebuild.
-        let tells_reads = (rebuild.is_some() || restoring > 0.0) && hooks.sends_only_what_is_read();
-        if tells_reads && rebuild.is_some() {
+        // Lists restored from a checkpoint (a restart on the partition it was written
+        // with) say it as well: the new halo sends whole zones until told, which would
+        // otherwise last until the next rebuild. Every rank decides alike (both reduced).
+        let rebuilds = rebuild.is_some();
+        let tells_reads = (rebuilds || no_lists > 0.0) && hooks.sends_only_what_is_read();
+        if tells_reads && rebuilds {
             timers.time(Stage::Halo, || {
                 hooks.refresh_ghosts(&mut state.x, &mut state.v, &cell_before)
             })?;
