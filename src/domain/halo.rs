@@ -317,15 +317,18 @@ impl<'d> Halo<'d> {
         }
         // what this rank reads of each receive list goes back to its sender; the send and
         // receive counts of the forward exchange are free while nothing is in flight
+        let flags = self.read.get_or_insert_with(ReadFlags::default);
+        let told =
+            (self.plan.receives.iter()).map(|(_, nodes)| nodes.iter().map(|&n| read[n as usize]));
+        refill(&mut flags.receives, told);
         let mut buffers = self.read_buffers.take().unwrap_or_default();
         buffers.send.clear();
         self.send_counts.clear();
-        for (q, nodes) in &self.plan.receives {
-            let flags = nodes
-                .iter()
-                .map(|&n| if read[n as usize] { 1.0 } else { 0.0 });
-            buffers.send.extend(flags);
-            self.send_counts.push((*q, nodes.len()));
+        for ((q, _), told) in self.plan.receives.iter().zip(&flags.receives) {
+            buffers
+                .send
+                .extend(told.iter().map(|&on| if on { 1.0 } else { 0.0 }));
+            self.send_counts.push((*q, told.len()));
         }
         self.recv_counts.clear();
         (self.recv_counts).extend(self.plan.sends.iter().map(|(q, nodes)| (*q, nodes.len())));
@@ -336,12 +339,8 @@ impl<'d> Halo<'d> {
             &self.recv_counts,
         )?;
         let buffers = self.read_exchange.end_reusing(pending)?;
-        let flags = self.read.get_or_insert_with(ReadFlags::default);
         let heard = buffers.received().map(|(_, f)| f.iter().map(|&f| f != 0.0));
         refill(&mut flags.sends, heard);
-        let told =
-            (self.plan.receives.iter()).map(|(_, nodes)| nodes.iter().map(|&n| read[n as usize]));
-        refill(&mut flags.receives, told);
         self.read_buffers = Some(buffers);
         let read = &*flags;
         for (i, active) in self.active_sends.iter().enumerate() {
