@@ -6,10 +6,12 @@
 //! three scalar divisions and the damping arithmetic per node made the pass of the damped
 //! 2000-sphere block compute-bound (4.4 ms/step against 3.0 without damping, the pass then
 //! moving ≈ 130 B per node; docs/BENCHMARKS.md, session 36). Every lane evaluates the
-//! expressions of [`crate::kinematics`] in the same order, and the sums and the largest
-//! speed are taken node by node in node order, so the results are the same to the bit as
-//! node by node. A group with a node whose v_{n+½} a motion or wall stored goes node by
-//! node.
+//! expressions of [`crate::kinematics`] in the same order, so x and v are the same to the
+//! bit as node by node. The sums go to one partial per lane ([`LaneSums`]: node k of a
+//! chunk to partial k mod 8, on every path), added in lane order at the chunk's end:
+//! summed node by node in node order, a scalar chain through every node, they were 40 %
+//! of the pass on the damped 2000-sphere block (docs/BENCHMARKS.md, session 48). A group
+//! with a node whose v_{n+½} a motion or wall stored goes node by node.
 
 use super::damping::body_forces;
 use super::forces::{KernelPath, NODE_CHUNK};
@@ -47,43 +49,84 @@ struct Inputs<'a> {
     dt: f64,
 }
 
-impl NodePartials {
-    /// Takes node `n`'s terms, in node order: v_{n−½} = `a`, v_{n+½} = `b`, its damping
-    /// force `fd` (with body forces) and physical mass `mp` (with gravity).
+/// One chunk's sums by lane: node k of the chunk adds to lane k mod [`LANES`] of each,
+/// whichever path updates it (a group of lanes adds eight nodes in vector instructions,
+/// a node alone adds to its own lane), so the sums are the same on every path and thread
+/// count; [`LaneSums::total`] adds the lanes in order.
+#[derive(Debug, Clone, Copy, Default)]
+struct LaneSums {
+    kinetic: [f64; LANES],
+    gravity_before: [f64; LANES],
+    gravity_after: [f64; LANES],
+    damping_before: [f64; LANES],
+    damping_after: [f64; LANES],
+    max_speed: [f64; LANES],
+    bad_node: Option<usize>,
+}
+
+/// A node's terms for the sums: v_{n−½} = `a`, v_{n+½} = `b`, mass `m`, damping force
+/// `fd` (zero without body forces, whose powers are then +0 whatever the node does) and
+/// gravity force `w` = m_physical g (zero without gravity).
+struct NodeTerms {
+    m: f64,
+    a: [f64; 3],
+    b: [f64; 3],
+    fd: [f64; 3],
+    w: [f64; 3],
+}
+
+impl LaneSums {
+    /// Adds node `n`'s terms to lane `l`, with the flags of what the step has: damping
+    /// (`body`) and gravity (`weighs`).
     #[inline(always)]
-    fn add_node(
-        &mut self,
-        n: usize,
-        m: f64,
-        a: [f64; 3],
-        b: [f64; 3],
-        fd: Option<[f64; 3]>,
-        weight: Option<(f64, [f64; 3])>,
-    ) {
-        let ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        self.kinetic += 0.5 * m * ab;
+    fn add(&mut self, l: usize, t: &NodeTerms, body: bool, weighs: bool) {
+        let NodeTerms { m, a, b, fd, w } = t;
+        self.kinetic[l] += 0.5 * m * dot(a, b);
         // plain comparisons (one max instruction each): no NaN handling is needed here,
         // see bad_node
         for c in b {
             let c = c.abs();
-            if c > self.max_speed {
-                self.max_speed = c;
+            if c > self.max_speed[l] {
+                self.max_speed[l] = c;
             }
         }
-        // without gravity and damping their powers are +0 whatever the node does (a
-        // non-finite velocity ends the run)
-        if let Some(fd) = fd {
-            if let Some((mp, g)) = weight {
-                self.gravity_before += mp * (g[0] * a[0] + g[1] * a[1] + g[2] * a[2]);
-                self.gravity_after += mp * (g[0] * b[0] + g[1] * b[1] + g[2] * b[2]);
+        if body {
+            if weighs {
+                self.gravity_before[l] += dot(w, a);
+                self.gravity_after[l] += dot(w, b);
             }
-            self.damping_before += fd[0] * a[0] + fd[1] * a[1] + fd[2] * a[2];
-            self.damping_after += fd[0] * b[0] + fd[1] * b[1] + fd[2] * b[2];
+            self.damping_before[l] += dot(fd, a);
+            self.damping_after[l] += dot(fd, b);
         }
+    }
+
+    /// Records node `n` if it is the chunk's first with a non-finite v_{n+½}.
+    #[inline(always)]
+    fn check_finite(&mut self, n: usize, b: &[f64; 3]) {
         if self.bad_node.is_none() && !(b[0].is_finite() && b[1].is_finite() && b[2].is_finite()) {
             self.bad_node = Some(n);
         }
     }
+
+    /// The chunk's sums: each over the lanes in lane order.
+    fn total(&self) -> NodePartials {
+        let sum = |v: &[f64; LANES]| v.iter().fold(0.0, |s, x| s + x);
+        NodePartials {
+            kinetic: sum(&self.kinetic),
+            gravity_before: sum(&self.gravity_before),
+            gravity_after: sum(&self.gravity_after),
+            damping_before: sum(&self.damping_before),
+            damping_after: sum(&self.damping_after),
+            max_speed: self.max_speed.iter().fold(0.0, |s, &x| s.max(x)),
+            bad_node: self.bad_node,
+        }
+    }
+}
+
+/// a · b, left to right: the one expression of every path.
+#[inline(always)]
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// What the step hands the integrator besides the model and the state.
@@ -193,8 +236,9 @@ unsafe fn integrate_chunk_avx2(
     integrate_chunk(inputs, base, x, v)
 }
 
-/// The nodes `base..` of one chunk (`x`, `v`): groups of [`LANES`], node by node where a
-/// group has a stored v_{n+½} and at the chunk's end.
+/// The nodes `base..` of one chunk (`x`, `v`; `base` a multiple of [`LANES`]): groups of
+/// [`LANES`] aligned to the chunk, node by node where a group has a stored v_{n+½} and
+/// at the chunk's end.
 #[inline(always)]
 fn integrate_chunk(
     inputs: &Inputs,
@@ -202,46 +246,55 @@ fn integrate_chunk(
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
 ) -> NodePartials {
-    let mut p = NodePartials::default();
-    let mut k = 0;
-    while k < x.len() {
-        let n = base + k;
-        if k + LANES <= x.len() && !inputs.next.any_stored(n..n + LANES) {
-            let (x, v) = (&mut x[k..k + LANES], &mut v[k..k + LANES]);
-            update_group(inputs, n, x, v, &mut p);
-            k += LANES;
+    debug_assert!(base.is_multiple_of(LANES));
+    let mut sums = LaneSums::default();
+    let groups = x.len() / LANES;
+    for (g, (x, v)) in (x.chunks_exact_mut(LANES))
+        .zip(v.chunks_exact_mut(LANES))
+        .enumerate()
+    {
+        let n = base + g * LANES;
+        if inputs.next.any_stored(n..n + LANES) {
+            for (l, (x, v)) in x.iter_mut().zip(v.iter_mut()).enumerate() {
+                update_node(inputs, n + l, l, x, v, &mut sums);
+            }
         } else {
-            update_node(inputs, n, &mut x[k], &mut v[k], &mut p);
-            k += 1;
+            update_group(inputs, n, x, v, &mut sums);
         }
     }
-    p
+    let first = groups * LANES;
+    for (k, (x, v)) in x[first..].iter_mut().zip(&mut v[first..]).enumerate() {
+        update_node(inputs, base + first + k, k, x, v, &mut sums);
+    }
+    sums.total()
 }
 
-/// Node `n` alone: the complete force and v_{n+½} as every reader in the step had them
-/// (`crate::kinematics`), the damping force once for both the velocity and its power.
+/// Node `n` alone, into lane `l` of the sums: the complete force and v_{n+½} as every
+/// reader in the step had them (`crate::kinematics`), the damping force once for both the
+/// velocity and its power.
 #[inline(always)]
 fn update_node(
     inputs: &Inputs,
     n: usize,
+    l: usize,
     x: &mut [f64; 3],
     v: &mut [f64; 3],
-    p: &mut NodePartials,
+    sums: &mut LaneSums,
 ) {
     let m = inputs.mass[n];
     let a = *v;
     let (f, fd) = match &inputs.body {
-        None => (inputs.force[n], None),
-        Some(body) => {
-            let (f, fd) = body.total_force(n, inputs.force[n], x, &a, m);
-            (f, Some(fd))
-        }
+        None => (inputs.force[n], [0.0; 3]),
+        Some(body) => body.total_force(n, inputs.force[n], x, &a, m),
     };
     let b = (inputs.next.stored(n)).unwrap_or_else(|| predict(a, f, m, inputs.dt));
-    let weight = (inputs.body.as_ref())
-        .filter(|_| inputs.weighs)
-        .map(|body| (body.physical_mass[n], body.gravity));
-    p.add_node(n, m, a, b, fd, weight);
+    let w = match &inputs.body {
+        Some(body) if inputs.weighs => body.gravity.map(|g| body.physical_mass[n] * g),
+        _ => [0.0; 3],
+    };
+    let terms = NodeTerms { m, a, b, fd, w };
+    sums.add(l, &terms, inputs.body.is_some(), inputs.weighs);
+    sums.check_finite(n, &b);
     for i in 0..3 {
         x[i] += inputs.dt * b[i];
     }
@@ -249,14 +302,14 @@ fn update_node(
 }
 
 /// Nodes `n..n + LANES` (`x`, `v`), none with a stored v_{n+½}: the expressions of
-/// [`update_node`] lane by lane, the sums node by node.
+/// [`update_node`] lane by lane, node n + l into lane l of the sums.
 #[inline(always)]
 fn update_group(
     inputs: &Inputs,
     n: usize,
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
-    p: &mut NodePartials,
+    sums: &mut LaneSums,
 ) {
     type Lanes = [f64; LANES];
     use std::array::from_fn;
@@ -264,7 +317,7 @@ fn update_group(
     let a: [Lanes; 3] = from_fn(|i| from_fn(|l| v[l][i]));
     let mut f: [Lanes; 3] = from_fn(|i| from_fn(|l| inputs.force[n + l][i]));
     let mut fd = [[0.0; LANES]; 3];
-    let mut mp = [0.0; LANES];
+    let mut w = [[0.0; LANES]; 3];
     if let Some(body) = &inputs.body {
         // BodyForces::total_force, lane by lane
         for i in 0..3 {
@@ -282,9 +335,8 @@ fn update_group(
                 }
             }
         }
-        let mut w = [[0.0; LANES]; 3];
         if inputs.weighs {
-            mp = from_fn(|l| body.physical_mass[n + l]);
+            let mp: Lanes = from_fn(|l| body.physical_mass[n + l]);
             for i in 0..3 {
                 for l in 0..LANES {
                     w[i][l] = mp[l] * body.gravity[i];
@@ -305,12 +357,24 @@ fn update_group(
         }
     }
     let node = |c: &[Lanes; 3], l: usize| [c[0][l], c[1][l], c[2][l]];
+    let (body, weighs) = (inputs.body.is_some(), inputs.weighs);
     for l in 0..LANES {
-        let fd = inputs.body.as_ref().map(|_| node(&fd, l));
-        let weight = (inputs.body.as_ref())
-            .filter(|_| inputs.weighs)
-            .map(|body| (mp[l], body.gravity));
-        p.add_node(n + l, m[l], node(&a, l), node(&b, l), fd, weight);
+        let terms = NodeTerms {
+            m: m[l],
+            a: node(&a, l),
+            b: node(&b, l),
+            fd: node(&fd, l),
+            w: node(&w, l),
+        };
+        sums.add(l, &terms, body, weighs);
+    }
+    // one test for the group (the lanes' flags and-ed, no early exit), node by node only
+    // when it fails
+    let finite = (b.iter().flatten()).fold(true, |all, c| all & c.is_finite());
+    if !finite {
+        for l in 0..LANES {
+            sums.check_finite(n + l, &node(&b, l));
+        }
     }
     for (l, (x, v)) in x.iter_mut().zip(v.iter_mut()).enumerate() {
         for i in 0..3 {
@@ -325,11 +389,40 @@ mod tests {
     use super::*;
     use crate::kinematics::RigidVelocity;
 
+    /// The first node with a non-finite v_{n+½} is reported, whether it is in a group of
+    /// lanes or alone at the chunk's end, on every kernel path this CPU runs.
+    #[test]
+    fn the_first_non_finite_velocity_is_the_bad_node() {
+        const NODES: usize = 21;
+        let mass = vec![1e-9; NODES];
+        let stored = NextVelocity::new(NODES);
+        let paths = [KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512];
+        for &path in paths.iter().filter(|p| p.is_supported()) {
+            for bad in [[5, 13], [18, 20], [19, 3]] {
+                let mut force = vec![[1e-3, -2e-3, 5e-4]; NODES];
+                force[bad[0]][1] = f64::NAN;
+                force[bad[1]][2] = f64::INFINITY;
+                let inputs = Inputs {
+                    mass: &mass,
+                    force: &force,
+                    next: &stored,
+                    weighs: false,
+                    body: None,
+                    dt: 1e-9,
+                };
+                let (mut x, mut v) = (vec![[0.0; 3]; NODES], vec![[0.0; 3]; NODES]);
+                let p = integrate_chunk_on(path, &inputs, 0, &mut x, &mut v);
+                assert_eq!(p.bad_node, Some(bad[0].min(bad[1])), "{path:?} {bad:?}");
+            }
+        }
+    }
+
     /// Nodes in lanes give what they give one by one, to the bit: x, v and every sum,
     /// without body forces, with mass damping, with deformation damping and with gravity
     /// (each on top of the last), over velocities, forces and masses spanning decades, on
     /// every kernel path this CPU runs; 21 nodes, one with a stored v_{n+½}, so that a
-    /// group goes node by node and the chunk ends in single nodes.
+    /// group goes node by node and the chunk ends in single nodes. The kinetic energy is
+    /// the node-order sum to rounding, and the largest speed exactly.
     #[test]
     fn a_group_of_lanes_is_its_nodes_one_by_one_to_the_bit() {
         let mut seed = 7u64;
@@ -393,10 +486,24 @@ mod tests {
                     body,
                     dt: 5.5e-9 * (1.0 + 0.5 * next()),
                 };
-                let (mut xn, mut vn, mut pn) = (x0.clone(), v0.clone(), NodePartials::default());
+                let (mut xn, mut vn, mut sn) = (x0.clone(), v0.clone(), LaneSums::default());
                 for l in 0..NODES {
-                    update_node(&inputs, l, &mut xn[l], &mut vn[l], &mut pn);
+                    update_node(&inputs, l, l % LANES, &mut xn[l], &mut vn[l], &mut sn);
                 }
+                let pn = sn.total();
+                // the lane sums are the node sums, regrouped
+                let kinetic: f64 = (0..NODES)
+                    .map(|k| 0.5 * mass[k] * dot(&v0[k], &vn[k]))
+                    .sum();
+                let scale: f64 = (0..NODES)
+                    .map(|k| (0.5 * mass[k] * dot(&v0[k], &vn[k])).abs())
+                    .sum();
+                assert!(
+                    (pn.kinetic - kinetic).abs() <= 1e-14 * scale,
+                    "trial {trial}"
+                );
+                let fastest = vn.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+                assert_eq!(pn.max_speed, fastest);
                 for &path in &paths {
                     let (mut xg, mut vg) = (x0.clone(), v0.clone());
                     let pg = integrate_chunk_on(path, &inputs, 0, &mut xg, &mut vg);
