@@ -24,6 +24,8 @@ use rayon::prelude::*;
 
 /// Nodes per group of lanes.
 const LANES: usize = 8;
+// a chunk starts a group, so node k of a chunk is lane k mod LANES of its group
+const _: () = assert!(NODE_CHUNK.is_multiple_of(LANES));
 
 /// One chunk's sums (added over the chunks in order).
 #[derive(Debug, Clone, Copy, Default)]
@@ -65,8 +67,9 @@ struct LaneSums {
 }
 
 /// A node's terms for the sums: v_{n−½} = `a`, v_{n+½} = `b`, mass `m`, damping force
-/// `fd` (zero without body forces, whose powers are then +0 whatever the node does) and
-/// gravity force `w` = m_physical g (zero without gravity).
+/// `fd` and gravity force `w` = m_physical g. Without body forces `fd` is not read, and
+/// without gravity `w` is not: [`LaneSums::add`] leaves those powers at +0, whatever the
+/// node does (0 · ∞ would not be).
 struct NodeTerms {
     m: f64,
     a: [f64; 3],
@@ -76,7 +79,7 @@ struct NodeTerms {
 }
 
 impl LaneSums {
-    /// Adds node `n`'s terms to lane `l`, with the flags of what the step has: damping
+    /// Adds a node's terms `t` to lane `l`, with the flags of what the step has: damping
     /// (`body`) and gravity (`weighs`).
     #[inline(always)]
     fn add(&mut self, l: usize, t: &NodeTerms, body: bool, weighs: bool) {
@@ -288,10 +291,7 @@ fn update_node(
         Some(body) => body.total_force(n, inputs.force[n], x, &a, m),
     };
     let b = (inputs.next.stored(n)).unwrap_or_else(|| predict(a, f, m, inputs.dt));
-    let w = match &inputs.body {
-        Some(body) if inputs.weighs => body.gravity.map(|g| body.physical_mass[n] * g),
-        _ => [0.0; 3],
-    };
+    let w = (inputs.body.as_ref()).map_or([0.0; 3], |body| body.weight(n));
     let terms = NodeTerms { m, a, b, fd, w };
     sums.add(l, &terms, inputs.body.is_some(), inputs.weighs);
     sums.check_finite(n, &b);
@@ -390,15 +390,26 @@ mod tests {
     use crate::kinematics::RigidVelocity;
 
     /// The first node with a non-finite v_{n+½} is reported, whether it is in a group of
-    /// lanes or alone at the chunk's end, on every kernel path this CPU runs.
+    /// lanes, in a group that goes node by node or alone at the chunk's end, on every
+    /// kernel path this CPU runs.
     #[test]
     fn the_first_non_finite_velocity_is_the_bad_node() {
         const NODES: usize = 21;
         let mass = vec![1e-9; NODES];
-        let stored = NextVelocity::new(NODES);
         let paths = [KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512];
         for &path in paths.iter().filter(|p| p.is_supported()) {
-            for bad in [[5, 13], [18, 20], [19, 3]] {
+            // [first, second, a node with a stored v_{n+½}, whose group goes node by node]
+            for bad in [
+                [5, 13, 0],
+                [18, 20, 0],
+                [19, 3, 0],
+                [12, 10, 11],
+                [14, 9, 13],
+            ] {
+                let mut stored = NextVelocity::new(NODES);
+                if bad[2] > 0 {
+                    stored.set(bad[2], [0.5, -0.25, 0.125]);
+                }
                 let mut force = vec![[1e-3, -2e-3, 5e-4]; NODES];
                 force[bad[0]][1] = f64::NAN;
                 force[bad[1]][2] = f64::INFINITY;
