@@ -404,6 +404,31 @@ fn resume_and_compare(ranks: usize, out: &Path, whole: &Path, what: &str) {
 }
 
 #[test]
+fn a_kill_of_the_whole_job_leaves_no_rank_running() {
+    // OpenMPI gives each rank a process group of its own, so a kill of the launcher's group
+    // alone left the ranks running on, writing checkpoints and `results.h5` under the
+    // restart that followed.
+    let _one = mpi_launch::exclusive();
+    let mut job = Job::start(Some(2), Path::new("sleep"), &["60"], &[]);
+    let start = Instant::now();
+    while job.processes().len() < 3 {
+        assert!(start.elapsed() < Duration::from_secs(30), "the ranks start");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    job.signal("KILL", true);
+    let start = Instant::now();
+    while !job.processes().is_empty() {
+        assert!(
+            start.elapsed() < Duration::from_secs(5),
+            "still running after kill -9 of the job: {:?}",
+            job.processes()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(!job.running());
+}
+
+#[test]
 fn kill_9_then_latest_ends_equal_to_the_uninterrupted_run() {
     for ranks in [1, 2] {
         let whole = whole_long_run(ranks, "kill_9");

@@ -3,8 +3,10 @@
 //! A multi-rank test relaunches its own test executable under `mpirun -n K`, filtered to
 //! itself (`--exact NAME`), with `MUFE_MPI_CHILD=1` set: the child branch does the MPI work
 //! on every rank, the parent (plain `cargo test`, no MPI) checks the exit status and the
-//! files the child wrote. A timeout kills the launcher so a deadlock fails the test instead
-//! of hanging CI. Runs are serialised within a test binary (the machine has few cores).
+//! files the child wrote. Every job runs in a session of its own: a timeout prints each
+//! process's stacks (gdb) and kills the launcher and all its ranks, so a deadlock fails the
+//! test and says where it waits instead of hanging CI; and no rank outlives its job.
+//! Runs are serialised within a test binary (the machine has few cores).
 //!
 //! Use from a test file with `#[path = "common/mpi_launch.rs"] mod mpi_launch;`.
 //!
@@ -14,7 +16,6 @@
 #![allow(dead_code)]
 
 use std::io::Read;
-use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::sync::Mutex;
@@ -71,10 +72,13 @@ pub fn run_under_mpirun(
     job.wait(timeout)
 }
 
-/// A launched job (its own process group) whose output is being collected.
+/// A launched job (its own session) whose output is being collected.
 pub struct Job {
     child: std::process::Child,
-    pgid: u32,
+    /// The session id, which is the launcher's pid. OpenMPI puts every rank in a process
+    /// group of its own, so only the session holds the launcher and all its ranks together,
+    /// even once a rank outlives the launcher and is re-parented.
+    session: u32,
     label: String,
     stdout: thread::JoinHandle<Vec<u8>>,
     stderr: thread::JoinHandle<Vec<u8>>,
@@ -85,22 +89,18 @@ impl Job {
     /// run without MPI launcher) for `None`.
     pub fn start(ranks: Option<usize>, exe: &Path, args: &[&str], env: &[(&str, &str)]) -> Job {
         let launcher = std::env::var("MPIEXEC").unwrap_or_else(|_| "mpirun".to_string());
-        let mut cmd = match ranks {
-            Some(n) => {
-                let mut c = Command::new(&launcher);
-                c.arg("-n").arg(n.to_string()).arg(exe);
-                c
-            }
-            None => Command::new(exe),
+        // `setsid` execs the launcher in a new session (no fork: the spawned child does not
+        // lead a process group), so the child's pid is the session id.
+        let mut cmd = Command::new("setsid");
+        match ranks {
+            Some(n) => cmd.arg(&launcher).arg("-n").arg(n.to_string()).arg(exe),
+            None => cmd.arg(exe),
         };
         cmd.args(args);
         for (k, v) in LAUNCH_ENV.iter().chain(env) {
             cmd.env(k, v);
         }
-        // Own process group: on timeout the launcher and every rank it started are killed
-        // together, not just the launcher.
-        cmd.process_group(0)
-            .stdin(Stdio::null())
+        cmd.stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
         let label = match ranks {
@@ -110,12 +110,12 @@ impl Job {
         let mut child = cmd
             .spawn()
             .unwrap_or_else(|e| panic!("cannot start {label}: {e}"));
-        let pgid = child.id();
+        let session = child.id();
         let stdout = drain(child.stdout.take());
         let stderr = drain(child.stderr.take());
         Job {
             child,
-            pgid,
+            session,
             label,
             stdout,
             stderr,
@@ -127,17 +127,26 @@ impl Job {
         matches!(self.child.try_wait(), Ok(None))
     }
 
+    /// The pids of the job's live processes: the launcher and every rank, wherever they
+    /// have been re-parented.
+    pub fn processes(&self) -> Vec<String> {
+        processes_of_session(self.session)
+    }
+
     /// Sends `signal` (a `kill` name: TERM, USR1, KILL) to the launcher only, or with
-    /// `whole_group` to the launcher and every rank.
-    pub fn signal(&self, signal: &str, whole_group: bool) {
-        let target = if whole_group {
-            format!("-{}", self.pgid)
+    /// `whole_job` to the launcher and every rank.
+    pub fn signal(&self, signal: &str, whole_job: bool) {
+        if whole_job {
+            signal_session(self.session, signal);
         } else {
-            self.pgid.to_string()
-        };
-        let _ = Command::new("kill")
-            .args([format!("-{signal}"), "--".to_string(), target])
-            .status();
+            let _ = Command::new("kill")
+                .args([
+                    format!("-{signal}"),
+                    "--".to_string(),
+                    self.session.to_string(),
+                ])
+                .status();
+        }
     }
 
     /// Waits for the job to end (killing it after `timeout`, which fails the test) and
@@ -153,20 +162,23 @@ impl Job {
             }
         };
         let Some(status) = status else {
-            kill_group(self.pgid, "TERM");
+            // Where each process waits says more about a deadlock than that it happened.
+            let stacks = stacks_of_session(self.session);
+            signal_session(self.session, "TERM");
             thread::sleep(Duration::from_secs(2));
-            kill_group(self.pgid, "KILL");
+            end_session(self.session);
             let _ = self.child.wait();
             let out = String::from_utf8_lossy(&join(self.stdout)).into_owned();
             let err = String::from_utf8_lossy(&join(self.stderr)).into_owned();
             panic!(
                 "{} did not finish within {timeout:?} (deadlock?); killed.\n\
-                 --- stdout ---\n{out}\n--- stderr ---\n{err}",
+                 --- stdout ---\n{out}\n--- stderr ---\n{err}\n--- stacks ---\n{stacks}",
                 self.label
             );
         };
-        // A rank left behind by the launcher would keep the pipes open; make sure none is.
-        kill_group(self.pgid, "KILL");
+        // A rank left behind by the launcher (after a kill of the launcher alone, say) would
+        // go on writing the job's files under the next run; make sure none is left.
+        end_session(self.session);
         Output {
             status,
             stdout: join(self.stdout),
@@ -240,15 +252,84 @@ fn join(handle: thread::JoinHandle<Vec<u8>>) -> Vec<u8> {
     handle.join().unwrap_or_default()
 }
 
-/// Signals the process group we created for the launcher (no libc dependency: `kill`).
-fn kill_group(pgid: u32, signal: &str) {
-    let _ = Command::new("kill")
+/// The pids of the live processes still in `session` (a zombie, dead but not yet reaped by
+/// whoever adopted it, writes nothing and is left out).
+fn processes_of_session(session: u32) -> Vec<String> {
+    let listed = Command::new("pgrep")
+        .args(["-s", &session.to_string()])
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+        .unwrap_or_default();
+    listed
+        .split_whitespace()
+        .filter(|pid| {
+            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+            // The state is the field after the parenthesised command name.
+            let state = stat
+                .rsplit(')')
+                .next()
+                .and_then(|r| r.split_whitespace().next());
+            !matches!(state, None | Some("Z"))
+        })
+        .map(str::to_string)
+        .collect()
+}
+
+/// The thread stacks of every process in `session` (the launcher and its ranks), from
+/// `gdb -batch` when it is installed; otherwise a line saying so. Each attach is bounded by
+/// `timeout` so a stuck debugger cannot hang the test in turn.
+fn stacks_of_session(session: u32) -> String {
+    let mut report = String::new();
+    for pid in processes_of_session(session) {
+        let pid = pid.as_str();
+        let comm = std::fs::read_to_string(format!("/proc/{pid}/comm")).unwrap_or_default();
+        let bt = Command::new("timeout")
+            .args([
+                "30",
+                "gdb",
+                "-p",
+                pid,
+                "-batch",
+                "-nx",
+                "-ex",
+                "thread apply all bt",
+            ])
+            .stdin(Stdio::null())
+            .output();
+        let text = match bt {
+            Ok(o) => String::from_utf8_lossy(&o.stdout).into_owned(),
+            Err(e) => format!("(no stack: gdb could not be run: {e})\n"),
+        };
+        // Only the frames: gdb's banner and symbol-loading chatter are noise here.
+        let frames: String = text
+            .lines()
+            .filter(|l| l.starts_with('#') || l.starts_with("Thread "))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        report.push_str(&format!("pid {pid} ({}):\n{frames}", comm.trim()));
+    }
+    report
+}
+
+/// Signals every process of the session we created for the launcher (no libc dependency:
+/// `pkill`).
+fn signal_session(session: u32, signal: &str) {
+    let _ = Command::new("pkill")
         .arg(format!("-{signal}"))
-        .arg("--")
-        .arg(format!("-{pgid}"))
+        .args(["-s", &session.to_string()])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .status();
+}
+
+/// Kills whatever is left of `session` and waits (up to 30 s) until it is gone, so the
+/// next run never shares the output directory with a survivor of this one.
+fn end_session(session: u32) {
+    let start = Instant::now();
+    while !processes_of_session(session).is_empty() && start.elapsed() < Duration::from_secs(30) {
+        signal_session(session, "KILL");
+        thread::sleep(Duration::from_millis(20));
+    }
 }
 
 /// Holds this test binary's one-job-at-a-time lock (for tests that drive a [`Job`]).
