@@ -332,25 +332,37 @@ fn a_changed_scene_is_refused_and_a_branch_starts_a_new_run() {
     );
 }
 
-/// Starts a long run (1200 steps, a checkpoint every 200), waits until the checkpoint of
-/// step 200 exists, sends `signal`, and returns the job's output.
-fn interrupted_run(ranks: Option<usize>, out: &Path, signal: &str, whole_group: bool) -> Output {
-    let _one = mpi_launch::exclusive();
-    let s = scene();
+/// `mufe run ASSEMBLY` for `steps` steps with a checkpoint every 200 into `out`, followed by
+/// `more` arguments.
+fn long_run_args<'a>(
+    scene: &'a str,
+    out: &'a Path,
+    steps: &'a str,
+    more: &[&'a str],
+) -> Vec<&'a str> {
     let mut args = vec![
         "run",
-        s.as_str(),
+        scene,
         "--threads",
         "1",
         "--quiet",
         "--out",
         out.to_str().unwrap(),
         "--max-steps",
-        LONG,
+        steps,
         "--checkpoint-every",
         "200",
     ];
+    args.extend_from_slice(more);
     args.extend_from_slice(&PLASTIC);
+    args
+}
+
+/// Starts a run of `steps` steps on `ranks` (`None`: serial, no launcher) and returns it
+/// once the checkpoint of step 200 exists, still running. Hold [`mpi_launch::exclusive`].
+fn start_long_run(ranks: Option<usize>, out: &Path, steps: &str) -> Job {
+    let s = scene();
+    let args = long_run_args(&s, out, steps, &[]);
     let mut job = Job::start(ranks, Path::new(env!("CARGO_BIN_EXE_mufe")), &args, &[]);
     let start = Instant::now();
     while !checkpoint(out, 200).is_file() && job.running() {
@@ -361,8 +373,59 @@ fn interrupted_run(ranks: Option<usize>, out: &Path, signal: &str, whole_group: 
         job.running(),
         "the run is still going when it is interrupted"
     );
+    job
+}
+
+/// Starts the long run, sends `signal` once the checkpoint of step 200 exists, and
+/// returns the job's output.
+fn interrupted_run(ranks: Option<usize>, out: &Path, signal: &str, whole_group: bool) -> Output {
+    let _one = mpi_launch::exclusive();
+    let job = start_long_run(ranks, out, LONG);
     job.signal(signal, whole_group);
     job.wait(Duration::from_secs(120))
+}
+
+#[test]
+fn a_second_job_in_a_running_jobs_directory_is_refused() {
+    let _one = mpi_launch::exclusive();
+    let d = dir("in_use");
+    // long enough to be running still when the second job has started and been refused
+    let mut first = start_long_run(None, &d, "1000000");
+    let s = scene();
+    let exe = Path::new(env!("CARGO_BIN_EXE_mufe"));
+    let restart = long_run_args(&s, &d, LONG, &["--restart", "latest"]);
+    let second = Job::start(Some(2), exe, &restart, &[]).wait(Duration::from_secs(120));
+    let err = String::from_utf8_lossy(&second.stderr);
+    assert_eq!(second.status.code(), Some(2), "{err}");
+    // mufe's lines (mpirun adds its own box about the exit code)
+    let ours: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+    let expected = format!(
+        "error: {}: --out: in use by another running mufe job",
+        d.display()
+    );
+    assert!(
+        !ours.is_empty() && ours.iter().all(|l| l.starts_with(&expected)),
+        "one line per rank naming the directory: {err}"
+    );
+    assert!(first.running(), "the first job goes on");
+    // the kernel drops the lock of a killed job: its restart is accepted at once
+    first.signal("KILL", true);
+    let _ = first.wait(Duration::from_secs(60));
+    let newest = std::fs::read_dir(d.join("checkpoints"))
+        .unwrap()
+        .filter_map(|e| {
+            let name = e.ok()?.file_name().into_string().ok()?;
+            name.strip_prefix("step_")?
+                .strip_suffix(".h5")?
+                .parse::<u64>()
+                .ok()
+        })
+        .max()
+        .expect("the killed job left a checkpoint");
+    let end = (newest + 100).to_string();
+    let restart = long_run_args(&s, &d, &end, &["--restart", "latest"]);
+    let o = Job::start(Some(2), exe, &restart, &[]).wait(Duration::from_secs(240));
+    mpi_launch::assert_success(&o);
 }
 
 const LONG: &str = "1200";

@@ -20,6 +20,7 @@ pub mod grain_motion;
 pub mod history;
 pub mod migration;
 pub mod output;
+pub mod output_lock;
 pub mod progress;
 pub mod rank;
 pub mod stop_signal;
@@ -122,6 +123,8 @@ pub struct RunSummary {
 /// under `mpirun` with the grains partitioned over the ranks (all ranks must call).
 pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<RunSummary> {
     let wall0 = Instant::now();
+    // before anything in `out` is read (a restart's checkpoints) or written
+    let _only_job_in_out = output_lock::OutputLock::take(domain, &opts.out)?;
     let global = GlobalMesh::build(loaded)?;
     let restart = (opts.restart.as_deref())
         .map(|p| checkpoints::load_restart(domain, loaded, p, &opts.out, opts.branch))
