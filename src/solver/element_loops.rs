@@ -43,7 +43,7 @@ pub enum KernelPath {
 
 impl KernelPath {
     /// Every path, widest first.
-    const ALL: [Self; 3] = [Self::Avx512, Self::Avx2, Self::Portable];
+    pub(crate) const ALL: [Self; 3] = [Self::Avx512, Self::Avx2, Self::Portable];
 
     /// The widest path the CPU supports, unless `MUFE_KERNEL` names another one it
     /// supports (to compare them on one machine).

@@ -19,6 +19,7 @@ use super::state::State;
 use crate::kinematics::{
     predict, predict_along, with_body_force, BodyForces, NextVelocity, RigidVelocity,
 };
+use crate::math::dot;
 use crate::model::Model;
 use rayon::prelude::*;
 
@@ -84,7 +85,7 @@ impl LaneSums {
     #[inline(always)]
     fn add(&mut self, l: usize, t: &NodeTerms, body: bool, weighs: bool) {
         let NodeTerms { m, a, b, fd, w } = t;
-        self.kinetic[l] += 0.5 * m * dot(a, b);
+        self.kinetic[l] += 0.5 * m * dot(*a, *b);
         // plain comparisons (one max instruction each): no NaN handling is needed here,
         // see bad_node
         for c in b {
@@ -95,11 +96,11 @@ impl LaneSums {
         }
         if body {
             if weighs {
-                self.gravity_before[l] += dot(w, a);
-                self.gravity_after[l] += dot(w, b);
+                self.gravity_before[l] += dot(*w, *a);
+                self.gravity_after[l] += dot(*w, *b);
             }
-            self.damping_before[l] += dot(fd, a);
-            self.damping_after[l] += dot(fd, b);
+            self.damping_before[l] += dot(*fd, *a);
+            self.damping_after[l] += dot(*fd, *b);
         }
     }
 
@@ -124,12 +125,6 @@ impl LaneSums {
             bad_node: self.bad_node,
         }
     }
-}
-
-/// a · b, left to right: the one expression of every path.
-#[inline(always)]
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// What the step hands the integrator besides the model and the state.
@@ -396,8 +391,7 @@ mod tests {
     fn the_first_non_finite_velocity_is_the_bad_node() {
         const NODES: usize = 21;
         let mass = vec![1e-9; NODES];
-        let paths = [KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512];
-        for &path in paths.iter().filter(|p| p.is_supported()) {
+        for path in KernelPath::ALL.into_iter().filter(|p| p.is_supported()) {
             // [first, second, a node with a stored v_{n+½}, whose group goes node by node]
             for bad in [
                 [5, 13, 0],
@@ -458,8 +452,9 @@ mod tests {
         ];
         const NODES: usize = 21;
         let node_grain: Vec<u32> = (0..NODES as u32).map(|l| l % 3 / 2).collect();
-        let paths = [KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512];
-        let paths: Vec<KernelPath> = paths.into_iter().filter(|p| p.is_supported()).collect();
+        let paths: Vec<KernelPath> = (KernelPath::ALL.into_iter())
+            .filter(|p| p.is_supported())
+            .collect();
         for trial in 0..200 {
             let mass: Vec<f64> = (0..NODES).map(|_| 1e-9 * scale(next(), 3.0)).collect();
             let physical: Vec<f64> = mass.iter().map(|m| m * (0.9 + 0.1 * next())).collect();
@@ -503,11 +498,9 @@ mod tests {
                 }
                 let pn = sn.total();
                 // the lane sums are the node sums, regrouped
-                let kinetic: f64 = (0..NODES)
-                    .map(|k| 0.5 * mass[k] * dot(&v0[k], &vn[k]))
-                    .sum();
+                let kinetic: f64 = (0..NODES).map(|k| 0.5 * mass[k] * dot(v0[k], vn[k])).sum();
                 let scale: f64 = (0..NODES)
-                    .map(|k| (0.5 * mass[k] * dot(&v0[k], &vn[k])).abs())
+                    .map(|k| (0.5 * mass[k] * dot(v0[k], vn[k])).abs())
                     .sum();
                 assert!(
                     (pn.kinetic - kinetic).abs() <= 1e-14 * scale,
