@@ -529,25 +529,36 @@ pub fn evaluate_with(
 }
 
 /// Stage 2: adds the grain–grain contact forces of the last [`evaluate`] to `force` (serially,
-/// in entry order) and records the resultant contact force on each grain.
+/// in entry order), records the resultant contact force on each grain, and returns the
+/// power of the contact dampers at the velocities `v` (v_{n−½}: see [`damping_power`]).
+/// The power is summed in the same pass because it reads the same nodes of the same
+/// points; a pass of its own cost a second round of scattered misses.
 pub fn add_forces(
     model: &Model,
     scratch: &ContactScratch,
     state: &mut ContactState,
+    v: &[[f64; 3]],
     force: &mut [[f64; 3]],
-) {
+) -> f64 {
     let cm = &model.contact;
     if !cm.grain_contact {
-        return;
+        return 0.0;
     }
     let gf = &mut state.stats.grain_force;
     gf.clear();
     gf.resize(model.grains.len(), [0.0; 3]);
     let lists = &scratch.lists;
     let results = &scratch.results;
+    let damped = cm.damping != 0.0;
+    let mut power = 0.0;
     for (i, r) in results.iter().enumerate() {
         if let Some(ahead) = results.get(i + RESULTS_AHEAD) {
-            touch_point_nodes(ahead, |n| crate::lanes::touch_value(force, n));
+            touch_point_nodes(ahead, |n| {
+                crate::lanes::touch_value(force, n);
+                if damped {
+                    crate::lanes::touch_value(v, n);
+                }
+            });
         }
         if !r.active {
             continue;
@@ -559,7 +570,11 @@ pub fn add_forces(
             gf[pass.slave as usize][i] += f[i];
             gf[pass.master as usize][i] -= f[i];
         }
+        if damped {
+            add_point_damping_power(r, v, model.owned_nodes, &mut power);
+        }
     }
+    power
 }
 
 /// The contact force on every node at the last step (N): grain–grain (what
@@ -598,40 +613,48 @@ fn add_point_force(r: &PointResult, force: &mut [[f64; 3]]) {
 }
 
 /// Power of the contact damping forces of the last [`evaluate`] at the velocities `v`:
-/// called with v_{n−½} before the integrator and with v_{n+½} after it, for the ledger's
-/// trapezoidal work rule (see `crate::energy`). ≤ 0 when the damper only resists. After
-/// the integrator v_{n+½} is read where it was stored, not predicted again at the four
-/// nodes of every point (with the grain's rigid velocity for the mass damping).
+/// [`add_forces`] returns it with v_{n−½}, and this is called with v_{n+½} after the
+/// integrator, for the ledger's trapezoidal work rule (see `crate::energy`). ≤ 0 when the
+/// damper only resists. After the integrator v_{n+½} is read where it was stored, not
+/// predicted again at the four nodes of every point (with the grain's rigid velocity for
+/// the mass damping).
 pub fn damping_power(model: &Model, v: &[[f64; 3]], scratch: &ContactScratch) -> f64 {
     let mut power = 0.0;
     if model.contact.damping == 0.0 {
         return 0.0;
     }
-    // Power of the damper on each node it acts on, counted for owned nodes only: every node
-    // belongs to exactly one rank, so the sum over ranks is the serial one (and no ghost
-    // v_{n+½}, which only its owner knows, is needed).
-    let owned = model.owned_nodes;
     let results = &scratch.results;
     for (i, r) in results.iter().enumerate() {
         if let Some(ahead) = results.get(i + RESULTS_AHEAD) {
             touch_point_nodes(ahead, |n| crate::lanes::touch_value(v, n));
         }
-        if !r.active || r.damping_force == 0.0 {
-            continue;
-        }
-        let f = r.damping_force;
-        let s = r.slave as usize;
-        if s < owned {
-            power += f * dot(v[s], r.normal);
-        }
-        for (k, &m) in r.masters.iter().enumerate() {
-            let m = m as usize;
-            if m < owned {
-                power -= f * r.weights[k] * dot(v[m], r.normal);
-            }
+        if r.active {
+            add_point_damping_power(r, v, model.owned_nodes, &mut power);
         }
     }
     power
+}
+
+/// Power of one point's damper on the nodes it acts on, counted for owned nodes only
+/// (below `owned`): every node belongs to exactly one rank, so the sum over ranks is the
+/// serial one (and no ghost v_{n+½}, which only its owner knows, is needed).
+/// Added to `power` term by term, in the order a sum over all points has always taken.
+#[inline]
+fn add_point_damping_power(r: &PointResult, v: &[[f64; 3]], owned: usize, power: &mut f64) {
+    let f = r.damping_force;
+    if f == 0.0 {
+        return;
+    }
+    let s = r.slave as usize;
+    if s < owned {
+        *power += f * dot(v[s], r.normal);
+    }
+    for (k, &m) in r.masters.iter().enumerate() {
+        let m = m as usize;
+        if m < owned {
+            *power -= f * r.weights[k] * dot(v[m], r.normal);
+        }
+    }
 }
 
 /// Stage 3: kinematic walls on v_{n+½} (see [`walls`]). `t` = t_n.

@@ -33,7 +33,13 @@ fn contact_forces(s: &mut Solver) -> Vec<[f64; 3]> {
         &mut s.scratch.contact,
     )
     .unwrap();
-    add_forces(&s.model, &s.scratch.contact, &mut s.state.contact, &mut f);
+    add_forces(
+        &s.model,
+        &s.scratch.contact,
+        &mut s.state.contact,
+        &s.state.v,
+        &mut f,
+    );
     f
 }
 
@@ -500,4 +506,43 @@ fn contact_and_wall_input_errors_name_the_field() {
     assert!(e.to_string().contains("walls[1].name"), "{e}");
     // a valid wall scene builds
     assert!(parse_scene("s.toml", &format!("{base}{wall}"), &[]).is_ok());
+}
+
+/// The dampers' power that [`add_forces`] sums beside the forces is [`damping_power`] at
+/// the same velocities, to the bit, and not zero: two pressed spheres closing with a spin.
+#[test]
+fn add_forces_returns_the_damping_power_of_its_velocities() {
+    let (mut s, x) = pressed_pair_with_lists(1.0e-3, 3.0e-4, 2.0e-6, 2.0e-5);
+    let mut v = vec![[0.0; 3]; s.model.num_nodes()];
+    for (g, sign) in [(0, 1.0), (1, -1.0)] {
+        for n in s.model.grains[g].nodes.clone() {
+            // closing along x, spinning about z (rim speed 0.05 m/s)
+            v[n] = [sign * 0.3, -50.0 * x[n][1], 0.0];
+        }
+    }
+    assert!(s.model.contact.damping > 0.0, "default damping");
+    let dt = s.model.dt;
+    evaluate(
+        &s.model,
+        &x,
+        &v,
+        0.0,
+        0,
+        dt,
+        &mut s.state.contact,
+        &mut s.scratch.contact,
+    )
+    .unwrap();
+    let mut f = vec![[0.0; 3]; s.model.num_nodes()];
+    let fused = add_forces(
+        &s.model,
+        &s.scratch.contact,
+        &mut s.state.contact,
+        &v,
+        &mut f,
+    );
+    let alone = damping_power(&s.model, &v, &s.scratch.contact);
+    assert!(s.state.contact.contacts() > 0);
+    assert!(fused < 0.0, "a closing damper resists: {fused:e}");
+    assert_eq!(fused.to_bits(), alone.to_bits(), "{fused:e} vs {alone:e}");
 }

@@ -352,11 +352,13 @@ impl Solver {
                 hooks.ghosts_read(marks.read())
             })?;
         }
-        timers.time(Stage::Contact, || {
+        // the dampers' power at v_{n−½} comes with the forces (the integrator overwrites v)
+        let contact_damping_before = timers.time(Stage::Contact, || {
             crate::contact::add_forces(
                 model,
                 &scratch.contact,
                 &mut state.contact,
+                &state.v,
                 &mut scratch.force,
             )
         });
@@ -473,11 +475,6 @@ impl Solver {
             );
         }
 
-        // Power of the contact dampers with v_{n−½}, before integration overwrites it, and
-        // with v_{n+½} after it.
-        let contact_damping_before = timers.time(Stage::Contact, || {
-            crate::contact::damping_power(model, &state.v, &scratch.contact)
-        });
         let partials = timers.time(Stage::Integrate, || {
             let step = StepResults {
                 force: &scratch.force,
@@ -488,6 +485,7 @@ impl Solver {
             let partials = &mut scratch.node_partials;
             integrate_and_sum(model, alpha, gravity, state, step, partials, dt)
         });
+        // and with v_{n+½}, for the trapezoidal rule
         let contact_damping_after = timers.time(Stage::Contact, || {
             crate::contact::damping_power(model, &state.v, &scratch.contact)
         });
