@@ -449,3 +449,44 @@ fn numerical_failure_stops_with_exit_1_and_a_readable_file() {
         assert!(v.iter().all(|x| x.is_finite()), "{name}: {v:?}");
     }
 }
+
+/// A run refused inside the driver, after the output lock's first step (`--restart latest`
+/// with no checkpoint), leaves an existing output directory as it was, an earlier run's
+/// `.mufe.lock` included, and does not create a missing one: the lock file is made only
+/// just before the first write.
+#[test]
+fn a_restart_without_checkpoints_touches_no_output_directory() {
+    let scene = fixture("valid_small.toml");
+    let scene = scene.to_str().unwrap();
+    let out = tmp("restart_without_checkpoints");
+    std::fs::create_dir_all(out.join("checkpoints")).unwrap();
+    std::fs::write(out.join("results.h5"), baseline_results()).unwrap();
+    std::fs::write(out.join(".mufe.lock"), b"").unwrap();
+    std::fs::write(out.join("checkpoints/notes.txt"), b"keep me\n").unwrap();
+    let before = snapshot(&out);
+    let run = |dir: &Path| {
+        mufe(&[
+            "run",
+            scene,
+            "--out",
+            dir.to_str().unwrap(),
+            "--restart",
+            "latest",
+        ])
+    };
+    assert_one_line_error(&run(&out), &["checkpoint"]);
+    assert_eq!(
+        snapshot(&out),
+        before,
+        "the refused restart changed {}",
+        out.display()
+    );
+
+    let fresh = tmp("restart_without_checkpoints_fresh");
+    assert_one_line_error(&run(&fresh), &["checkpoint"]);
+    assert!(
+        !fresh.exists(),
+        "the refused restart created {}",
+        fresh.display()
+    );
+}

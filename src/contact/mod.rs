@@ -84,7 +84,9 @@
 //! # Use from the solver (see `solver::step`)
 //! 1. [`evaluate`] at x_n, v_{n−½} (stage `contact`; the step calls `evaluate_with` with
 //!    the ranks' rebuild decision), after the internal forces;
-//! 2. [`add_forces`] into the force buffer that holds the internal forces;
+//! 2. [`add_forces`] into the force buffer that holds the internal forces, which also
+//!    returns the dampers' power at v_{n−½} ([`damping_power`] gives it at v_{n+½}, after
+//!    the integrator);
 //! 3. [`enforce_walls`] after v_{n+½} has been predicted and prescribed motions applied;
 //! 4. the ledger reads [`ContactState::friction_dissipation_total`],
 //!    [`ContactStats::energy`] and [`ContactState::wall_external_work`].
@@ -533,6 +535,7 @@ pub fn evaluate_with(
 /// power of the contact dampers at the velocities `v` (v_{n−½}: see [`damping_power`]).
 /// The power is summed in the same pass because it reads the same nodes of the same
 /// points; a pass of its own cost a second round of scattered misses.
+#[must_use = "the dampers' power belongs in the energy ledger"]
 pub fn add_forces(
     model: &Model,
     scratch: &ContactScratch,

@@ -33,7 +33,7 @@ fn contact_forces(s: &mut Solver) -> Vec<[f64; 3]> {
         &mut s.scratch.contact,
     )
     .unwrap();
-    add_forces(
+    let _damping_power = add_forces(
         &s.model,
         &s.scratch.contact,
         &mut s.state.contact,

@@ -123,8 +123,8 @@ pub struct RunSummary {
 /// under `mpirun` with the grains partitioned over the ranks (all ranks must call).
 pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<RunSummary> {
     let wall0 = Instant::now();
-    // before anything in `out` is read (a restart's checkpoints) or written
-    let _only_job_in_out = output_lock::OutputLock::take(domain, &opts.out)?;
+    // before anything in `out` is read (a restart's checkpoints); held to the end of the run
+    let mut only_job_in_out = output_lock::OutputLock::check(domain, &opts.out)?;
     let global = GlobalMesh::build(loaded)?;
     let restart = (opts.restart.as_deref())
         .map(|p| checkpoints::load_restart(domain, loaded, p, &opts.out, opts.branch))
@@ -200,6 +200,8 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         let cell = s.cell_kinematics(&run.solver.model);
         run.hooks.halo.begin(&s.x, &s.v, &cell)?;
     }
+    // the first write to `out`: a run refused for its input before this leaves it untouched
+    only_job_in_out.hold(domain, &opts.out)?;
     let mut output = Output::open(
         domain,
         loaded,

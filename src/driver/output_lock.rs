@@ -6,11 +6,20 @@
 //! run on for seconds, and a `--restart latest` typed at once would share the directory
 //! with them. So rank 0 holds an advisory lock on `OUT/.mufe.lock` for the whole run; the
 //! kernel drops it when the process ends, however it ends, so a stale lock cannot outlive
-//! its job. A second job is refused with one line (exit 2) before it reads or writes
-//! anything else there.
+//! its job. A second job is refused with one line (exit 2).
+//!
+//! The lock is taken in two steps so that a run refused for its input still leaves the
+//! directory as it found it (docs/INPUT.md): [`OutputLock::check`] at the start locks the
+//! file if it is already there (every job that got as far as writing made it) and creates
+//! nothing; [`OutputLock::hold`], just before the first write, creates the directory and
+//! the file and locks it if the first step found none (two new jobs racing for one new
+//! directory).
+//!
+//! `flock` is per node on some parallel file systems (Lustre mounted with `localflock`,
+//! BeeGFS without global locks): there a job whose rank 0 runs on another node is not seen.
 
 use crate::domain::Domain;
-use crate::error::{InputError, MufeError, Result};
+use crate::error::{echo, report_line, InputError, MufeError, Result};
 use std::fs::{File, TryLockError};
 use std::path::Path;
 
@@ -19,7 +28,7 @@ pub const LOCK_FILE_NAME: &str = ".mufe.lock";
 
 /// Held for the whole run (rank 0 holds the file; other ranks hold nothing).
 pub struct OutputLock {
-    _file: Option<File>,
+    file: Option<File>,
 }
 
 /// How rank 0's attempt ended, as sent to the other ranks.
@@ -28,25 +37,48 @@ const IN_USE: u8 = 1;
 const IO_FAILED: u8 = 2;
 
 impl OutputLock {
-    /// Creates `out` if needed and locks it for this job, or fails on every rank: an input
-    /// error (exit 2) if another job holds it, an I/O error if it cannot be created.
-    /// All ranks must call.
-    pub fn take(domain: &Domain, out: &Path) -> Result<Self> {
-        let (file, mut verdict) = if domain.is_root() {
-            match lock_on_root(out) {
-                Ok(f) => (Some(f), vec![TAKEN]),
-                Err((kind, message)) => (None, [vec![kind], message.into_bytes()].concat()),
-            }
-        } else {
-            (None, Vec::new())
-        };
+    /// Locks `out/.mufe.lock` if it exists, creating nothing; fails on every rank with an
+    /// input error (exit 2) if another job holds it. All ranks must call.
+    pub fn check(domain: &Domain, out: &Path) -> Result<Self> {
+        let mut lock = Self { file: None };
+        let there = domain.is_root() && out.join(LOCK_FILE_NAME).is_file();
+        lock.take(domain, out, there)?;
+        Ok(lock)
+    }
+
+    /// Creates `out` and the lock file and locks it, unless [`Self::check`] already holds
+    /// it; fails on every rank as `check` does, or with an I/O error if the directory or
+    /// the file cannot be created. On a file system without locks the run goes on, with a
+    /// warning that a second job would not be refused. All ranks must call.
+    pub fn hold(&mut self, domain: &Domain, out: &Path) -> Result<()> {
+        let held = domain.is_root() && self.file.is_some();
+        // every rank asks the same question, so every rank calls the same collectives
+        let mut root_held = vec![u8::from(held)];
+        domain.broadcast_bytes(&mut root_held);
+        if root_held == [1] {
+            return Ok(());
+        }
+        self.take(domain, out, true)
+    }
+
+    /// With `attempt` (read on rank 0), rank 0 opens or makes the directory and the file and
+    /// locks it; the verdict goes to every rank. Without, nothing is held.
+    fn take(&mut self, domain: &Domain, out: &Path, attempt: bool) -> Result<()> {
+        let mut verdict = Vec::new();
+        if domain.is_root() {
+            verdict = match attempt.then(|| lock_on_root(out)).transpose() {
+                Ok(file) => {
+                    self.file = file;
+                    vec![TAKEN]
+                }
+                Err((kind, message)) => [vec![kind], message.into_bytes()].concat(),
+            };
+        }
         domain.broadcast_bytes(&mut verdict);
         let message = String::from_utf8_lossy(verdict.get(1..).unwrap_or_default()).into_owned();
         match verdict.first().copied() {
-            Some(TAKEN) => Ok(Self { _file: file }),
-            Some(IN_USE) => {
-                Err(InputError::new(out.display().to_string(), "--out", message).into())
-            }
+            Some(TAKEN) => Ok(()),
+            Some(IN_USE) => Err(InputError::new("<command line>", "--out", message).into()),
             _ => Err(MufeError::Io(message)),
         }
     }
@@ -54,30 +86,33 @@ impl OutputLock {
 
 /// Rank 0's part: the directory, the file and a non-blocking exclusive lock on it.
 fn lock_on_root(out: &Path) -> std::result::Result<File, (u8, String)> {
-    let io = |what: &str, e: std::io::Error| (IO_FAILED, format!("{}: {what}: {e}", out.display()));
-    std::fs::create_dir_all(out).map_err(|e| io("cannot create output directory", e))?;
     let path = out.join(LOCK_FILE_NAME);
+    let io = |at: &Path, what: &str, e: std::io::Error| {
+        (IO_FAILED, format!("{}: {what}: {e}", at.display()))
+    };
+    std::fs::create_dir_all(out).map_err(|e| io(out, "cannot create output directory", e))?;
     let file = File::options()
         .create(true)
         .truncate(false)
         .write(true)
         .open(&path)
-        .map_err(|e| io("cannot open the lock file", e))?;
+        .map_err(|e| io(&path, "cannot open the output directory's lock file", e))?;
     match file.try_lock() {
         Ok(()) => Ok(file),
         Err(TryLockError::WouldBlock) => Err((
             IN_USE,
             format!(
-                "in use by another running mufe job (it holds {LOCK_FILE_NAME}); wait for it to end or write to another directory"
+                "'{}' is in use by another running mufe job (it holds {LOCK_FILE_NAME}); wait for it to end or write to another directory",
+                echo(&out.display().to_string())
             ),
         )),
         // A file system without locks (some network mounts) must not stop a run: it only
         // loses the guard, and says so.
         Err(TryLockError::Error(e)) => {
-            eprintln!(
-                "warning: {}: cannot lock {LOCK_FILE_NAME} ({e}); a second job into this directory would not be refused",
-                out.display()
-            );
+            report_line(format_args!(
+                "warning: {}: cannot lock ({e}); a second job into this directory would not be refused",
+                path.display()
+            ));
             Ok(file)
         }
     }

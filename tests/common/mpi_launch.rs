@@ -5,7 +5,8 @@
 //! on every rank, the parent (plain `cargo test`, no MPI) checks the exit status and the
 //! files the child wrote. Every job runs in a session of its own: a timeout prints each
 //! process's stacks (gdb) and kills the launcher and all its ranks, so a deadlock fails the
-//! test and says where it waits instead of hanging CI; and no rank outlives its job.
+//! test and says where it waits instead of hanging CI; and no rank outlives its job, not
+//! even one whose test failed while it ran.
 //! Runs are serialised within a test binary (the machine has few cores).
 //!
 //! Use from a test file with `#[path = "common/mpi_launch.rs"] mod mpi_launch;`.
@@ -16,6 +17,7 @@
 #![allow(dead_code)]
 
 use std::io::Read;
+use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::sync::Mutex;
@@ -58,8 +60,8 @@ const LAUNCH_ENV: [(&str, &str); 4] = [
 
 /// Runs `exe args...` under `$MPIEXEC` (or `mpirun`) with `ranks` ranks and the extra
 /// `env`, and returns its output. Panics (failing the test) if the launcher cannot be
-/// started or does not finish within `timeout`; then the whole process group of the
-/// launcher is killed and the output so far is shown.
+/// started or does not finish within `timeout`; then every process of the job is killed
+/// and the output so far is shown, with each process's stacks.
 pub fn run_under_mpirun(
     ranks: usize,
     exe: &Path,
@@ -72,33 +74,53 @@ pub fn run_under_mpirun(
     job.wait(timeout)
 }
 
-/// A launched job (its own session) whose output is being collected.
+/// A launched job (its own session) whose output is being collected. Dropped without
+/// [`Job::wait`] (a test that failed while it ran), it kills every process of the job.
 pub struct Job {
     child: std::process::Child,
-    /// The session id, which is the launcher's pid. OpenMPI puts every rank in a process
-    /// group of its own, so only the session holds the launcher and all its ranks together,
-    /// even once a rank outlives the launcher and is re-parented.
-    session: u32,
+    session: Session,
     label: String,
     stdout: thread::JoinHandle<Vec<u8>>,
     stderr: thread::JoinHandle<Vec<u8>>,
 }
 
+/// The session of a job, whose id is the launcher's pid. OpenMPI puts every rank in a
+/// process group of its own, so only the session holds the launcher and all its ranks
+/// together, even once a rank outlives the launcher and is re-parented. Ended on drop.
+struct Session(i32);
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        end_session(self.0);
+    }
+}
+
 impl Job {
     /// Starts `exe args...` under the launcher with `ranks` ranks, or directly (a serial
-    /// run without MPI launcher) for `None`.
+    /// run without MPI launcher) for `None`, in a new session.
     pub fn start(ranks: Option<usize>, exe: &Path, args: &[&str], env: &[(&str, &str)]) -> Job {
         let launcher = std::env::var("MPIEXEC").unwrap_or_else(|_| "mpirun".to_string());
-        // `setsid` execs the launcher in a new session (no fork: the spawned child does not
-        // lead a process group), so the child's pid is the session id.
-        let mut cmd = Command::new("setsid");
-        match ranks {
-            Some(n) => cmd.arg(&launcher).arg("-n").arg(n.to_string()).arg(exe),
-            None => cmd.arg(exe),
+        let mut cmd = match ranks {
+            Some(n) => {
+                let mut c = Command::new(&launcher);
+                c.arg("-n").arg(n.to_string()).arg(exe);
+                c
+            }
+            None => Command::new(exe),
         };
         cmd.args(args);
         for (k, v) in LAUNCH_ENV.iter().chain(env) {
             cmd.env(k, v);
+        }
+        // SAFETY: setsid is async-signal-safe, as code between fork and exec must be; the
+        // child is then the leader of a new session whose id is its pid, from before exec.
+        unsafe {
+            cmd.pre_exec(|| {
+                if libc::setsid() < 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
         }
         cmd.stdin(Stdio::null())
             .stdout(Stdio::piped())
@@ -110,7 +132,7 @@ impl Job {
         let mut child = cmd
             .spawn()
             .unwrap_or_else(|e| panic!("cannot start {label}: {e}"));
-        let session = child.id();
+        let session = Session(child.id() as i32);
         let stdout = drain(child.stdout.take());
         let stderr = drain(child.stderr.take());
         Job {
@@ -127,25 +149,19 @@ impl Job {
         matches!(self.child.try_wait(), Ok(None))
     }
 
-    /// The pids of the job's live processes: the launcher and every rank, wherever they
-    /// have been re-parented.
-    pub fn processes(&self) -> Vec<String> {
-        processes_of_session(self.session)
+    /// The pids and command names of the job's live processes: the launcher and every
+    /// rank, wherever they have been re-parented.
+    pub fn processes(&self) -> Vec<(i32, String)> {
+        processes_of_session(self.session.0)
     }
 
-    /// Sends `signal` (a `kill` name: TERM, USR1, KILL) to the launcher only, or with
-    /// `whole_job` to the launcher and every rank.
+    /// Sends `signal` (TERM, USR1 or KILL) to the launcher only, or with `whole_job` to the
+    /// launcher and every rank.
     pub fn signal(&self, signal: &str, whole_job: bool) {
         if whole_job {
-            signal_session(self.session, signal);
+            signal_session(self.session.0, signal);
         } else {
-            let _ = Command::new("kill")
-                .args([
-                    format!("-{signal}"),
-                    "--".to_string(),
-                    self.session.to_string(),
-                ])
-                .status();
+            send(self.session.0, signal);
         }
     }
 
@@ -163,10 +179,11 @@ impl Job {
         };
         let Some(status) = status else {
             // Where each process waits says more about a deadlock than that it happened.
-            let stacks = stacks_of_session(self.session);
-            signal_session(self.session, "TERM");
+            let stacks = stacks_of_session(self.session.0);
+            signal_session(self.session.0, "TERM");
             thread::sleep(Duration::from_secs(2));
-            end_session(self.session);
+            end_session(self.session.0);
+            let _ = self.child.kill();
             let _ = self.child.wait();
             let out = String::from_utf8_lossy(&join(self.stdout)).into_owned();
             let err = String::from_utf8_lossy(&join(self.stderr)).into_owned();
@@ -177,8 +194,8 @@ impl Job {
             );
         };
         // A rank left behind by the launcher (after a kill of the launcher alone, say) would
-        // go on writing the job's files under the next run; make sure none is left.
-        end_session(self.session);
+        // go on writing the job's files under the next run, and hold the output pipes open.
+        end_session(self.session.0);
         Output {
             status,
             stdout: join(self.stdout),
@@ -252,81 +269,123 @@ fn join(handle: thread::JoinHandle<Vec<u8>>) -> Vec<u8> {
     handle.join().unwrap_or_default()
 }
 
-/// The pids of the live processes still in `session` (a zombie, dead but not yet reaped by
-/// whoever adopted it, writes nothing and is left out).
-fn processes_of_session(session: u32) -> Vec<String> {
-    let listed = Command::new("pgrep")
-        .args(["-s", &session.to_string()])
-        .output()
-        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
-        .unwrap_or_default();
-    listed
-        .split_whitespace()
-        .filter(|pid| {
-            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-            // The state is the field after the parenthesised command name.
-            let state = stat
-                .rsplit(')')
-                .next()
-                .and_then(|r| r.split_whitespace().next());
-            !matches!(state, None | Some("Z"))
-        })
-        .map(str::to_string)
-        .collect()
+/// The live processes of `session` as (pid, command name), read from `/proc` (field 6 of
+/// `stat` is the session; a zombie, dead but not yet reaped by whoever adopted it, writes
+/// nothing and is left out).
+fn processes_of_session(session: i32) -> Vec<(i32, String)> {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        panic!("/proc is not readable: the MPI tests need Linux");
+    };
+    let mut found = Vec::new();
+    for entry in dir.flatten() {
+        let Some(pid) = entry
+            .file_name()
+            .to_str()
+            .and_then(|n| n.parse::<i32>().ok())
+        else {
+            continue;
+        };
+        let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+            continue; // ended meanwhile
+        };
+        // "pid (comm) state ppid pgrp session ...": comm may hold spaces and parentheses
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
+        let fields: Vec<&str> = stat[close + 1..].split_whitespace().collect();
+        let state = fields.first().copied();
+        let in_session = fields.get(3).and_then(|f| f.parse::<i32>().ok()) == Some(session);
+        if in_session && !matches!(state, None | Some("Z")) {
+            found.push((pid, stat[open + 1..close].to_string()));
+        }
+    }
+    found
 }
 
 /// The thread stacks of every process in `session` (the launcher and its ranks), from
-/// `gdb -batch` when it is installed; otherwise a line saying so. Each attach is bounded by
-/// `timeout` so a stuck debugger cannot hang the test in turn.
-fn stacks_of_session(session: u32) -> String {
+/// `gdb -batch`; where none come back (gdb missing, attaching not permitted) the reason
+/// gdb gave. Each attach is bounded so that a stuck debugger cannot hang the test in turn.
+fn stacks_of_session(session: i32) -> String {
     let mut report = String::new();
-    for pid in processes_of_session(session) {
-        let pid = pid.as_str();
-        let comm = std::fs::read_to_string(format!("/proc/{pid}/comm")).unwrap_or_default();
+    for (pid, comm) in processes_of_session(session) {
         let bt = Command::new("timeout")
             .args([
+                "-k",
+                "5",
                 "30",
                 "gdb",
                 "-p",
-                pid,
+                &pid.to_string(),
                 "-batch",
                 "-nx",
-                "-ex",
-                "thread apply all bt",
             ])
+            .args(["-ex", "thread apply all bt"])
             .stdin(Stdio::null())
             .output();
         let text = match bt {
-            Ok(o) => String::from_utf8_lossy(&o.stdout).into_owned(),
+            Ok(o) => {
+                // Only the frames: gdb's banner and symbol-loading chatter are noise here.
+                let frames: String = String::from_utf8_lossy(&o.stdout)
+                    .lines()
+                    .filter(|l| l.starts_with('#') || l.starts_with("Thread "))
+                    .map(|l| format!("{l}\n"))
+                    .collect();
+                if frames.is_empty() {
+                    let why = String::from_utf8_lossy(&o.stderr);
+                    let last = why.lines().rev().find(|l| !l.trim().is_empty());
+                    format!(
+                        "(no stack: gdb {}: {})\n",
+                        o.status,
+                        last.unwrap_or("no message")
+                    )
+                } else {
+                    frames
+                }
+            }
             Err(e) => format!("(no stack: gdb could not be run: {e})\n"),
         };
-        // Only the frames: gdb's banner and symbol-loading chatter are noise here.
-        let frames: String = text
-            .lines()
-            .filter(|l| l.starts_with('#') || l.starts_with("Thread "))
-            .map(|l| format!("{l}\n"))
-            .collect();
-        report.push_str(&format!("pid {pid} ({}):\n{frames}", comm.trim()));
+        report.push_str(&format!("pid {pid} ({comm}):\n{text}"));
     }
     report
 }
 
-/// Signals every process of the session we created for the launcher (no libc dependency:
-/// `pkill`).
-fn signal_session(session: u32, signal: &str) {
-    let _ = Command::new("pkill")
-        .arg(format!("-{signal}"))
-        .args(["-s", &session.to_string()])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status();
+/// Sends `signal` (TERM, USR1 or KILL) to process `pid`.
+fn send(pid: i32, signal: &str) {
+    let number = match signal {
+        "TERM" => libc::SIGTERM,
+        "USR1" => libc::SIGUSR1,
+        "KILL" => libc::SIGKILL,
+        other => panic!("no signal {other} in the test harness"),
+    };
+    // SAFETY: kill(2) has no memory effects; a pid that has ended meanwhile gives ESRCH.
+    unsafe {
+        libc::kill(pid, number);
+    }
 }
 
-/// Kills whatever is left of `session` and waits (up to 30 s) until it is gone, so the
-/// next run never shares the output directory with a survivor of this one.
-fn end_session(session: u32) {
+/// Signals every live process of the session we created for the launcher.
+fn signal_session(session: i32, signal: &str) {
+    for (pid, _) in processes_of_session(session) {
+        send(pid, signal);
+    }
+}
+
+/// Kills whatever is left of `session` and waits until it is gone, so the next run never
+/// shares the output directory with a survivor of this one. Panics (unless already
+/// unwinding) if a process outlives 30 s of SIGKILL, which only an unkillable process does.
+fn end_session(session: i32) {
     let start = Instant::now();
-    while !processes_of_session(session).is_empty() && start.elapsed() < Duration::from_secs(30) {
+    loop {
+        let left = processes_of_session(session);
+        if left.is_empty() {
+            return;
+        }
+        if start.elapsed() > Duration::from_secs(30) {
+            if !thread::panicking() {
+                panic!("still running 30 s after SIGKILL: {left:?}");
+            }
+            return;
+        }
         signal_session(session, "KILL");
         thread::sleep(Duration::from_millis(20));
     }
