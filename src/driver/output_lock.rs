@@ -51,24 +51,21 @@ impl OutputLock {
     /// the file cannot be created. On a file system without locks the run goes on, with a
     /// warning that a second job would not be refused. All ranks must call.
     pub fn hold(&mut self, domain: &Domain, out: &Path) -> Result<()> {
-        let held = domain.is_root() && self.file.is_some();
-        // every rank asks the same question, so every rank calls the same collectives
-        let mut root_held = vec![u8::from(held)];
-        domain.broadcast_bytes(&mut root_held);
-        if root_held == [1] {
-            return Ok(());
-        }
-        self.take(domain, out, true)
+        let held = self.file.is_some();
+        self.take(domain, out, !held)
     }
 
     /// With `attempt` (read on rank 0), rank 0 opens or makes the directory and the file and
-    /// locks it; the verdict goes to every rank. Without, nothing is held.
+    /// locks it; the verdict goes to every rank (one broadcast, whatever rank 0 did).
+    /// Without, rank 0 keeps what it holds.
     fn take(&mut self, domain: &Domain, out: &Path, attempt: bool) -> Result<()> {
         let mut verdict = Vec::new();
         if domain.is_root() {
             verdict = match attempt.then(|| lock_on_root(out)).transpose() {
                 Ok(file) => {
-                    self.file = file;
+                    if file.is_some() {
+                        self.file = file;
+                    }
                     vec![TAKEN]
                 }
                 Err((kind, message)) => [vec![kind], message.into_bytes()].concat(),

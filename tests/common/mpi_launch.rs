@@ -182,7 +182,7 @@ impl Job {
             let stacks = stacks_of_session(self.session.0);
             signal_session(self.session.0, "TERM");
             thread::sleep(Duration::from_secs(2));
-            end_session(self.session.0);
+            drop(self.session); // ends it
             let _ = self.child.kill();
             let _ = self.child.wait();
             let out = String::from_utf8_lossy(&join(self.stdout)).into_owned();
@@ -194,8 +194,9 @@ impl Job {
             );
         };
         // A rank left behind by the launcher (after a kill of the launcher alone, say) would
-        // go on writing the job's files under the next run, and hold the output pipes open.
-        end_session(self.session.0);
+        // go on writing the job's files under the next run, and hold the output pipes open:
+        // the session ends here, before the pipes are read to their end.
+        drop(self.session);
         Output {
             status,
             stdout: join(self.stdout),
