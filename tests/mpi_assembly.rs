@@ -154,6 +154,7 @@ fn same_history_on_1_2_3_ranks_and_1_2_threads() {
     compare_configurations(
         &golden_path,
         &golden,
+        &scene_lines(&out),
         &[
             (1, 2, false),
             (2, 1, false),
@@ -191,21 +192,43 @@ fn elastic_plastic_history_is_the_same_on_1_2_3_ranks_and_after_migration() {
     compare_configurations(
         &golden_path,
         &golden,
+        &scene_lines(&out),
         &[(2, 2, false), (3, 1, true)],
         &plastic,
         "plastic",
     );
 }
 
+/// The header lines of a run's output that describe the whole scene (counts, mass, mass
+/// scaling, contact surfaces): the same on any number of ranks.
+fn scene_lines(out: &std::process::Output) -> Vec<String> {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let lines: Vec<String> = (stdout.lines())
+        .filter(|l| {
+            ["totals:", "mass scaling:", "contact: friction"]
+                .iter()
+                .any(|p| l.starts_with(p))
+        })
+        .map(str::to_string)
+        .collect();
+    assert!(
+        lines.iter().any(|l| l.starts_with("totals:")),
+        "a totals line: {stdout}"
+    );
+    lines
+}
+
 /// Runs each (ranks, threads, migrate) configuration with the scene settings `sets` and
-/// compares its `/history` with `golden` (1e-10 relative to each series' largest value)
-/// and its last frame's displacement, velocity and stress with those of `golden_path`
-/// (1e-12 relative: each rank writes its own rows, in the same global order).
+/// compares its `/history` with `golden` (1e-10 relative to each series' largest value),
+/// its last frame's displacement, velocity and stress with those of `golden_path`
+/// (1e-12 relative: each rank writes its own rows, in the same global order), and its
+/// header's scene lines with `golden_lines` (a rank's model holds only its share).
 /// Migration re-partitions at steps 100 and 200 (threshold 0), so grains change hands
 /// with their full state in the middle of the run.
 fn compare_configurations(
     golden_path: &Path,
     golden: &[(String, Vec<f64>)],
+    golden_lines: &[String],
     configurations: &[(usize, usize, bool)],
     sets: &[&str],
     label: &str,
@@ -228,6 +251,11 @@ fn compare_configurations(
             &extra,
         );
         mpi_launch::assert_success(&out);
+        assert_eq!(
+            scene_lines(&out),
+            golden_lines,
+            "{label}, {ranks} ranks: the header describes the whole scene"
+        );
         if migrates {
             let stdout = String::from_utf8_lossy(&out.stdout);
             assert!(

@@ -23,6 +23,7 @@ pub mod output;
 pub mod output_lock;
 pub mod progress;
 pub mod rank;
+mod scene_counts;
 pub mod stop_signal;
 pub mod summary;
 pub mod triaxial_plot;
@@ -173,8 +174,13 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
     let total_steps = step_count(loaded, &run.solver, opts)?;
     let last_step = opts.max_steps.map_or(total_steps, |m| m.min(total_steps));
     let halo_bytes = domain.all_gather_u64(run.hooks.halo.plan.bytes_per_step() as u64);
+    let scene_counts = (domain.size() > 1)
+        .then(|| summary::SceneCounts::owned_by(&run.solver.model).sum_over_ranks(domain));
     if run.talk {
-        print_model_summary(&run.solver, loaded, total_steps);
+        match &scene_counts {
+            Some(scene) => summary::print_rank_summary(&run.solver, loaded, total_steps, scene),
+            None => print_model_summary(&run.solver, loaded, total_steps),
+        }
         if domain.size() > 1 {
             let per_rank: Vec<String> = halo_bytes.iter().map(u64::to_string).collect();
             println!(

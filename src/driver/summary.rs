@@ -1,16 +1,27 @@
 //! What a run prints: the model summary (`mufe check` and the head of `mufe run`), the
 //! memory estimate, and the closing summary of `mufe run`.
 
+pub use super::scene_counts::{estimate_memory_bytes, SceneCounts};
 use super::RunSummary;
 use crate::boundary::stages::{StagePlan, StageRecord, WallMode};
 use crate::io::results::StageAttributes;
-use crate::model::Model;
 use crate::scene::LoadedScene;
 use crate::solver::{Solver, Stage};
 
 /// The `mufe check`/`run` header: grains, elements, nodes, Δt, mass scaling, memory.
 pub fn print_model_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u64) {
-    print_summary(solver, loaded, total_steps, None);
+    print_summary(solver, loaded, total_steps, Scope::Model);
+}
+
+/// The `mufe run` header on rank 0 of several: the table lists rank 0's grains, the
+/// counts, mass, mass scaling, surfaces and memory are the whole scene's (`scene`).
+pub fn print_rank_summary(
+    solver: &Solver,
+    loaded: &LoadedScene,
+    total_steps: u64,
+    scene: &SceneCounts,
+) {
+    print_summary(solver, loaded, total_steps, Scope::Ranks(scene));
 }
 
 /// The header when the model holds one representative of each distinct grain (shape and
@@ -22,22 +33,38 @@ pub fn print_representative_summary(
     total_steps: u64,
     copies: &[usize],
 ) {
-    print_summary(solver, loaded, total_steps, Some(copies));
+    print_summary(solver, loaded, total_steps, Scope::Representatives(copies));
 }
 
-fn print_summary(
-    solver: &Solver,
-    loaded: &LoadedScene,
-    total_steps: u64,
-    copies: Option<&[usize]>,
-) {
+/// What the model of a header holds.
+#[derive(Clone, Copy)]
+enum Scope<'a> {
+    /// The whole scene.
+    Model,
+    /// One rank's share of a scene run on several, whose totals are given.
+    Ranks(&'a SceneCounts),
+    /// One grain per distinct kind, `copies[g]` scene grains each.
+    Representatives(&'a [usize]),
+}
+
+fn print_summary(solver: &Solver, loaded: &LoadedScene, total_steps: u64, scope: Scope) {
     let m = &solver.model;
+    let copies = match scope {
+        Scope::Representatives(c) => Some(c),
+        _ => None,
+    };
     let copy = |g: usize| copies.map_or(1, |c| c[g]);
     println!("scene: {}", loaded.path);
     if copies.is_some() {
         println!(
             "distinct grains (shape and material): {}, each meshed and built once; the totals are the whole scene's",
             m.grains.len()
+        );
+    }
+    if let Scope::Ranks(scene) = scope {
+        println!(
+            "on {} ranks: the grain table lists rank 0's grains; the totals are the whole scene's",
+            scene.ranks
         );
     }
     println!(
@@ -67,15 +94,30 @@ fn print_summary(
             copies.map_or(String::new(), |c| format!(" {:>9}", c[gi]))
         );
     }
-    if held.len() > 20 {
-        println!("... {} more grains", held.len() - 20);
-    }
     let (mut grains, mut elements, mut nodes, mut phys) = (0, 0, 0, 0.0);
     for (gi, g) in held.iter().enumerate() {
         grains += copy(gi);
         elements += g.elements.len() * copy(gi);
         nodes += g.nodes.len() * copy(gi);
         phys += m.physical_mass[g.nodes.clone()].iter().sum::<f64>() * copy(gi) as f64;
+    }
+    let listed = held.len().min(20);
+    if let Scope::Ranks(scene) = scope {
+        (grains, elements, nodes, phys) = (
+            scene.grains as usize,
+            scene.elements as usize,
+            scene.nodes as usize,
+            scene.mass,
+        );
+        if grains > listed {
+            println!(
+                "... {} more grains ({} on rank 0)",
+                grains - listed,
+                held.len() - listed
+            );
+        }
+    } else if held.len() > listed {
+        println!("... {} more grains", held.len() - listed);
     }
     println!("totals: {grains} grains, {elements} elements, {nodes} nodes; mass {phys:.4e} kg");
     if let Some(c) = &m.periodic {
@@ -103,23 +145,29 @@ fn print_summary(
         total_steps,
         loaded.scene.simulation.duration
     );
-    let scaled_nodes = m.contact.stable_step.scaled_nodes;
-    if m.scaled_elements > 0 || scaled_nodes > 0 {
+    let (scaled_elements, scaled_nodes) = match scope {
+        Scope::Ranks(scene) => (
+            scene.scaled_elements as usize,
+            scene.scaled_contact_nodes as usize,
+        ),
+        _ => (m.scaled_elements, m.contact.stable_step.scaled_nodes),
+    };
+    if scaled_elements > 0 || scaled_nodes > 0 {
         // `mufe check` builds each distinct grain once: the scene's added mass is each
         // mesh's (element and contact-node scaling, read off the node masses) times its
         // copies, while the element count is the distinct meshes'.
-        let (scaled, added) = match copies {
-            None => (
-                format!(
-                    "{} elements and {scaled_nodes} contact nodes scaled",
-                    m.scaled_elements
-                ),
+        let (scaled, added) = match scope {
+            Scope::Model => (
+                format!("{scaled_elements} elements and {scaled_nodes} contact nodes scaled"),
                 m.added_mass,
             ),
-            Some(_) => (
+            Scope::Ranks(scene) => (
+                format!("{scaled_elements} elements and {scaled_nodes} contact nodes scaled"),
+                scene.added_mass,
+            ),
+            Scope::Representatives(_) => (
                 format!(
-                    "{} elements and {scaled_nodes} contact nodes of the distinct meshes scaled",
-                    m.scaled_elements
+                    "{scaled_elements} elements and {scaled_nodes} contact nodes of the distinct meshes scaled"
                 ),
                 m.grains
                     .iter()
@@ -143,16 +191,28 @@ fn print_summary(
     let cm = &m.contact;
     if cm.active() {
         let st = &cm.stable_step;
+        // a rank's arrays hold its ghosts' and periodic images' surfaces too: counted by
+        // their owner
+        let (surface_nodes, facets, max_penalty) = match scope {
+            Scope::Ranks(scene) => (scene.surface_nodes, scene.facets, scene.max_penalty),
+            Scope::Model => {
+                let own = SceneCounts::owned_by(m);
+                (own.surface_nodes, own.facets, st.max_penalty)
+            }
+            Scope::Representatives(_) => {
+                (cm.node.len() as u64, cm.facet.len() as u64, st.max_penalty)
+            }
+        };
         if cm.grain_contact {
             println!(
                 "contact: friction {}, penalty factor {} (max ε_n {:.3e} Pa/m), damping {} of critical, margin {:.3e} m, {} surface nodes, {} facets, {} walls",
                 cm.friction,
                 cm.penalty_factor,
-                st.max_penalty,
+                max_penalty,
                 cm.damping,
                 cm.margin,
-                cm.node.len(),
-                cm.facet.len(),
+                surface_nodes,
+                facets,
                 cm.walls.len()
             );
         } else {
@@ -166,17 +226,21 @@ fn print_summary(
             print_stage_plan(plan, &cm.walls);
         }
         if st.contact_dt.is_finite() {
+            let contact_added_mass = match scope {
+                Scope::Ranks(scene) => scene.contact_added_mass,
+                _ => st.added_mass,
+            };
             println!(
                 "contact stable step: {:.4e} s (node {}) vs {:.4e} s from elements alone (×{:.3}){}",
                 st.contact_dt,
                 st.critical_node.unwrap_or(0),
                 st.element_dt,
                 (st.contact_dt / st.element_dt).min(1.0),
-                if st.scaled_nodes > 0 {
+                if scaled_nodes > 0 {
                     format!(
                         "; {} contact nodes mass-scaled, added {:.4e} kg{}",
-                        st.scaled_nodes,
-                        st.added_mass,
+                        scaled_nodes,
+                        contact_added_mass,
                         if copies.is_some() { " (in the distinct meshes)" } else { "" }
                     )
                 } else {
@@ -186,30 +250,18 @@ fn print_summary(
         }
     }
     let per_element = estimate_memory_bytes(m) as f64 / m.num_elements().max(1) as f64;
-    println!(
-        "memory estimate: {:.1} MiB ({per_element:.0} bytes/element)",
-        per_element * elements as f64 / 1048576.0,
-    );
-}
-
-/// Bytes held by the model, state and scratch arrays.
-pub fn estimate_memory_bytes(m: &Model) -> usize {
-    let ne = m.num_elements();
-    let nn = m.num_nodes();
-    let per_element = 16 /* tets */ + 80 /* reference */ + 2 /* law */;
-    let per_node = 24 * 5 /* x0, x, v, v_next, force */ + 16 /* masses */ + 1 + 4 + 1 /* v_next stored */;
-    let plastic = if m.plastic_slot.is_empty() {
-        0
-    } else {
-        // slot table over owned elements, and the state of each plastic element
-        4 * m.plastic_slot.len()
-            + std::mem::size_of::<crate::material::PlasticPoint>()
-                * m.plastic_slot
-                    .iter()
-                    .filter(|&&s| s != crate::model::NONE)
-                    .count()
-    };
-    ne * per_element + nn * per_node + plastic
+    match scope {
+        Scope::Ranks(scene) => println!(
+            "memory estimate: {:.1} MiB over {} ranks, {:.1} MiB on rank 0 ({per_element:.0} bytes/element)",
+            scene.memory_bytes as f64 / 1048576.0,
+            scene.ranks,
+            estimate_memory_bytes(m) as f64 / 1048576.0,
+        ),
+        _ => println!(
+            "memory estimate: {:.1} MiB ({per_element:.0} bytes/element)",
+            per_element * elements as f64 / 1048576.0,
+        ),
+    }
 }
 
 /// The closing lines of `mufe run`: stage table, throughput, energy balance, contact.
