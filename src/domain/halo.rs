@@ -232,9 +232,14 @@ pub struct Halo<'d> {
     /// Values sent by this rank and exchanges made, for the mean bytes per step.
     pub values_sent: u64,
     pub exchanges: u64,
-    /// The buffers between exchanges (inside `pending` while one is in flight).
+    /// The buffers between exchanges (inside `pending` while one is in flight, and inside
+    /// `sends_in_flight` from its `end` to the next `begin`).
     buffers: Option<ExchangeBuffers>,
     pending: Option<PendingExchange<'d>>,
+    /// The last exchange once its receives are in: its sends complete when the receivers
+    /// take them, which `end` does not wait for ([`Exchange::end_receives`]); the next
+    /// `begin` does, before it packs the buffer again.
+    sends_in_flight: Option<PendingExchange<'d>>,
 }
 
 impl<'d> Halo<'d> {
@@ -272,6 +277,7 @@ impl<'d> Halo<'d> {
             exchanges: 0,
             buffers: Some(ExchangeBuffers::default()),
             pending: None,
+            sends_in_flight: None,
         }
     }
 
@@ -385,6 +391,7 @@ impl<'d> Halo<'d> {
         }
         let full = self.full_next;
         let zones = self.zones_next && !full;
+        self.complete_sends()?;
         let mut buffers = self.buffers.take().unwrap_or_default();
         buffers.send.clear();
         self.send_counts.clear();
@@ -453,10 +460,10 @@ impl<'d> Halo<'d> {
 
     /// Waits for the ghost data and writes it into the ghost nodes of x and v.
     pub fn end(&mut self, x: &mut [[f64; 3]], v: &mut [[f64; 3]]) -> Result<(), MufeError> {
-        let Some(pending) = self.pending.take() else {
+        let Some(mut pending) = self.pending.take() else {
             return Ok(());
         };
-        let buffers = self.exchange.end_reusing(pending)?;
+        self.exchange.end_receives(&mut pending)?;
         let (full, zones) = (self.full_in_flight, self.zones_in_flight);
         let per_node = if full {
             VALUES_PER_NODE_FULL
@@ -464,7 +471,7 @@ impl<'d> Halo<'d> {
             VALUES_PER_NODE
         };
         for (i, ((rank, data), (_, nodes))) in
-            buffers.received().zip(&self.plan.receives).enumerate()
+            pending.received().zip(&self.plan.receives).enumerate()
         {
             let expected = if full {
                 nodes.len()
@@ -521,7 +528,16 @@ impl<'d> Halo<'d> {
                 ));
             }
         }
-        self.buffers = Some(buffers);
+        self.sends_in_flight = Some(pending);
+        Ok(())
+    }
+
+    /// Completes the sends of the last exchange, whose receives are in, and takes its
+    /// buffers back.
+    fn complete_sends(&mut self) -> Result<(), MufeError> {
+        if let Some(sent) = self.sends_in_flight.take() {
+            self.buffers = Some(self.exchange.end_reusing(sent)?);
+        }
         Ok(())
     }
 
@@ -537,9 +553,8 @@ impl<'d> Halo<'d> {
 
     /// Start of the send buffer and its capacity (for the test that steps reuse it).
     pub fn send_buffer_identity(&self) -> Option<(*const f64, usize)> {
-        self.buffers
-            .as_ref()
-            .map(|b| (b.send.as_ptr(), b.send.capacity()))
+        let in_flight = self.sends_in_flight.as_ref().map(|p| &p.buffers);
+        (self.buffers.as_ref().or(in_flight)).map(|b| (b.send.as_ptr(), b.send.capacity()))
     }
 
     /// begin + end: a blocking exchange.

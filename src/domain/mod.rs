@@ -375,6 +375,9 @@ pub struct PendingExchange<'d> {
     buffers: ExchangeBuffers,
     n_recv: usize,
     tag: i32,
+    /// The receives have completed and their lengths were checked
+    /// ([`Exchange::end_receives`]): only the sends may still be in flight.
+    received: bool,
     done: bool,
     // Ties the exchange to the Domain (MPI must outlive it) and keeps it on its thread.
     _domain: PhantomData<&'d Domain>,
@@ -493,6 +496,7 @@ impl Exchange {
             n_recv: buffers.recvs.len(),
             buffers,
             tag: self.tag,
+            received: false,
             done: false,
             _domain: PhantomData,
         };
@@ -553,14 +557,34 @@ impl Exchange {
             .collect())
     }
 
-    /// [`Exchange::end`] without copies: waits, checks every receive's length and gives the
-    /// buffers back ([`ExchangeBuffers::received`] lists the messages).
-    pub fn end_reusing(
-        &self,
-        mut pending: PendingExchange<'_>,
-    ) -> Result<ExchangeBuffers, MufeError> {
-        pending.wait_all();
-        let b = &pending.buffers;
+    /// Waits for the receives of `pending` only and checks their lengths; the received
+    /// messages are then `pending.received()`, while its sends may still be in flight.
+    /// [`Exchange::end_reusing`] completes them later and gives the buffers back.
+    ///
+    /// Why: a send completes only once its receiver has entered MPI to take the message
+    /// (Open MPI's shared-memory transport copies a large message on the receiver's side and
+    /// acknowledges it), so a step that waited for its own sends with its receives waited
+    /// for the slowest neighbour to reach the same point of its step: one more lock-step
+    /// point per step (docs/BENCHMARKS.md, session 63).
+    pub fn end_receives(&self, pending: &mut PendingExchange<'_>) -> Result<(), MufeError> {
+        if pending.received {
+            return Ok(());
+        }
+        let b = &mut pending.buffers;
+        let (n, n_recv) = (b.requests.len(), b.recvs.len());
+        // SAFETY: as in `wait_all`; only the receive requests (the first n_recv) are waited.
+        b.statuses.clear();
+        b.statuses.resize(n, unsafe { std::mem::zeroed() });
+        if !pending.done && n_recv > 0 {
+            unsafe {
+                mpi::ffi::MPI_Waitall(
+                    n_recv as c_int,
+                    b.requests.as_mut_ptr(),
+                    b.statuses.as_mut_ptr(),
+                );
+            }
+        }
+        pending.received = true;
         for (i, &(from, _, count)) in b.recvs.iter().enumerate() {
             let mut got: c_int = 0;
             // SAFETY: the status was filled by MPI_Waitall for this completed receive.
@@ -574,6 +598,17 @@ impl Exchange {
                 )));
             }
         }
+        Ok(())
+    }
+
+    /// [`Exchange::end`] without copies: waits, checks every receive's length and gives the
+    /// buffers back ([`ExchangeBuffers::received`] lists the messages).
+    pub fn end_reusing(
+        &self,
+        mut pending: PendingExchange<'_>,
+    ) -> Result<ExchangeBuffers, MufeError> {
+        self.end_receives(&mut pending)?;
+        pending.wait_all();
         Ok(std::mem::take(&mut pending.buffers))
     }
 }
@@ -594,17 +629,32 @@ impl PendingExchange<'_> {
         self.n_recv
     }
 
-    /// Completes every request; the statuses (receives first) are left in the buffers.
+    /// The messages received, once [`Exchange::end_receives`] has returned.
+    pub fn received(&self) -> impl Iterator<Item = (usize, &[f64])> {
+        let ready = self.received || self.done;
+        self.buffers.received().filter(move |_| ready)
+    }
+
+    /// Completes every request (only the sends once the receives have been waited); the
+    /// statuses (receives first) are left in the buffers.
     fn wait_all(&mut self) {
         let b = &mut self.buffers;
         let n = b.requests.len();
+        // the receives were waited and their statuses are kept
+        let first = if self.received { b.recvs.len() } else { 0 };
+        if first == 0 {
+            b.statuses.clear();
+        }
         // SAFETY: MPI_Status is a plain C struct; zeroed is a valid value and MPI overwrites
         // it. The requests are live (or already MPI_REQUEST_NULL, which Waitall accepts).
-        b.statuses.clear();
         b.statuses.resize(n, unsafe { std::mem::zeroed() });
-        if !self.done && n > 0 {
+        if !self.done && n > first {
             unsafe {
-                mpi::ffi::MPI_Waitall(n as c_int, b.requests.as_mut_ptr(), b.statuses.as_mut_ptr());
+                mpi::ffi::MPI_Waitall(
+                    (n - first) as c_int,
+                    b.requests.as_mut_ptr().add(first),
+                    b.statuses.as_mut_ptr().add(first),
+                );
             }
         }
         self.done = true;

@@ -16,8 +16,8 @@ use super::rank::{build_rank_solver, metis_owner};
 use crate::domain::Domain;
 use crate::error::{InputError, MufeError, Result};
 use crate::io::checkpoint::{
-    write_checkpoint, CheckpointFile, CheckpointInfo, GrainPackages, RankCheckpoint, Target,
-    CHECKPOINT_DIR,
+    step_files_oldest_first, write_checkpoint, CheckpointFile, CheckpointInfo, GrainPackages,
+    RankCheckpoint, Target, CHECKPOINT_DIR,
 };
 use crate::model::decomposition::{Decomposition, Partition};
 use crate::model::global::{ghost_margin, GlobalMesh};
@@ -365,20 +365,9 @@ pub fn load_restart(
     unreachable!("the last candidate returns")
 }
 
-/// `step_*.h5` files of `folder`, newest step first.
+/// `step_*.h5` files of `folder`, newest step first (none when it cannot be read).
 fn newest_first(folder: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = std::fs::read_dir(folder)
-        .map(|d| {
-            d.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| {
-                    p.file_name()
-                        .and_then(|n| n.to_str())
-                        .is_some_and(|n| n.starts_with("step_") && n.ends_with(".h5"))
-                })
-                .collect()
-        })
-        .unwrap_or_default();
-    files.sort();
+    let mut files = step_files_oldest_first(folder).unwrap_or_default();
     files.reverse();
     files
 }

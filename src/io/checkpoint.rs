@@ -230,8 +230,9 @@ fn write_blocks<T: collective::Element + hdf5::H5Type>(
     Ok(())
 }
 
-/// Removes all but the newest `keep` (≥ 1) `step_*.h5` files of `folder`.
-fn prune(folder: &Path, keep: usize) -> std::io::Result<()> {
+/// The `step_*.h5` files of `folder`, oldest step first (the names are zero-padded, so
+/// name order is step order).
+pub fn step_files_oldest_first(folder: &Path) -> std::io::Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(folder)?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
@@ -241,6 +242,12 @@ fn prune(folder: &Path, keep: usize) -> std::io::Result<()> {
         })
         .collect();
     files.sort();
+    Ok(files)
+}
+
+/// Removes all but the newest `keep` (≥ 1) `step_*.h5` files of `folder`.
+fn prune(folder: &Path, keep: usize) -> std::io::Result<()> {
+    let files = step_files_oldest_first(folder)?;
     let excess = files.len().saturating_sub(keep.max(1));
     for f in &files[..excess] {
         std::fs::remove_file(f)?;
