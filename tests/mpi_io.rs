@@ -452,3 +452,73 @@ fn panic_on_one_rank_ends_the_job() {
     assert!(stderr.contains("deliberate test panic"), "{stderr}");
     assert!(!String::from_utf8_lossy(&out.stdout).contains("passed the barrier"));
 }
+
+/// Values per message of the test below: 1 MiB, far above the shared-memory transport's
+/// eager limit (4 KiB in Open MPI), so that a send completes only when its receiver takes it.
+const LARGE_MESSAGE: usize = 1 << 17;
+
+/// How long rank 1 stays out of MPI waiting for rank 0's word (s).
+const OUT_OF_MPI_LIMIT: u64 = 30;
+
+/// `Exchange::end_receives` returns once this rank's receives are in, without waiting for
+/// its own sends, which complete only when the receiver enters MPI to take them: rank 1
+/// posts its exchange and then stays out of MPI until rank 0 says, through a file, that
+/// its receives are in. Waiting for the sends as well (what the halo did until session
+/// 63), rank 0 would block until rank 1 entered MPI, and rank 1 gives up after
+/// [`OUT_OF_MPI_LIMIT`] s and fails the test. Relies on a transport that can take a
+/// large message without the sender's help (Open MPI's shared-memory single copy, the
+/// default on Linux).
+#[test]
+fn an_exchange_s_receives_end_while_the_receiver_of_its_sends_stays_out_of_mpi() {
+    let name = "an_exchange_s_receives_end_while_the_receiver_of_its_sends_stays_out_of_mpi";
+    if is_mpi_child() {
+        child_receives_before_sends(Path::new(&std::env::var(OUT_ENV).unwrap()));
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("mufe_receives_first_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let env = [(OUT_ENV, dir.to_str().unwrap())];
+    let out = relaunch_test(name, 2, &env, DEFAULT_TIMEOUT);
+    assert_success(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for r in 0..2 {
+        assert!(
+            stdout.contains(&format!("rank {r} exchange ok")),
+            "{stdout}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn child_receives_before_sends(dir: &Path) {
+    let d = Domain::init();
+    let (rank, other) = (d.rank(), 1 - d.rank());
+    let value = |from: usize, j: usize| (from * LARGE_MESSAGE + j) as f64;
+    let word = dir.join("rank0_received");
+    let ex = Exchange::new(7);
+    let sends = vec![(other, (0..LARGE_MESSAGE).map(|j| value(rank, j)).collect())];
+    let mut pending = ex.begin(&d, &sends, &[(other, LARGE_MESSAGE)]).unwrap();
+    if rank == 1 {
+        let start = std::time::Instant::now();
+        while !word.exists() {
+            assert!(
+                start.elapsed().as_secs() < OUT_OF_MPI_LIMIT,
+                "rank 0's receives did not complete in {OUT_OF_MPI_LIMIT} s while rank 1 stayed out of MPI"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+    }
+    ex.end_receives(&mut pending).unwrap();
+    let (from, data) = pending.received().next().expect("one message");
+    assert_eq!(from, other);
+    assert!(data.iter().enumerate().all(|(j, &v)| v == value(other, j)));
+    if rank == 0 {
+        std::fs::write(&word, b"in").unwrap();
+    }
+    // the sends complete now that both ranks are in MPI; the buffers come back
+    let buffers = ex.end_reusing(pending).unwrap();
+    assert_eq!(buffers.send.len(), LARGE_MESSAGE);
+    d.barrier();
+    println!("rank {rank} exchange ok");
+}
