@@ -70,6 +70,14 @@ fn block(total: u64, rank: usize, size: usize) -> (u64, u64) {
     (offset, rows)
 }
 
+/// Both ranks printed `rank R <what>`.
+fn assert_every_rank_said(out: &std::process::Output, what: &str) {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    for r in 0..2 {
+        assert!(stdout.contains(&format!("rank {r} {what}")), "{stdout}");
+    }
+}
+
 fn out_dir(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     std::fs::create_dir_all(&dir).unwrap();
@@ -91,13 +99,7 @@ fn two_ranks_write_results_collectively() {
         DEFAULT_TIMEOUT,
     );
     assert_success(&out);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    for r in 0..2 {
-        assert!(
-            stdout.contains(&format!("rank {r} wrote results")),
-            "{stdout}"
-        );
-    }
+    assert_every_rank_said(&out, "wrote results");
     check_results_file(&path);
 
     // h5dump must be able to read the file too (when installed).
@@ -345,13 +347,7 @@ fn two_rank_collectives_and_exchange() {
     }
     let out = relaunch_test("two_rank_collectives_and_exchange", 2, &[], DEFAULT_TIMEOUT);
     assert_success(&out);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    for r in 0..2 {
-        assert!(
-            stdout.contains(&format!("rank {r} collectives ok")),
-            "{stdout}"
-        );
-    }
+    assert_every_rank_said(&out, "collectives ok");
 }
 
 fn child_collectives() {
@@ -457,6 +453,9 @@ fn panic_on_one_rank_ends_the_job() {
 /// eager limit (4 KiB in Open MPI), so that a send completes only when its receiver takes it.
 const LARGE_MESSAGE: usize = 1 << 17;
 
+/// The file by which rank 0 tells rank 1 that its receives are in.
+const RECEIVED_WORD: &str = "rank0_received";
+
 /// How long rank 1 stays out of MPI waiting for rank 0's word (s).
 const OUT_OF_MPI_LIMIT: u64 = 30;
 
@@ -475,27 +474,19 @@ fn an_exchange_s_receives_end_while_the_receiver_of_its_sends_stays_out_of_mpi()
         child_receives_before_sends(Path::new(&std::env::var(OUT_ENV).unwrap()));
         return;
     }
-    let dir = std::env::temp_dir().join(format!("mufe_receives_first_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = out_dir("receives_first");
+    let _ = std::fs::remove_file(dir.join(RECEIVED_WORD));
     let env = [(OUT_ENV, dir.to_str().unwrap())];
     let out = relaunch_test(name, 2, &env, DEFAULT_TIMEOUT);
     assert_success(&out);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    for r in 0..2 {
-        assert!(
-            stdout.contains(&format!("rank {r} exchange ok")),
-            "{stdout}"
-        );
-    }
-    let _ = std::fs::remove_dir_all(&dir);
+    assert_every_rank_said(&out, "exchange ok");
 }
 
 fn child_receives_before_sends(dir: &Path) {
     let d = Domain::init();
     let (rank, other) = (d.rank(), 1 - d.rank());
     let value = |from: usize, j: usize| (from * LARGE_MESSAGE + j) as f64;
-    let word = dir.join("rank0_received");
+    let word = dir.join(RECEIVED_WORD);
     let ex = Exchange::new(7);
     let sends = vec![(other, (0..LARGE_MESSAGE).map(|j| value(rank, j)).collect())];
     let mut pending = ex.begin(&d, &sends, &[(other, LARGE_MESSAGE)]).unwrap();

@@ -570,21 +570,10 @@ impl Exchange {
         if pending.received {
             return Ok(());
         }
-        let b = &mut pending.buffers;
-        let (n, n_recv) = (b.requests.len(), b.recvs.len());
-        // SAFETY: as in `wait_all`; only the receive requests (the first n_recv) are waited.
-        b.statuses.clear();
-        b.statuses.resize(n, unsafe { std::mem::zeroed() });
-        if !pending.done && n_recv > 0 {
-            unsafe {
-                mpi::ffi::MPI_Waitall(
-                    n_recv as c_int,
-                    b.requests.as_mut_ptr(),
-                    b.statuses.as_mut_ptr(),
-                );
-            }
-        }
+        // receive requests come first
+        pending.wait_requests(0..pending.n_recv);
         pending.received = true;
+        let b = &pending.buffers;
         for (i, &(from, _, count)) in b.recvs.iter().enumerate() {
             let mut got: c_int = 0;
             // SAFETY: the status was filled by MPI_Waitall for this completed receive.
@@ -631,33 +620,38 @@ impl PendingExchange<'_> {
 
     /// The messages received, once [`Exchange::end_receives`] has returned.
     pub fn received(&self) -> impl Iterator<Item = (usize, &[f64])> {
-        let ready = self.received || self.done;
-        self.buffers.received().filter(move |_| ready)
+        debug_assert!(self.received, "the receives have not been waited for");
+        self.buffers.received()
     }
 
-    /// Completes every request (only the sends once the receives have been waited); the
-    /// statuses (receives first) are left in the buffers.
+    /// Completes every request still open (the sends only, once the receives have been
+    /// waited); the statuses (receives first) are left in the buffers.
     fn wait_all(&mut self) {
+        let first = if self.received { self.n_recv } else { 0 };
+        self.wait_requests(first..self.buffers.requests.len());
+        self.done = true;
+    }
+
+    /// Waits for the requests `range` (receives first, then sends), their statuses at the
+    /// same places; a range from 0 starts the statuses afresh.
+    fn wait_requests(&mut self, range: std::ops::Range<usize>) {
         let b = &mut self.buffers;
-        let n = b.requests.len();
-        // the receives were waited and their statuses are kept
-        let first = if self.received { b.recvs.len() } else { 0 };
-        if first == 0 {
+        if range.start == 0 {
             b.statuses.clear();
         }
         // SAFETY: MPI_Status is a plain C struct; zeroed is a valid value and MPI overwrites
         // it. The requests are live (or already MPI_REQUEST_NULL, which Waitall accepts).
-        b.statuses.resize(n, unsafe { std::mem::zeroed() });
-        if !self.done && n > first {
+        b.statuses
+            .resize(b.requests.len(), unsafe { std::mem::zeroed() });
+        if !self.done && !range.is_empty() {
             unsafe {
                 mpi::ffi::MPI_Waitall(
-                    (n - first) as c_int,
-                    b.requests.as_mut_ptr().add(first),
-                    b.statuses.as_mut_ptr().add(first),
+                    range.len() as c_int,
+                    b.requests.as_mut_ptr().add(range.start),
+                    b.statuses.as_mut_ptr().add(range.start),
                 );
             }
         }
-        self.done = true;
     }
 }
 
