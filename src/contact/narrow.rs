@@ -386,15 +386,19 @@ pub fn locate(
 pub fn locate_on_facet(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], facet: usize) -> Located {
     let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
     let cl = closest_point_on_triangle(xs, a, b, c);
-    let pn = pseudo_normal(cm, x, facet, cl.feature);
     let d = sub(xs, cl.point);
     let dist = cl.dist2.sqrt();
-    let flat_inside = dot(d, pn) < 0.0 && dist > 0.0;
+    // The flat pseudo-normal's sign test is asked for only where the patch does not decide
+    // (a flat facet, or a node beyond twice the patch's bulge): a contact node is well
+    // within the bulge, and at a vertex this test costs an `acos` per facet of the ring.
+    let flat_inside_along = |pn: [f64; 3]| dot(d, pn) < 0.0 && dist > 0.0;
+    let flat_inside = || flat_inside_along(pseudo_normal(cm, x, facet, cl.feature));
     let corners = cm.facet[facet].map(|v| smooth_normal(cm, x, v));
     if let Some(on_patch) = locate_on_patch(cm, x, &corners, xs, facet, cl, flat_inside) {
         return on_patch;
     }
-    if !flat_inside {
+    let pn = pseudo_normal(cm, x, facet, cl.feature);
+    if !flat_inside_along(pn) {
         return Located {
             closest: cl,
             facet,
@@ -440,12 +444,12 @@ fn locate_on_patch(
     xs: [f64; 3],
     facet: usize,
     cl: Closest,
-    flat_inside: bool,
+    flat_inside: impl FnOnce() -> bool,
 ) -> Option<Located> {
     let patch = facet_patch(cm, x, facet, |k| corners[k])?;
     let dist = cl.dist2.sqrt();
     let bulge = patch.bulge_bound();
-    if !flat_inside && dist > 2.0 * bulge {
+    if dist > 2.0 * bulge && !flat_inside() {
         return Some(Located {
             closest: cl,
             facet,

@@ -1,0 +1,173 @@
+//! The contact stage's narrow phase (`mufe::contact::evaluate`) on a block of the paper's
+//! FCC packing with every lattice contact loaded, beside the internal-force pass on the
+//! same model in the same run: how many element updates one evaluated contact entry costs,
+//! with its data in cache and with the caches emptied first (as the element stage leaves
+//! them in a step).
+//!
+//! How to run:  cargo bench --bench contact_narrow
+//!   (shorter: cargo bench --bench contact_narrow -- --measurement-time 3 --warm-up-time 1)
+//!
+//! Scene: `jobs/fcc/fcc_2000.toml` cut to 3×3×2 cubic cells, at the paper's contact
+//! resolution (99 µm surface edges at the contacts, 400 µm elsewhere: the mesh of the
+//! paper-resolution run in docs/BENCHMARKS.md), built through the real scene path. Each
+//! grain is moved rigidly towards the block's centre so that every lattice contact
+//! overlaps by δ = [`OVERLAP_PER_RADIUS`]·R, the contacts of the isotropic stage at
+//! 50 kPa (δ/R = (3F/(4E*R²))^{2/3} ~ 10⁻⁴): one node pair or a few per contact, as in the
+//! run. The walls are kept (their contacts are not part of `evaluate`). One `evaluate` is
+//! one step's worth: detection check, the entries within reach, the friction history.
+//! Results: docs/BENCHMARKS.md ("The contact narrow phase in isolation").
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use mufe::contact::ContactState;
+use mufe::solver::forces::{compute_internal_forces_into, ElementScratch};
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+/// Overlap of each lattice contact over the sphere radius (see the module docs).
+const OVERLAP_PER_RADIUS: f64 = 1.0e-4;
+/// Bytes streamed between two timed calls of the cold variant: twice the largest L3 of the
+/// machines in docs/BENCHMARKS.md (32 MiB).
+const EVICT_BYTES: usize = 64 << 20;
+
+fn block_solver() -> mufe::solver::Solver {
+    let file = "jobs/fcc/fcc_2000.toml";
+    let text = std::fs::read_to_string(file).expect("the FCC job file");
+    let overrides = [
+        "packings[0].cells=[3, 3, 2]",
+        "packings[0].sphere={radius=1.1e-3, seeding=4e-4, contact_seeding=9.9e-5, contact_growth=0.5, axis_patches=true}",
+    ]
+    .map(String::from);
+    let loaded = mufe::scene::parse_scene(file, &text, &overrides).expect("block scene");
+    mufe::solver::build_solver(&loaded).expect("block model")
+}
+
+/// Positions with every grain moved rigidly towards the centroid of the grain centres by
+/// the fraction that makes neighbours at 2R overlap by δ = `overlap_per_radius`·R.
+fn compressed(model: &mufe::model::Model, radius: f64, overlap_per_radius: f64) -> Vec<[f64; 3]> {
+    let centre_of = |nodes: &std::ops::Range<usize>| {
+        let mut c = [0.0; 3];
+        for p in &model.x0[nodes.clone()] {
+            (0..3).for_each(|i| c[i] += p[i]);
+        }
+        c.map(|v| v / nodes.len() as f64)
+    };
+    let centres: Vec<[f64; 3]> = model.grains.iter().map(|g| centre_of(&g.nodes)).collect();
+    let mut block = [0.0; 3];
+    for c in &centres {
+        (0..3).for_each(|i| block[i] += c[i] / centres.len() as f64);
+    }
+    // neighbours 2R apart come δ closer when every centre offset shrinks by δ/(2R)
+    let shrink = overlap_per_radius * radius / (2.0 * radius);
+    let mut x = model.x0.clone();
+    for (g, c) in model.grains.iter().zip(&centres) {
+        let shift = [0, 1, 2].map(|i| -shrink * (c[i] - block[i]));
+        for p in &mut x[g.nodes.clone()] {
+            (0..3).for_each(|i| p[i] += shift[i]);
+        }
+    }
+    x
+}
+
+/// Streams `buffer` (read and write), emptying the caches of everything else.
+fn evict(buffer: &mut [u64]) {
+    for line in buffer.chunks_exact_mut(8) {
+        line[0] = line[0].wrapping_add(1);
+    }
+    black_box(&buffer[0]);
+}
+
+fn contact_narrow(c: &mut Criterion) {
+    let radius = 1.1e-3;
+    let solver = block_solver();
+    let model = &solver.model;
+    let dt = model.dt;
+    let x = compressed(model, radius, OVERLAP_PER_RADIUS);
+    let v = vec![[0.0; 3]; x.len()];
+    let mut state = ContactState::new(model);
+    let mut scratch = mufe::contact::ContactScratch::default();
+    // the first call builds the lists; the friction history it leaves makes every later
+    // call a sticking step, as in the loaded run
+    for _ in 0..2 {
+        mufe::contact::evaluate(model, &x, &v, 0.0, 0, dt, &mut state, &mut scratch)
+            .expect("no tunnelling");
+    }
+    let entries = scratch.results.len();
+    let points = scratch.results.iter().filter(|r| r.active).count();
+    let grains = model.grains.len();
+    assert!(
+        points >= 6 * grains,
+        "only {points} active points for {grains} grains: the block is not loaded"
+    );
+    let elements = model.num_elements();
+
+    // the reference in the same run: one internal-force pass over the same model, 1 thread
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("rayon pool");
+    let mut plastic = solver.state.plastic.clone();
+    let mut elements_scratch = ElementScratch::new(model);
+    let mut force = vec![[0.0; 3]; x.len()];
+    let forces_once = |plastic: &mut _, es: &mut _, force: &mut _| {
+        pool.install(|| compute_internal_forces_into(model, &x, plastic, es, force))
+    };
+    black_box(forces_once(&mut plastic, &mut elements_scratch, &mut force));
+    let time_forces = || {
+        let (mut p, mut es, mut f) = (plastic.clone(), ElementScratch::new(model), force.clone());
+        let t0 = Instant::now();
+        for _ in 0..20 {
+            black_box(forces_once(&mut p, &mut es, &mut f));
+        }
+        t0.elapsed().as_secs_f64() / 20.0
+    };
+    let per_pass = time_forces();
+    let ns_per_element = 1e9 * per_pass / elements as f64;
+
+    let mut buffer = vec![0u64; EVICT_BYTES / 8];
+    let mut time_evaluate = |cold: bool, iters: u64, state: &mut ContactState, scratch: &mut _| {
+        let mut total = Duration::ZERO;
+        for _ in 0..iters {
+            if cold {
+                evict(&mut buffer);
+            }
+            let t0 = Instant::now();
+            mufe::contact::evaluate(model, &x, &v, 0.0, 0, dt, state, scratch)
+                .expect("no tunnelling");
+            total += t0.elapsed();
+        }
+        total
+    };
+    const REPEATS: u64 = 60;
+    for (name, cold) in [("warm", false), ("cold", true)] {
+        time_evaluate(cold, 10, &mut state, &mut scratch);
+        let t =
+            time_evaluate(cold, REPEATS, &mut state, &mut scratch).as_secs_f64() / REPEATS as f64;
+        let ns_entry = 1e9 * t / entries as f64;
+        println!(
+            "contact_narrow/{name}: {grains} grains, {elements} elements, {entries} entries evaluated, \
+             {points} active: {:.1} µs per evaluation, {ns_entry:.0} ns per entry = {:.1} element \
+             updates (internal forces {ns_per_element:.1} ns per element, 1 thread, same run); \
+             evaluation = {:.3} × the force pass",
+            1e6 * t,
+            ns_entry / ns_per_element,
+            t / per_pass
+        );
+    }
+
+    let mut group = c.benchmark_group("contact_narrow");
+    group.throughput(Throughput::Elements(entries as u64));
+    group.bench_function("warm", |b| {
+        b.iter_custom(|iters| time_evaluate(false, iters, &mut state, &mut scratch))
+    });
+    group.bench_function("cold", |b| {
+        b.iter_custom(|iters| time_evaluate(true, iters, &mut state, &mut scratch))
+    });
+    group.finish();
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(20).measurement_time(Duration::from_secs(8));
+    targets = contact_narrow
+}
+criterion_main!(benches);
