@@ -1,7 +1,8 @@
 //! Bad input on the command line (docs/INPUT.md): every case must end with exit code 2 and
 //! exactly one line on stderr that names the file (or `<command line>`) and the field or
 //! item, with no panic — and a failed `mufe run` must leave an existing output directory
-//! exactly as it was. Also: `mufe check` on a valid scene reports the model.
+//! exactly as it was. Also: `mufe check` on a valid scene reports the model, and a run with
+//! more threads than its CPUs warns (exit 0).
 //!
 //! Scenes are in `tests/fixtures/` (`valid_small.toml`; `bad/*.toml`, each wrong in one
 //! place). Outputs go under `CARGO_TARGET_TMPDIR`.
@@ -489,4 +490,44 @@ fn a_restart_without_checkpoints_touches_no_output_directory() {
         "the refused restart created {}",
         fresh.display()
     );
+}
+
+/// `--threads N` on a rank that may run on fewer CPUs (its affinity mask; Open MPI binds a
+/// rank to one core by default for up to two ranks) says so in one warning line, and the
+/// run still completes; as many threads as CPUs say nothing. The mask is set with
+/// `taskset`, as a launcher would set it.
+#[test]
+fn more_threads_than_the_rank_s_cpus_are_warned_about() {
+    let scene = fixture("valid_small.toml");
+    let run = |threads: &str, name: &str| {
+        let out = tmp(name);
+        Command::new("taskset")
+            .args(["--cpu-list", "0", MUFE, "run"])
+            .arg(&scene)
+            .args([
+                "--out",
+                out.to_str().unwrap(),
+                "--quiet",
+                "--max-steps",
+                "3",
+            ])
+            .args(["--threads", threads])
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .output()
+            .expect("cannot start taskset (util-linux)")
+    };
+    let warned = |o: &Output| {
+        (text(&o.stderr).lines())
+            .filter(|l| l.starts_with("warning: --threads"))
+            .count()
+    };
+    let two = run("2", "two_threads_on_one_cpu");
+    assert!(two.status.success(), "{}", text(&two.stderr));
+    assert_eq!(warned(&two), 1, "{}", text(&two.stderr));
+    let line = text(&two.stderr);
+    assert!(line.contains("may run on 1 CPU only") && line.contains("--bind-to none"));
+    let one = run("1", "one_thread_on_one_cpu");
+    assert!(one.status.success(), "{}", text(&one.stderr));
+    assert_eq!(warned(&one), 0, "{}", text(&one.stderr));
 }

@@ -117,3 +117,42 @@ pub(super) fn check_out_dir(out: &std::path::Path) -> Result<(), InputError> {
         _ => Ok(()),
     }
 }
+
+/// The warning for `--threads requested` when this process may run on only `available`
+/// CPUs (its affinity mask, which `std::thread::available_parallelism` reads), `None` when
+/// they suffice. The threads would then share cores and the step would be no faster:
+/// Open MPI binds each rank to one core when it starts two ranks or fewer, so
+/// `mpirun -n 1 mufe run … --threads 2` runs both threads on one core unless it is told
+/// otherwise (docs/BENCHMARKS.md, session 64).
+pub(super) fn thread_binding_warning(requested: usize, available: usize) -> Option<String> {
+    (requested > available).then(|| {
+        format!(
+            "warning: --threads {requested}, but this rank may run on {available} CPU{} only \
+             (its affinity mask; mpirun binds a rank to one core by default): its threads will \
+             share {}; launch with `mpirun --bind-to none` or `--map-by slot:PE={requested}`, \
+             or lower --threads",
+            if available == 1 { "" } else { "s" },
+            if available == 1 { "it" } else { "them" },
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::thread_binding_warning;
+
+    #[test]
+    fn more_threads_than_the_affinity_mask_allows_is_warned_about_and_no_more_is_not() {
+        assert_eq!(thread_binding_warning(1, 1), None);
+        assert_eq!(thread_binding_warning(2, 4), None);
+        assert_eq!(thread_binding_warning(4, 4), None);
+        let one = thread_binding_warning(2, 1).expect("2 threads on 1 CPU");
+        assert!(one.starts_with("warning: --threads 2, but this rank may run on 1 CPU only"));
+        assert!(
+            one.contains("--bind-to none") && one.contains("PE=2"),
+            "{one}"
+        );
+        let three = thread_binding_warning(8, 3).expect("8 threads on 3 CPUs");
+        assert!(three.contains("on 3 CPUs only") && three.contains("share them"));
+    }
+}

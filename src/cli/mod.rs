@@ -13,7 +13,9 @@ mod guards;
 mod parse_errors;
 mod scene_partition;
 
-use guards::{blame_packing, check_estimate, check_out_dir, estimate_and_guard, load};
+use guards::{
+    blame_packing, check_estimate, check_out_dir, estimate_and_guard, load, thread_binding_warning,
+};
 pub use parse_errors::clap_error;
 use scene_partition::partition_command;
 pub use scene_partition::{scene_partition_grains, ScenePartitionGrain};
@@ -334,15 +336,14 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
                 crate::scene::estimate::guard(&loaded.path, &est, None, Some(step_limit))?;
             }
             let domain = Domain::init();
-            let threads = threads.unwrap_or_else(|| {
-                if domain.size() == 1 {
-                    std::thread::available_parallelism()
-                        .map(|n| n.get())
-                        .unwrap_or(1)
-                } else {
-                    1
+            let available = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let requested = threads;
+            let threads = threads.unwrap_or(if domain.size() == 1 { available } else { 1 });
+            if let Some(w) = requested.and_then(|t| thread_binding_warning(t, available)) {
+                if domain.rank() == 0 {
+                    crate::error::report_line(w);
                 }
-            });
+            }
             start_threads(threads)?;
             run(
                 &domain,
