@@ -11,9 +11,9 @@
 //! resolution (99 µm surface edges at the contacts, 400 µm elsewhere: the mesh of the
 //! paper-resolution run in docs/BENCHMARKS.md), built through the real scene path. Each
 //! grain is moved rigidly towards the block's centre so that every lattice contact
-//! overlaps by δ = [`OVERLAP_PER_RADIUS`]·R, the contacts of the isotropic stage at
-//! 50 kPa (δ/R = (3F/(4E*R²))^{2/3} ~ 10⁻⁴): one node pair or a few per contact, as in the
-//! run. The walls are kept (their contacts are not part of `evaluate`). One `evaluate` is
+//! overlaps by δ = [`OVERLAP_PER_RADIUS`]·R, the order of the isotropic stage's contacts at
+//! 50 kPa (Hertz: δ/R* = (3F/(4E*R*²))^{2/3}, R* = R/2, a few 10⁻⁴ for F ≈ σ₃(2R)²): one
+//! node pair or a few per contact, as in the run. The walls are kept (their contacts are not part of `evaluate`). One `evaluate` is
 //! one step's worth: detection check, the entries within reach, the friction history.
 //! Results: docs/BENCHMARKS.md ("The contact narrow phase in isolation").
 
