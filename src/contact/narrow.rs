@@ -436,7 +436,8 @@ fn facet_patch(
 /// closest patch point is clamped to), from the flat closest point `cl`. `None` when the
 /// facet stays flat (a crease). Far outside (beyond the patch's bulge) the flat distance
 /// less the bulge is returned: a lower bound of the patch distance, which is all the
-/// broad phase needs.
+/// broad phase needs. `flat_inside` (the flat pseudo-normal's sign test) is called only
+/// there, beyond twice the bulge.
 fn locate_on_patch(
     cm: &ContactModel,
     x: &[[f64; 3]],
