@@ -13,12 +13,14 @@
 //! grain is moved rigidly towards the block's centre so that every lattice contact
 //! overlaps by δ = [`OVERLAP_PER_RADIUS`]·R, the order of the isotropic stage's contacts at
 //! 50 kPa (Hertz: δ/R* = (3F/(4E*R*²))^{2/3}, R* = R/2, a few 10⁻⁴ for F ≈ σ₃(2R)²): one
-//! node pair or a few per contact, as in the run. The walls are kept (their contacts are not part of `evaluate`). One `evaluate` is
-//! one step's worth: detection check, the entries within reach, the friction history.
+//! node pair or a few per contact, as in the run. The walls are kept (their contacts are
+//! not part of `evaluate`). One `evaluate` is one step's worth: detection check, the
+//! entries within reach, the friction history.
 //! Results: docs/BENCHMARKS.md ("The contact narrow phase in isolation").
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use mufe::contact::ContactState;
+use mufe::math::centroid;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -42,22 +44,14 @@ fn block_solver() -> mufe::solver::Solver {
 }
 
 /// Positions with every grain moved rigidly towards the centroid of the grain centres by
-/// the fraction that makes neighbours at 2R overlap by δ = `overlap_per_radius`·R.
-fn compressed(model: &mufe::model::Model, radius: f64, overlap_per_radius: f64) -> Vec<[f64; 3]> {
-    let centre_of = |nodes: &std::ops::Range<usize>| {
-        let mut c = [0.0; 3];
-        for p in &model.x0[nodes.clone()] {
-            (0..3).for_each(|i| c[i] += p[i]);
-        }
-        c.map(|v| v / nodes.len() as f64)
-    };
-    let centres: Vec<[f64; 3]> = model.grains.iter().map(|g| centre_of(&g.nodes)).collect();
-    let mut block = [0.0; 3];
-    for c in &centres {
-        (0..3).for_each(|i| block[i] += c[i] / centres.len() as f64);
-    }
-    // neighbours 2R apart come δ closer when every centre offset shrinks by δ/(2R)
-    let shrink = overlap_per_radius * radius / (2.0 * radius);
+/// the fraction that makes neighbours touching at 2R overlap by δ = `overlap_per_radius`·R:
+/// every centre offset shrinks by δ/(2R).
+fn compressed(model: &mufe::model::Model, overlap_per_radius: f64) -> Vec<[f64; 3]> {
+    let centres: Vec<[f64; 3]> = (model.grains.iter())
+        .map(|g| centroid(&model.x0[g.nodes.clone()]))
+        .collect();
+    let block = centroid(&centres);
+    let shrink = 0.5 * overlap_per_radius;
     let mut x = model.x0.clone();
     for (g, c) in model.grains.iter().zip(&centres) {
         let shift = [0, 1, 2].map(|i| -shrink * (c[i] - block[i]));
@@ -77,11 +71,10 @@ fn evict(buffer: &mut [u64]) {
 }
 
 fn contact_narrow(c: &mut Criterion) {
-    let radius = 1.1e-3;
     let solver = block_solver();
     let model = &solver.model;
     let dt = model.dt;
-    let x = compressed(model, radius, OVERLAP_PER_RADIUS);
+    let x = compressed(model, OVERLAP_PER_RADIUS);
     let v = vec![[0.0; 3]; x.len()];
     let mut state = ContactState::new(model);
     let mut scratch = mufe::contact::ContactScratch::default();
@@ -108,19 +101,18 @@ fn contact_narrow(c: &mut Criterion) {
     let mut plastic = solver.state.plastic.clone();
     let mut elements_scratch = ElementScratch::new(model);
     let mut force = vec![[0.0; 3]; x.len()];
-    let forces_once = |plastic: &mut _, es: &mut _, force: &mut _| {
-        pool.install(|| compute_internal_forces_into(model, &x, plastic, es, force))
+    let mut forces_once = || {
+        pool.install(|| {
+            compute_internal_forces_into(model, &x, &mut plastic, &mut elements_scratch, &mut force)
+        })
     };
-    black_box(forces_once(&mut plastic, &mut elements_scratch, &mut force));
-    let time_forces = || {
-        let (mut p, mut es, mut f) = (plastic.clone(), ElementScratch::new(model), force.clone());
-        let t0 = Instant::now();
-        for _ in 0..20 {
-            black_box(forces_once(&mut p, &mut es, &mut f));
-        }
-        t0.elapsed().as_secs_f64() / 20.0
-    };
-    let per_pass = time_forces();
+    black_box(forces_once());
+    const FORCE_PASSES: u32 = 20;
+    let t0 = Instant::now();
+    for _ in 0..FORCE_PASSES {
+        black_box(forces_once());
+    }
+    let per_pass = t0.elapsed().as_secs_f64() / f64::from(FORCE_PASSES);
     let ns_per_element = 1e9 * per_pass / elements as f64;
 
     let mut buffer = vec![0u64; EVICT_BYTES / 8];

@@ -24,6 +24,18 @@ pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// Mean of `points` (a grain's nodes: the centre its bounds and its wrap are judged by).
+pub fn centroid(points: &[[f64; 3]]) -> [f64; 3] {
+    let n = points.len() as f64;
+    let mut c = [0.0; 3];
+    for p in points {
+        for i in 0..3 {
+            c[i] += p[i] / n;
+        }
+    }
+    c
+}
+
 #[inline]
 pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [

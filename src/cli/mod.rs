@@ -337,13 +337,11 @@ fn dispatch(cli: Cli) -> Result<(), MufeError> {
             }
             let domain = Domain::init();
             let available = std::thread::available_parallelism().map_or(1, |n| n.get());
-            let requested = threads;
-            let threads = threads.unwrap_or(if domain.size() == 1 { available } else { 1 });
-            if let Some(w) = requested.and_then(|t| thread_binding_warning(t, available)) {
-                if domain.rank() == 0 {
-                    crate::error::report_line(w);
-                }
+            let warning = threads.and_then(|t| thread_binding_warning(t, available));
+            if let Some(w) = warning.filter(|_| domain.rank() == 0) {
+                crate::error::report_line(w);
             }
+            let threads = threads.unwrap_or(if domain.size() == 1 { available } else { 1 });
             start_threads(threads)?;
             run(
                 &domain,

@@ -48,18 +48,6 @@ fn owned_grain_work(solver: &Solver) -> Vec<f64> {
         .collect()
 }
 
-/// Mean position of a grain's nodes (m): the centre its bounds and its wrap are judged by.
-fn node_centroid(nodes: &[[f64; 3]]) -> [f64; 3] {
-    let n = nodes.len() as f64;
-    let mut c = [0.0; 3];
-    for p in nodes {
-        for i in 0..3 {
-            c[i] += p[i] / n;
-        }
-    }
-    c
-}
-
 /// Current bounding sphere and work of every grain, from its owner (every rank gets the
 /// whole table). All ranks must call.
 fn gather_grain_status(
@@ -72,7 +60,7 @@ fn gather_grain_status(
     let mut local = Vec::with_capacity(5 * m.owned_grains);
     for (g, w) in m.grains[..m.owned_grains].iter().zip(&work) {
         let nodes = &solver.state.x[g.nodes.clone()];
-        let c = node_centroid(nodes);
+        let c = crate::math::centroid(nodes);
         let r = nodes
             .iter()
             .map(|p| ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2) + (p[2] - c[2]).powi(2)).sqrt())
@@ -116,7 +104,10 @@ pub fn wrap_into_cell(domain: &Domain, solver: &mut Solver) -> bool {
     // whole cell vectors per grain of the scene, this rank's owned grains filled in
     let mut shifts = vec![0.0; 3 * n];
     for g in &m.grains[..m.owned_grains] {
-        let offset = cell.wrap_offset(node_centroid(&solver.state.x[g.nodes.clone()]), length);
+        let offset = cell.wrap_offset(
+            crate::math::centroid(&solver.state.x[g.nodes.clone()]),
+            length,
+        );
         for k in 0..3 {
             if length[k] > 0.0 {
                 shifts[3 * g.global_id as usize + k] = (offset[k] / length[k]).round();
