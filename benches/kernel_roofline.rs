@@ -36,6 +36,10 @@ const SEEDING: f64 = 7.0e-5;
 /// Seeding of the in-cache mesh (a few thousand tets, < 1 MiB of model data).
 const SEEDING_IN_CACHE: f64 = 2.6e-4;
 
+/// Spread of the triad readings (best ÷ lowest) beyond which the run says that the
+/// machine's bandwidth changed while it ran: a run's readings usually agree within 30 %.
+const TRIAD_SPREAD_NOTED: f64 = 1.3;
+
 /// One law's glass sphere at one seeding, its two deformed configurations, and what a force
 /// pass writes.
 struct SpherePasses {
@@ -220,6 +224,17 @@ fn main() {
             triads.len(),
             each.join(", ")
         );
+        let lowest = triads.iter().copied().fold(f64::INFINITY, f64::min);
+        if triad > TRIAD_SPREAD_NOTED * lowest {
+            println!(
+                "kernel_roofline: note: the triad readings differ by {:.1}× ({:.1} to {:.1} GB/s): the \
+                 machine's bandwidth changed during the run, and the ceilings below use the best \
+                 reading (docs/BENCHMARKS.md, session 65)",
+                triad / lowest,
+                lowest / 1e9,
+                triad / 1e9
+            );
+        }
         if let Some(t) = tetbench {
             println!("kernel_roofline: tetbench grid 30, {threads} threads: {t:.3e} tet updates/s");
         }
