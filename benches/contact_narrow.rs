@@ -70,6 +70,15 @@ fn evict(buffer: &mut [u64]) {
     black_box(&buffer[0]);
 }
 
+/// Calls `f` until `duration` has passed: a warm-up as long as criterion's, after which
+/// the machine runs at the speed criterion measures.
+fn repeat_for(duration: Duration, mut f: impl FnMut()) {
+    let start = Instant::now();
+    while start.elapsed() < duration {
+        f();
+    }
+}
+
 fn contact_narrow(c: &mut Criterion) {
     let solver = block_solver();
     let model = &solver.model;
@@ -107,10 +116,9 @@ fn contact_narrow(c: &mut Criterion) {
         })
     };
     // warmed up as the evaluations below are
-    let warm_up = Instant::now();
-    while warm_up.elapsed() < Duration::from_secs(1) {
+    repeat_for(Duration::from_secs(1), || {
         black_box(forces_once());
-    }
+    });
     const FORCE_PASSES: u32 = 20;
     let t0 = Instant::now();
     for _ in 0..FORCE_PASSES {
@@ -137,10 +145,9 @@ fn contact_narrow(c: &mut Criterion) {
     for (name, cold) in [("warm", false), ("cold", true)] {
         // as long as criterion's warm-up: after ten calls the printed figures read 30–60 %
         // above criterion's (docs/BENCHMARKS.md, session 65)
-        let warm_up = Instant::now();
-        while warm_up.elapsed() < Duration::from_secs(2) {
+        repeat_for(Duration::from_secs(2), || {
             time_evaluate(cold, 10, &mut state, &mut scratch);
-        }
+        });
         // the median of single calls, like criterion's figures
         let mut calls: Vec<f64> = (0..REPEATS)
             .map(|_| time_evaluate(cold, 1, &mut state, &mut scratch).as_secs_f64())
