@@ -20,6 +20,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use mufe::contact::ContactState;
+use mufe::lanes::NodeForce;
 use mufe::math::centroid;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch};
 use std::hint::black_box;
@@ -109,7 +110,7 @@ fn contact_narrow(c: &mut Criterion) {
         .expect("rayon pool");
     let mut plastic = solver.state.plastic.clone();
     let mut elements_scratch = ElementScratch::new(model);
-    let mut force = vec![[0.0; 3]; x.len()];
+    let mut force = vec![NodeForce::ZERO; x.len()];
     let mut forces_once = || {
         pool.install(|| {
             compute_internal_forces_into(model, &x, &mut plastic, &mut elements_scratch, &mut force)

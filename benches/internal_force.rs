@@ -21,6 +21,7 @@ mod common;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use mufe::driver::summary::estimate_memory_bytes;
+use mufe::lanes::NodeForce;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch};
 use std::time::Duration;
 
@@ -57,7 +58,7 @@ fn internal_force(c: &mut Criterion) {
             common::deformed(&model.x0, -1.0),
         ];
         let mut scratch = ElementScratch::new(model);
-        let mut force = vec![[0.0; 3]; nn];
+        let mut force = vec![NodeForce::ZERO; nn];
 
         // 1 vs 2 threads must agree bitwise (fixed chunks + incidence gather), plastic
         // states included.

@@ -23,6 +23,7 @@
 
 mod common;
 
+use mufe::lanes::NodeForce;
 use mufe::material::PlasticPoint;
 use mufe::solver::forces::{bytes_moved_per_element, compute_internal_forces_into, ElementScratch};
 use mufe::solver::Solver;
@@ -47,7 +48,7 @@ struct SpherePasses {
     configurations: [Vec<[f64; 3]>; 2],
     scratch: ElementScratch,
     plastic: Vec<PlasticPoint>,
-    force: Vec<[f64; 3]>,
+    force: Vec<NodeForce>,
 }
 
 impl SpherePasses {
@@ -62,7 +63,7 @@ impl SpherePasses {
             ],
             scratch: ElementScratch::new(model),
             plastic: solver.state.plastic.clone(),
-            force: vec![[0.0; 3]; model.num_nodes()],
+            force: vec![NodeForce::ZERO; model.num_nodes()],
             solver,
         }
     }

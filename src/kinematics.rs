@@ -12,7 +12,7 @@
 //! added to a node's force where its prediction is read, not in a pass of their own that
 //! rewrites every force (2.7 ms of a 50 ms step of the damped 2000-sphere block).
 
-use crate::lanes::touch_value;
+use crate::lanes::{touch_value, NodeForce};
 
 /// A grain's rigid-body velocity field v(x) = v_c + ω × (x − x_c), from its linear and
 /// angular momentum (so that damping relative to it exerts no net force or moment).
@@ -144,7 +144,7 @@ pub struct Predictor<'a> {
     /// v_{n−½} (m/s).
     pub v: &'a [[f64; 3]],
     /// The node forces of the step from elements and contacts (N).
-    pub force: &'a [[f64; 3]],
+    pub force: &'a [NodeForce],
     /// The integrator's nodal masses (kg).
     pub mass: &'a [f64],
     /// Δt (s).
@@ -155,7 +155,7 @@ pub struct Predictor<'a> {
 }
 
 impl<'a> Predictor<'a> {
-    pub fn new(v: &'a [[f64; 3]], force: &'a [[f64; 3]], mass: &'a [f64], dt: f64) -> Self {
+    pub fn new(v: &'a [[f64; 3]], force: &'a [NodeForce], mass: &'a [f64], dt: f64) -> Self {
         Self {
             v,
             force,
@@ -177,9 +177,9 @@ impl<'a> Predictor<'a> {
     #[inline(always)]
     pub fn force_at(&self, n: usize) -> [f64; 3] {
         match &self.body {
-            None => self.force[n],
+            None => self.force[n].xyz(),
             Some((b, x)) => {
-                b.total_force(n, self.force[n], &x[n], &self.v[n], self.mass[n])
+                b.total_force(n, self.force[n].xyz(), &x[n], &self.v[n], self.mass[n])
                     .0
             }
         }
@@ -278,6 +278,10 @@ impl NextVelocity {
 mod tests {
     use super::*;
 
+    fn padded(f: &[[f64; 3]]) -> Vec<NodeForce> {
+        f.iter().map(|&f| NodeForce::from(f)).collect()
+    }
+
     #[test]
     fn a_node_is_its_prediction_until_set_and_again_next_step() {
         let (v, f, m) = (
@@ -285,7 +289,8 @@ mod tests {
             vec![[0.5, -1.0, 2.0]; 3],
             vec![2.0; 3],
         );
-        let p = Predictor::new(&v, &f, &m, 0.1);
+        let fp = padded(&f);
+        let p = Predictor::new(&v, &fp, &m, 0.1);
         let mut next = NextVelocity::new(3);
         next.predict_where_read();
         let expect = [1.025, 1.95, 3.1];
@@ -319,7 +324,8 @@ mod tests {
             node_grain: &[0, 0],
             rigid: &rigid,
         };
-        let p = Predictor::new(&v, &f, &m, dt).with_body_forces(Some(body), &x);
+        let fp = padded(&f);
+        let p = Predictor::new(&v, &fp, &m, dt).with_body_forces(Some(body), &x);
         // v_rigid at x: v_c + ω × (x − x_c), ω × r with r = (0.2, −0.3, 0.4)
         let vr = [0.2 + 3.0 * 0.4 - 1.0 * -0.3, 1.0 * 0.2, -0.1 - 3.0 * 0.2];
         for i in 0..3 {
@@ -329,7 +335,7 @@ mod tests {
             let expect = v[1][i] + dt * total / 2.0;
             assert!((p.at(1)[i] - expect).abs() < 1e-14);
         }
-        let bare = Predictor::new(&v, &f, &m, dt);
+        let bare = Predictor::new(&v, &fp, &m, dt);
         assert_eq!(bare.force_at(1), f[1]);
 
         // without gravity m_p is not read (here it would be NaN) and the force is the same
@@ -340,7 +346,7 @@ mod tests {
             ..body
         };
         assert!(!weightless.weighs());
-        let p = Predictor::new(&v, &f, &m, dt).with_body_forces(Some(weightless), &x);
+        let p = Predictor::new(&v, &fp, &m, dt).with_body_forces(Some(weightless), &x);
         let fd = weightless.damping_force(1, &x[1], &v[1], m[1]);
         let expect: Vec<u64> = (0..3)
             .map(|i| (f[1][i] + (0.0 + fd[i])).to_bits())

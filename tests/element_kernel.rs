@@ -2,6 +2,7 @@
 //! its compiled paths against each other.
 
 use mufe::element::tet_forces;
+use mufe::lanes::NodeForce;
 use mufe::scene::parse_scene;
 use mufe::solver::build_solver;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch, KernelPath};
@@ -73,7 +74,7 @@ fn the_kernel_assembles_what_element_by_element_assembly_gives() {
 
     let mut plastic = solver.state.plastic.clone();
     let mut scratch = ElementScratch::new(model);
-    let mut force = vec![[0.0; 3]; model.num_nodes()];
+    let mut force = vec![NodeForce::ZERO; model.num_nodes()];
     let summary = compute_internal_forces_into(model, &x, &mut plastic, &mut scratch, &mut force);
     assert!(summary.bad_element.is_none());
     assert!(summary.plastic_work > 0.0, "the J2 grain must yield");
@@ -137,7 +138,7 @@ fn every_vector_path_gives_the_portable_forces_bit_for_bit() {
         let mut plastic = solver.state.plastic.clone();
         let mut scratch = ElementScratch::new(model);
         scratch.path = path;
-        let mut force = vec![[0.0; 3]; model.num_nodes()];
+        let mut force = vec![NodeForce::ZERO; model.num_nodes()];
         let s = compute_internal_forces_into(model, &x, &mut plastic, &mut scratch, &mut force);
         (
             force,
@@ -189,7 +190,7 @@ shape = { sphere = { radius = 1e-3, seeding = 1e-4 } }
         .num_threads(1)
         .build()
         .unwrap();
-    let mut force = vec![[0.0; 3]; model.num_nodes()];
+    let mut force = vec![NodeForce::ZERO; model.num_nodes()];
     let mut time_of = |path: KernelPath| {
         let mut scratch = ElementScratch::new(model);
         scratch.path = path;

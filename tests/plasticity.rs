@@ -3,6 +3,7 @@
 //! increment guard, and the ledger of a run with plastic impacts.
 
 use mufe::driver::frames::element_fields;
+use mufe::lanes::NodeForce;
 use mufe::material::{cauchy_from_first_piola, PlasticPoint};
 use mufe::scene::parse_scene;
 use mufe::solver::forces::{compute_internal_forces_into, ElementScratch, MAX_PLASTIC_INCREMENT};
@@ -82,7 +83,7 @@ fn mapped(solver: &Solver, a: &[f64; 9]) -> Vec<[f64; 3]> {
 /// Evaluates the internal forces at x (committing the plastic state); returns (ALLSE,
 /// plastic work of the evaluation).
 fn evaluate(solver: &mut Solver, scratch: &mut ElementScratch, x: &[[f64; 3]]) -> (f64, f64) {
-    let mut force = vec![[0.0; 3]; solver.model.num_nodes()];
+    let mut force = vec![NodeForce::ZERO; solver.model.num_nodes()];
     let s = compute_internal_forces_into(
         &solver.model,
         x,
@@ -241,7 +242,7 @@ fn allse_plus_allpd_equals_the_stress_work_of_a_strain_cycle() {
 fn an_exploding_plastic_increment_is_reported_with_its_element() {
     let mut solver = cube_solver(1e6, 0.0);
     let mut scratch = ElementScratch::new(&solver.model);
-    let mut force = vec![[0.0; 3]; solver.model.num_nodes()];
+    let mut force = vec![NodeForce::ZERO; solver.model.num_nodes()];
     // a 30 % shear in one evaluation: far more plastic strain than any step can take
     let f = [1.0, 0.3, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
     let x = mapped(&solver, &f);

@@ -2,6 +2,7 @@
 //! conservation, wave speed, stability and thread determinism. Every reference value is
 //! computed from its formula for the material the test uses.
 
+use mufe::lanes::NodeForce;
 use mufe::material::{ElasticParameters, StVenantKirchhoff};
 use mufe::scene::parse_scene;
 use mufe::solver::build_solver;
@@ -67,7 +68,7 @@ fn assert_patch_test(mut solver: Solver, label: &str) {
         })
         .collect();
     let mut scratch = ElementScratch::new(model);
-    let mut force = vec![[0.0; 3]; model.num_nodes()];
+    let mut force = vec![NodeForce::ZERO; model.num_nodes()];
     compute_internal_forces_into(model, &x, &mut [], &mut scratch, &mut force);
 
     // exact stress for the uniform F

@@ -116,6 +116,7 @@ use crate::boundary::stages::{StagePlan, StageProgress};
 use crate::energy::WorkAccumulator;
 use crate::error::MufeError;
 use crate::kinematics::{NextVelocity, Predictor};
+use crate::lanes::NodeForce;
 use crate::math::dot;
 use crate::model::Model;
 pub use broad::DetectionReference;
@@ -124,6 +125,7 @@ use narrow::{EvalContext, PointResult};
 use prefetch::{evaluate_pipelined, touch_point_nodes, RESULTS_AHEAD};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::ops::IndexMut;
 
 /// Initial overlap beyond this fraction of the smallest surface edge of the two grains is an
 /// input error.
@@ -541,7 +543,7 @@ pub fn add_forces(
     scratch: &ContactScratch,
     state: &mut ContactState,
     v: &[[f64; 3]],
-    force: &mut [[f64; 3]],
+    force: &mut [NodeForce],
 ) -> f64 {
     let cm = &model.contact;
     if !cm.grain_contact {
@@ -598,9 +600,9 @@ pub fn contact_forces_into(scratch: &ContactScratch, force: &mut [[f64; 3]]) {
 }
 
 /// A contact point's force on its slave node and, weighted, the reaction on the master
-/// facet's corners.
+/// facet's corners, into node forces of either layout (the step's, or output's `[f64; 3]`).
 #[inline]
-fn add_point_force(r: &PointResult, force: &mut [[f64; 3]]) {
+fn add_point_force<F: IndexMut<usize, Output = f64>>(r: &PointResult, force: &mut [F]) {
     let f = r.force;
     let s = r.slave as usize;
     for i in 0..3 {

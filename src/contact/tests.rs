@@ -20,7 +20,7 @@ pub(super) fn solver(text: &str) -> Solver {
 
 /// Contact forces on every node (zero elsewhere) at the solver's current state.
 fn contact_forces(s: &mut Solver) -> Vec<[f64; 3]> {
-    let mut f = vec![[0.0; 3]; s.model.num_nodes()];
+    let mut f = vec![NodeForce::ZERO; s.model.num_nodes()];
     let dt = s.model.dt;
     evaluate(
         &s.model,
@@ -40,7 +40,7 @@ fn contact_forces(s: &mut Solver) -> Vec<[f64; 3]> {
         &s.state.v,
         &mut f,
     );
-    f
+    f.iter().map(NodeForce::xyz).collect()
 }
 
 pub(super) fn pair_scene(first: (&str, &str, [f64; 3]), second: (&str, &str, [f64; 3])) -> String {
@@ -533,7 +533,7 @@ fn add_forces_returns_the_damping_power_of_its_velocities() {
         &mut s.scratch.contact,
     )
     .unwrap();
-    let mut f = vec![[0.0; 3]; s.model.num_nodes()];
+    let mut f = vec![NodeForce::ZERO; s.model.num_nodes()];
     let fused = add_forces(
         &s.model,
         &s.scratch.contact,

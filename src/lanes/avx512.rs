@@ -1,7 +1,7 @@
 //! Eight f64 lanes in one AVX-512 register ([`F64x8`]).
 
 use super::rows::{self, Transpose};
-use super::{Lanes, TetNodes};
+use super::{Lanes, NodeForce, TetNodes};
 use std::arch::x86_64::*;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -78,51 +78,26 @@ impl Lanes for F64x8 {
         nodal: &[[Self; 3]; 4],
         tets: &TetNodes,
         first: usize,
-        force: *mut [f64; 3],
+        force: *mut NodeForce,
     ) {
-        let tets = &tets.tets[first..first + 8];
-        // Node a's (x, y) of elements 0, 2, 4, 6 in `even[a]` and of 1, 3, 5, 7 in
-        // `odd[a]`, a 128-bit pair each; z stays in its column. Every element and
-        // corner is written out (no loop, no array indexed by a variable), so that
-        // nothing goes through the stack: a row stored as 256 bits and read back as a
-        // scalar stalled store forwarding.
-        let mut even = [_mm512_setzero_pd(); 4];
-        let mut odd = [_mm512_setzero_pd(); 4];
-        let mut z = [_mm512_setzero_pd(); 4];
-        for a in 0..4 {
-            even[a] = _mm512_unpacklo_pd(nodal[a][0].0, nodal[a][1].0);
-            odd[a] = _mm512_unpackhi_pd(nodal[a][0].0, nodal[a][1].0);
-            z[a] = nodal[a][2].0;
+        let tets: &[[u32; 4]; 8] = (tets.tets[first..first + 8]).try_into().unwrap();
+        // Each corner's (x, y, z, 0) of the eight elements as eight 256-bit rows (two to a
+        // register, 16 registers for the four corners), then added element after element
+        // and corner after corner: the one-element order, so every node's sum keeps its
+        // bits. The loops have constant bounds and unroll: no row goes through the stack.
+        let zero = _mm512_setzero_pd();
+        let mut rows = [[_mm256_setzero_pd(); 8]; 4];
+        for (a, corner) in rows.iter_mut().enumerate() {
+            let [x, y, z] = nodal[a];
+            __m512d::rows([x.0, y.0, z.0, zero], |l, row| corner[l] = row);
         }
-        macro_rules! corner {
-            ($l:literal, $pairs:ident, $q:literal, $a:literal) => {
-                let p = force.add(tets[$l][$a] as usize) as *mut f64;
-                let xy = _mm512_extractf32x4_ps::<$q>(_mm512_castpd_ps($pairs[$a]));
-                let sum = _mm_add_pd(_mm_loadu_pd(p), _mm_castps_pd(xy));
-                _mm_storeu_pd(p, sum);
-                let lane = _mm512_castpd_si512(z[$a]);
-                let zl = _mm512_castpd512_pd128(_mm512_castsi512_pd(
-                    _mm512_alignr_epi64::<$l>(lane, lane),
-                ));
-                _mm_store_sd(p.add(2), _mm_add_sd(_mm_load_sd(p.add(2)), zl));
-            };
+        for (l, t) in tets.iter().enumerate() {
+            for (a, corner) in rows.iter().enumerate() {
+                // aligned: a NodeForce is 32 bytes on a 32-byte boundary
+                let p = force.add(t[a] as usize) as *mut f64;
+                _mm256_store_pd(p, _mm256_add_pd(_mm256_load_pd(p), corner[l]));
+            }
         }
-        macro_rules! element {
-            ($l:literal, $pairs:ident, $q:literal) => {
-                corner!($l, $pairs, $q, 0);
-                corner!($l, $pairs, $q, 1);
-                corner!($l, $pairs, $q, 2);
-                corner!($l, $pairs, $q, 3);
-            };
-        }
-        element!(0, even, 0);
-        element!(1, odd, 0);
-        element!(2, even, 1);
-        element!(3, odd, 1);
-        element!(4, even, 2);
-        element!(5, odd, 2);
-        element!(6, even, 3);
-        element!(7, odd, 3);
     }
     #[inline(always)]
     fn gather_corners(tets: &TetNodes, first: usize) -> [[Self; 3]; 4] {

@@ -20,7 +20,7 @@
 //! eight). This made the AVX2 kernel 1.9× faster on AMD (session 29) and the AVX-512 one
 //! 1.4–2× faster there (session 31).
 
-use std::ops::{Add, Div, IndexMut, Mul, Neg, Sub};
+use std::ops::{Add, Div, Index, IndexMut, Mul, Neg, Sub};
 
 /// A value per lane: `f64` (one lane), [`F64x4`] (four) or [`F64x8`] (eight).
 pub trait Lanes:
@@ -79,7 +79,7 @@ pub trait Lanes:
         nodal: &[[Self; 3]; 4],
         tets: &TetNodes,
         first: usize,
-        force: *mut [f64; 3],
+        force: *mut NodeForce,
     ) {
         let tets = &tets.tets[first..first + Self::WIDTH];
         let nodal: [[Self::Array; 3]; 4] = build([Self::Array::default(); 3], |a| {
@@ -226,6 +226,49 @@ pub fn touch_pointee<T>(p: *const T) {
     let p = p.cast::<u8>();
     prefetch(p, 1);
     prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
+}
+
+/// A node's force (N): x, y, z, and a fourth f64 that stays 0 so that each node is 32
+/// bytes, aligned on 32 bytes. The eight-lane kernel then adds a corner's force into its
+/// node with one 256-bit load–add–store inside one cache line, where x, y, z took a pair,
+/// a scalar and their shuffles (6–10 % of the in-cache kernel on Zen 5, docs/BENCHMARKS.md,
+/// session 66). Indexed 0..3 like `[f64; 3]`; every addition is the same IEEE addition
+/// in the same order, so results keep their bits.
+#[repr(C, align(32))]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NodeForce([f64; 4]);
+
+impl NodeForce {
+    /// No force.
+    pub const ZERO: Self = Self([0.0; 4]);
+
+    /// The force (x, y, z).
+    #[inline(always)]
+    pub fn xyz(&self) -> [f64; 3] {
+        [self.0[0], self.0[1], self.0[2]]
+    }
+}
+
+impl From<[f64; 3]> for NodeForce {
+    #[inline(always)]
+    fn from(f: [f64; 3]) -> Self {
+        Self([f[0], f[1], f[2], 0.0])
+    }
+}
+
+impl Index<usize> for NodeForce {
+    type Output = f64;
+    #[inline(always)]
+    fn index(&self, i: usize) -> &f64 {
+        &self.0[..3][i]
+    }
+}
+
+impl IndexMut<usize> for NodeForce {
+    #[inline(always)]
+    fn index_mut(&mut self, i: usize) -> &mut f64 {
+        &mut self.0[..3][i]
+    }
 }
 
 /// Node positions and tetrahedra whose node ids were all checked, once, to be below

@@ -51,8 +51,8 @@ fn lanes_compute_what_scalars_compute<T: Lanes>() {
             gather(|l| ((a * 3 + i) as f64 + 0.1) / (l as f64 + 3.0))
         })
     });
-    let mut added = vec![[1.0 / 3.0; 3]; x.len()];
-    let mut expected = added.clone();
+    let mut added = vec![NodeForce::from([1.0 / 3.0; 3]); x.len()];
+    let mut expected: Vec<[f64; 3]> = added.iter().map(NodeForce::xyz).collect();
     let nodes = TetNodes::new(&x, &tets);
     // SAFETY: `added` has one entry per position; nothing else touches it
     unsafe { T::add_corner_forces(&nodal, &nodes, 0, added.as_mut_ptr()) };
@@ -71,6 +71,8 @@ fn lanes_compute_what_scalars_compute<T: Lanes>() {
                 "node {n}, component {i}"
             );
         }
+        // the padding stays zero: nothing is added into it
+        assert_eq!(got.0[3].to_bits(), 0, "node {n}, padding");
     }
     // records whose length is not a multiple of four (the J2 state has seven fields):
     // the last block of each is a partial row

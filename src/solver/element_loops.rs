@@ -16,7 +16,7 @@ use crate::element::{
     ReferenceBlock, TetReferences,
 };
 use crate::error::InputError;
-use crate::lanes::{prefetch, touch_pointee, Lanes, TetNodes};
+use crate::lanes::{prefetch, touch_pointee, Lanes, NodeForce, TetNodes};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::{F64x4, F64x8};
 use crate::material::{
@@ -220,7 +220,7 @@ impl<T> Disjoint<T> {
 pub(super) struct Pass<'a> {
     pub model: &'a Model,
     pub x: &'a [[f64; 3]],
-    pub force: Disjoint<[f64; 3]>,
+    pub force: Disjoint<NodeForce>,
     pub plastic: Disjoint<PlasticPoint>,
 }
 
@@ -359,7 +359,7 @@ impl<'a> ChunkBlocks<'a> {
 struct NodesAhead<'a> {
     touches: &'a FirstTouches,
     x: *const [f64; 3],
-    force: *const [f64; 3],
+    force: *const NodeForce,
 }
 
 impl<'a> NodesAhead<'a> {
@@ -383,7 +383,8 @@ impl<'a> NodesAhead<'a> {
         let start = block_end.get(b.wrapping_sub(1)).copied().unwrap_or(0);
         for &n in &self.touches.nodes[start as usize..end as usize] {
             touch_pointee(self.x.wrapping_add(n as usize));
-            touch_pointee(self.force.wrapping_add(n as usize));
+            // a NodeForce is 32 bytes on a 32-byte boundary: one line
+            prefetch(self.force.wrapping_add(n as usize), 1);
         }
     }
 }

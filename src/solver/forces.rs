@@ -11,6 +11,7 @@ use super::element_loops::{evaluate_chunk, Disjoint, Pass};
 pub use super::element_loops::{BadElement, ChunkResult, KernelPath, MAX_PLASTIC_INCREMENT};
 use super::element_schedule::ElementSchedule;
 use crate::element::deformation_gradient;
+use crate::lanes::NodeForce;
 use crate::material::{PlasticPoint, Response};
 use crate::model::{Model, NONE};
 use rayon::prelude::*;
@@ -63,7 +64,7 @@ pub fn compute_internal_forces_into(
     x: &[[f64; 3]],
     plastic: &mut [PlasticPoint],
     scratch: &mut ElementScratch,
-    force: &mut [[f64; 3]],
+    force: &mut [NodeForce],
 ) -> InternalForceSummary {
     // the schedule's node ranges were laid out for this model's nodes
     assert_eq!(force.len(), model.num_nodes());
@@ -71,7 +72,7 @@ pub fn compute_internal_forces_into(
     for r in &tasks.zeroed_before {
         force[r.clone()]
             .par_chunks_mut(NODE_CHUNK)
-            .for_each(|part| part.fill([0.0; 3]));
+            .for_each(|part| part.fill(NodeForce::ZERO));
     }
     let pass = Pass {
         model,
@@ -95,7 +96,7 @@ pub fn compute_internal_forces_into(
         .zip(&tasks.whole_nodes)
         .for_each(|(g, nodes)| {
             // SAFETY: a grain's nodes are its task's alone
-            unsafe { pass.force.slice_mut(nodes.start, nodes.len()) }.fill([0.0; 3]);
+            unsafe { pass.force.slice_mut(nodes.start, nodes.len()) }.fill(NodeForce::ZERO);
             // the elements read these positions in no order a hardware prefetcher follows
             crate::lanes::prefetch(x[nodes.clone()].as_ptr(), nodes.len());
             tasks.whole_chunks[g.clone()].iter().for_each(|&k| run(k));

@@ -19,6 +19,7 @@ use super::state::State;
 use crate::kinematics::{
     predict, predict_along, with_body_force, BodyForces, NextVelocity, RigidVelocity,
 };
+use crate::lanes::NodeForce;
 use crate::math::dot;
 use crate::model::Model;
 use rayon::prelude::*;
@@ -45,7 +46,7 @@ pub(super) struct NodePartials {
 /// What every node's update reads besides its own x and v.
 struct Inputs<'a> {
     mass: &'a [f64],
-    force: &'a [[f64; 3]],
+    force: &'a [NodeForce],
     next: &'a NextVelocity,
     body: Option<BodyForces<'a>>,
     weighs: bool,
@@ -130,7 +131,7 @@ impl LaneSums {
 /// What the step hands the integrator besides the model and the state.
 pub(super) struct StepResults<'a> {
     /// Node forces from elements and contacts (N).
-    pub force: &'a [[f64; 3]],
+    pub force: &'a [NodeForce],
     /// The v_{n+½} that motions and walls stored.
     pub next: &'a NextVelocity,
     /// Each grain's rigid velocity (for deformation damping).
@@ -282,8 +283,8 @@ fn update_node(
     let m = inputs.mass[n];
     let a = *v;
     let (f, fd) = match &inputs.body {
-        None => (inputs.force[n], [0.0; 3]),
-        Some(body) => body.total_force(n, inputs.force[n], x, &a, m),
+        None => (inputs.force[n].xyz(), [0.0; 3]),
+        Some(body) => body.total_force(n, inputs.force[n].xyz(), x, &a, m),
     };
     let b = (inputs.next.stored(n)).unwrap_or_else(|| predict(a, f, m, inputs.dt));
     let w = (inputs.body.as_ref()).map_or([0.0; 3], |body| body.weight(n));
@@ -404,7 +405,7 @@ mod tests {
                 if bad[2] > 0 {
                     stored.set(bad[2], [0.5, -0.25, 0.125]);
                 }
-                let mut force = vec![[1e-3, -2e-3, 5e-4]; NODES];
+                let mut force = vec![NodeForce::from([1e-3, -2e-3, 5e-4]); NODES];
                 force[bad[0]][1] = f64::NAN;
                 force[bad[1]][2] = f64::INFINITY;
                 let inputs = Inputs {
@@ -458,8 +459,12 @@ mod tests {
         for trial in 0..200 {
             let mass: Vec<f64> = (0..NODES).map(|_| 1e-9 * scale(next(), 3.0)).collect();
             let physical: Vec<f64> = mass.iter().map(|m| m * (0.9 + 0.1 * next())).collect();
-            let force: Vec<[f64; 3]> = (0..NODES)
-                .map(|_| [next(), next(), next()].map(|c| c * scale(next(), 4.0)))
+            let force: Vec<NodeForce> = (0..NODES)
+                .map(|_| {
+                    [next(), next(), next()]
+                        .map(|c| c * scale(next(), 4.0))
+                        .into()
+                })
                 .collect();
             let x0: Vec<[f64; 3]> = (0..NODES)
                 .map(|_| [next(), next(), next()].map(|c| 2e-3 * c))

@@ -5,6 +5,7 @@
 use super::state::{Reaction, State};
 use crate::boundary::PrescribedMotion;
 use crate::kinematics::{BodyForces, NextVelocity, Predictor};
+use crate::lanes::NodeForce;
 use crate::model::Model;
 
 /// Overrides the driven components of v_{n+½} so that driven nodes land exactly on their
@@ -14,7 +15,7 @@ pub(super) fn drive_prescribed_motions(
     model: &Model,
     motions: &[PrescribedMotion],
     state: &mut State,
-    force: &[[f64; 3]],
+    force: &[NodeForce],
     body: Option<BodyForces>,
     v_next: &mut NextVelocity,
     dt: f64,

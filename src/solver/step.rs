@@ -25,6 +25,7 @@ use crate::contact::{ContactScratch, ContactState};
 use crate::energy::{EnergyLedger, WorkAccumulator};
 use crate::error::MufeError;
 use crate::kinematics::{NextVelocity, Predictor, RigidVelocity};
+use crate::lanes::NodeForce;
 use crate::model::decomposition::Partition;
 use crate::model::periodic::CellKinematics;
 use crate::model::Model;
@@ -93,7 +94,7 @@ impl StepHooks for Serial {}
 #[derive(Debug, Default)]
 pub struct Scratch {
     /// Total force on each node at x_n (N).
-    pub force: Vec<[f64; 3]>,
+    pub force: Vec<NodeForce>,
     /// v_{n+½} being built (m/s).
     pub v_next: NextVelocity,
     pub elements: ElementScratch,
@@ -173,7 +174,7 @@ impl Solver {
             cell: (model.periodic.as_ref()).map(CellState::new),
         };
         let scratch = Scratch {
-            force: vec![[0.0; 3]; n],
+            force: vec![NodeForce::ZERO; n],
             v_next: NextVelocity::new(n),
             elements: ElementScratch::new(&model),
             contact: ContactScratch::default(),
