@@ -247,6 +247,14 @@ impl NodeForce {
     pub fn xyz(&self) -> [f64; 3] {
         [self.0[0], self.0[1], self.0[2]]
     }
+
+    /// x, y, z and the padding (0), for a reader that loads the whole 32 bytes: the
+    /// vectorised node update, where three f64 of each node became masked loads that
+    /// stalled (docs/BENCHMARKS.md, session 66).
+    #[inline(always)]
+    pub fn padded(&self) -> [f64; 4] {
+        self.0
+    }
 }
 
 impl From<[f64; 3]> for NodeForce {

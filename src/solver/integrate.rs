@@ -311,7 +311,8 @@ fn update_group(
     use std::array::from_fn;
     let m: Lanes = from_fn(|l| inputs.mass[n + l]);
     let a: [Lanes; 3] = from_fn(|i| from_fn(|l| v[l][i]));
-    let mut f: [Lanes; 3] = from_fn(|i| from_fn(|l| inputs.force[n + l][i]));
+    let node_force: [[f64; 4]; LANES] = from_fn(|l| inputs.force[n + l].padded());
+    let mut f: [Lanes; 3] = from_fn(|i| from_fn(|l| node_force[l][i]));
     let mut fd = [[0.0; LANES]; 3];
     let mut w = [[0.0; LANES]; 3];
     if let Some(body) = &inputs.body {
