@@ -83,7 +83,12 @@ pub fn estimate_memory_bytes(m: &Model) -> usize {
     let ne = m.num_elements();
     let nn = m.num_nodes();
     let per_element = 16 /* tets */ + 80 /* reference */ + 2 /* law */;
-    let per_node = 24 * 5 /* x0, x, v, v_next, force */ + 16 /* masses */ + 1 + 4 + 1 /* v_next stored */;
+    let per_node = 24 * 4 /* x0, x, v, v_next */
+        + std::mem::size_of::<crate::lanes::NodeForce>()
+        + 16 /* masses */
+        + 1
+        + 4
+        + 1 /* v_next stored */;
     let plastic = if m.plastic_slot.is_empty() {
         0
     } else {

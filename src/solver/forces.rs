@@ -129,8 +129,8 @@ pub fn compute_internal_forces_into(
 
 /// Bytes one force pass moves per owned element, from the layout it reads and writes:
 /// the connectivity (16 B) and reference data (80 B) of each element; for each node, its
-/// position read (24 B), its force zeroed (24 B) and then read and written by its
-/// elements (48 B), at the mesh's nodes per element; for plastic elements the state read
+/// position read (24 B), its force ([`NodeForce`], 32 B) zeroed and then read and written
+/// by its elements (96 B), at the mesh's nodes per element; for plastic elements the state read
 /// (56 B) and, when the plastic branch is taken (`plastic_written`), written back (56 B;
 /// an elastic step leaves it untouched); and the schedule's first-touch lists that the
 /// node prefetch reads (4 B a node, 2 B a block of eight elements). Each node's data is
@@ -145,7 +145,7 @@ pub fn bytes_moved_per_element(
     let elements = model.owned_elements.max(1) as f64;
     let per_element = (std::mem::size_of::<[u32; 4]>()
         + std::mem::size_of::<crate::element::TetReference>()) as f64;
-    let per_node = (3 + 3 + 6) as f64 * 8.0;
+    let per_node = (std::mem::size_of::<[f64; 3]>() + 3 * std::mem::size_of::<NodeForce>()) as f64;
     let plastic_elements = model.plastic_slot.iter().filter(|&&s| s != NONE).count() as f64;
     let state = std::mem::size_of::<PlasticPoint>() as f64;
     let per_plastic = if plastic_written { 2.0 * state } else { state };
