@@ -84,7 +84,8 @@ impl Lanes for F64x8 {
         // Each corner's (x, y, z, 0) of the eight elements as eight 256-bit rows (two to a
         // register, 16 registers for the four corners), then added element after element
         // and corner after corner: the one-element order, so every node's sum keeps its
-        // bits. The loops have constant bounds and unroll: no row goes through the stack.
+        // bits. The loops have constant bounds, so they unroll and index nothing at run
+        // time.
         let zero = _mm512_setzero_pd();
         let mut rows = [[_mm256_setzero_pd(); 8]; 4];
         for (a, corner) in rows.iter_mut().enumerate() {

@@ -219,13 +219,16 @@ pub fn touch_value<T>(array: &[T], n: usize) {
     }
 }
 
-/// Hints both lines the value at `p` may straddle: a prefetch, so `p` is only computed
-/// and need not be valid.
+/// Hints both lines the value at `p` may straddle, or its one line when its alignment
+/// keeps it inside one (a [`NodeForce`]): a prefetch, so `p` is only computed and need
+/// not be valid.
 #[inline(always)]
 pub fn touch_pointee<T>(p: *const T) {
     let p = p.cast::<u8>();
     prefetch(p, 1);
-    prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
+    if std::mem::size_of::<T>() > std::mem::align_of::<T>() {
+        prefetch(p.wrapping_add(std::mem::size_of::<T>() - 1), 1);
+    }
 }
 
 /// A node's force (N): x, y, z, and a fourth f64 that stays 0 so that each node is 32

@@ -383,8 +383,7 @@ impl<'a> NodesAhead<'a> {
         let start = block_end.get(b.wrapping_sub(1)).copied().unwrap_or(0);
         for &n in &self.touches.nodes[start as usize..end as usize] {
             touch_pointee(self.x.wrapping_add(n as usize));
-            // a NodeForce is 32 bytes on a 32-byte boundary: one line
-            prefetch(self.force.wrapping_add(n as usize), 1);
+            touch_pointee(self.force.wrapping_add(n as usize));
         }
     }
 }
