@@ -367,6 +367,25 @@ fn child_collectives() {
     let mut m = [r, -r, 10.0 - r];
     d.max_in_place(&mut m);
     assert_eq!(m, [1.0, 0.0, 10.0]);
+
+    // A sum started, the caller's values changed meanwhile, then finished: rank 1 starts
+    // late, so rank 0 finishes while rank 1 has not yet started; the buffers come back for
+    // the next sum (96 kB: a rendezvous message, as the per-grain wall forces).
+    let mut buffers = mufe::domain::SumBuffers::default();
+    for round in 0..2 {
+        let mut walls: Vec<f64> = (0..12_000).map(|i| (i % 7) as f64 * (r + 1.0)).collect();
+        if rank == 1 {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        let pending = d.start_sum(&walls, buffers);
+        walls.iter_mut().for_each(|w| *w = -1.0);
+        buffers = pending.finish(&mut walls);
+        let expected = |i: usize| 3.0 * (i % 7) as f64;
+        assert!(
+            walls.iter().enumerate().all(|(i, &w)| w == expected(i)),
+            "round {round}"
+        );
+    }
     let mut m = [r, -r, 10.0 - r];
     d.min_in_place(&mut m);
     assert_eq!(m, [0.0, -1.0, 9.0]);

@@ -24,6 +24,9 @@
 //! job within seconds instead of leaving the other ranks waiting forever in a collective.
 
 pub mod halo;
+mod pending_sum;
+
+pub use pending_sum::{PendingSum, SumBuffers};
 
 use std::cell::RefCell;
 use std::marker::PhantomData;

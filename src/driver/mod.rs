@@ -159,10 +159,7 @@ pub fn run(domain: &Domain, loaded: &LoadedScene, opts: &RunOptions) -> Result<R
         domain,
         loaded,
         global: &global,
-        hooks: RankHooks {
-            domain,
-            halo: Halo::new(domain, halo_plan, ghost_margin(&global)),
-        },
+        hooks: RankHooks::new(domain, Halo::new(domain, halo_plan, ghost_margin(&global))),
         solver,
         talk: domain.is_root() && !opts.quiet,
         out: opts.out.clone(),

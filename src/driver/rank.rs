@@ -2,7 +2,7 @@
 //! grains + ghosts) and the MPI side of a step (halo exchange, reductions).
 
 use crate::domain::halo::{Halo, HaloPlan};
-use crate::domain::Domain;
+use crate::domain::{Domain, PendingSum, SumBuffers};
 use crate::error::{InputError, MufeError, Result};
 use crate::model::decomposition::{Decomposition, GrainBound, Partition, PlanCell};
 use crate::model::global::{ghost_margin, GlobalMesh};
@@ -139,6 +139,20 @@ pub fn initial_cell_length(loaded: &LoadedScene) -> [f64; 3] {
 pub struct RankHooks<'d> {
     pub domain: &'d Domain,
     pub halo: Halo<'d>,
+    /// The sum over ranks begun by `start_sum`, and the buffers between two sums.
+    sum_in_flight: Option<PendingSum<'d>>,
+    sum_buffers: SumBuffers,
+}
+
+impl<'d> RankHooks<'d> {
+    pub fn new(domain: &'d Domain, halo: Halo<'d>) -> Self {
+        Self {
+            domain,
+            halo,
+            sum_in_flight: None,
+            sum_buffers: SumBuffers::default(),
+        }
+    }
 }
 
 impl StepHooks for RankHooks<'_> {
@@ -176,5 +190,14 @@ impl StepHooks for RankHooks<'_> {
         if self.domain.size() > 1 {
             self.domain.sum_in_place(values);
         }
+    }
+    fn start_sum(&mut self, values: &[f64]) {
+        assert!(self.sum_in_flight.is_none(), "one sum over ranks at a time");
+        let buffers = std::mem::take(&mut self.sum_buffers);
+        self.sum_in_flight = Some(self.domain.start_sum(values, buffers));
+    }
+    fn finish_sum(&mut self, values: &mut [f64]) {
+        let pending = (self.sum_in_flight.take()).expect("a sum over ranks was started");
+        self.sum_buffers = pending.finish(values);
     }
 }

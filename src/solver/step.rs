@@ -2,10 +2,11 @@
 //! internal forces (owned data only, overlapping the ghost exchange begun by the previous
 //! step) → contact (detection, grain–grain forces at x_n, added to the force)
 //! → boundary (prescribed motions; gravity and damping join a node's force wherever its
-//! v_{n+½} is read, `crate::kinematics`) → contact (kinematic walls on
-//! v_{n+½}; servo walls move to t_{n+1} from their force summed over ranks) → integrate
-//! → energy. Time in both contact parts is charged to `contact`; the ghost exchange to
-//! `halo`, and the step's small collectives, which wait for the slowest rank, to `sync`.
+//! v_{n+½} is read, `crate::kinematics`) → contact (kinematic walls on v_{n+½}; the walls'
+//! forces start their sum over ranks) → integrate (while the sum runs) → contact (servo
+//! walls move to t_{n+1} from the summed force) → energy. Time in the contact parts is
+//! charged to `contact`; the ghost exchange to `halo`, and the step's small collectives,
+//! which wait for the slowest rank, to `sync`.
 //!
 //! Convention: at the start of step n the state holds x_n and v_{n−½};
 //! v_{n+½} = v_{n−½} + Δt M⁻¹ f_n, x_{n+1} = x_n + Δt v_{n+½}.
@@ -74,6 +75,13 @@ pub trait StepHooks {
     fn max(&mut self, _values: &mut [f64]) {}
     /// Sums over ranks in place (all ranks must call).
     fn sum(&mut self, _values: &mut [f64]) {}
+    /// Starts the sum over ranks of `values` and returns at once (all ranks must call);
+    /// [`StepHooks::finish_sum`] gives the result. One sum is in flight at a time, and no
+    /// other collective is called until it is finished.
+    fn start_sum(&mut self, _values: &[f64]) {}
+    /// Writes the sum begun by [`StepHooks::start_sum`] into `values` (the same length),
+    /// waiting for the other ranks if it has not arrived.
+    fn finish_sum(&mut self, _values: &mut [f64]) {}
 }
 
 /// Steps between two blow-up checks of the energy ledger, at steps that are multiples of
@@ -424,10 +432,11 @@ impl Solver {
             });
             sums
         });
-        if let Some(plan) = &model.stages {
-            // State-driven walls must move identically on every rank, and stages end at
-            // the same step everywhere: one small sum of the walls' normal forces (serial
-            // runs: the local forces as they are).
+        // State-driven walls must move identically on every rank, and stages end at the
+        // same step everywhere: one sum over ranks of the walls' normal forces (serial runs:
+        // the local forces as they are). Nothing the integrator reads depends on it, so the
+        // sum runs while this rank integrates, and a rank that arrived early waits less.
+        if model.stages.is_some() {
             timers.time(Stage::Contact, || {
                 let grains = state.partition.owner.len();
                 crate::contact::wall_normal_forces(
@@ -437,7 +446,23 @@ impl Solver {
                     &mut scratch.wall_grain_forces,
                 );
             });
-            timers.time(Stage::Sync, || hooks.sum(&mut scratch.wall_grain_forces));
+            timers.time(Stage::Sync, || hooks.start_sum(&scratch.wall_grain_forces));
+        }
+
+        let partials = timers.time(Stage::Integrate, || {
+            let step = StepResults {
+                force: &scratch.force,
+                next: &scratch.v_next,
+                rigid: &scratch.grain_rigid,
+                path: scratch.elements.path,
+            };
+            let partials = &mut scratch.node_partials;
+            integrate_and_sum(model, alpha, gravity, state, step, partials, dt)
+        });
+        if let Some(plan) = &model.stages {
+            timers.time(Stage::Sync, || {
+                hooks.finish_sum(&mut scratch.wall_grain_forces)
+            });
             timers.time(Stage::Contact, || {
                 crate::contact::wall_totals(
                     &scratch.wall_grain_forces,
@@ -475,17 +500,6 @@ impl Solver {
                 cell_power(&sums.image_force, &cell_after.rate),
             );
         }
-
-        let partials = timers.time(Stage::Integrate, || {
-            let step = StepResults {
-                force: &scratch.force,
-                next: &scratch.v_next,
-                rigid: &scratch.grain_rigid,
-                path: scratch.elements.path,
-            };
-            let partials = &mut scratch.node_partials;
-            integrate_and_sum(model, alpha, gravity, state, step, partials, dt)
-        });
         // and with v_{n+½}, for the trapezoidal rule
         let contact_damping_after = timers.time(Stage::Contact, || {
             crate::contact::damping_power(model, &state.v, &scratch.contact)
