@@ -12,6 +12,7 @@
 //!
 //! Run with `cargo run --release -p partition --example fcc_stats [-- --flag value ...]`;
 //! flags: --elements-per-grain, --surface-nodes-per-grain, --element-seconds,
+//! --integrate-share (of the element work: the walls' non-blocking sum runs behind it),
 //! --contact-seconds-per-edge, --halo-bytes-per-cut-edge, --halo-seconds-per-byte,
 //! --latency, --bandwidth, --steps.
 
@@ -37,6 +38,7 @@ struct Inputs {
     elements_per_grain: f64,
     surface_nodes_per_grain: f64,
     element_seconds: f64,
+    integrate_share: f64,
     contact_seconds_per_edge: f64,
     halo_bytes_per_cut_edge: f64,
     halo_seconds_per_byte: f64,
@@ -51,6 +53,7 @@ impl Inputs {
             elements_per_grain: 2328.0,
             surface_nodes_per_grain: 473.0,
             element_seconds: (27.3e-3 + 3.05e-3 + 0.27e-3) / 2_328_000.0,
+            integrate_share: 3.05 / (27.3 + 3.05 + 0.27),
             contact_seconds_per_edge: 8.41e-3 / 5424.0,
             halo_bytes_per_cut_edge: 483_935.0 / 397.0,
             halo_seconds_per_byte: 0.40e-3 / 483_935.0,
@@ -72,6 +75,7 @@ impl Inputs {
                 "--elements-per-grain" => &mut inputs.elements_per_grain,
                 "--surface-nodes-per-grain" => &mut inputs.surface_nodes_per_grain,
                 "--element-seconds" => &mut inputs.element_seconds,
+                "--integrate-share" => &mut inputs.integrate_share,
                 "--contact-seconds-per-edge" => &mut inputs.contact_seconds_per_edge,
                 "--halo-bytes-per-cut-edge" => &mut inputs.halo_bytes_per_cut_edge,
                 "--halo-seconds-per-byte" => &mut inputs.halo_seconds_per_byte,
@@ -81,6 +85,12 @@ impl Inputs {
                 other => return Err(format!("unknown flag '{other}'")),
             };
             *slot = value;
+        }
+        if inputs.integrate_share > 1.0 {
+            return Err(format!(
+                "--integrate-share: {} is more than the whole element work (at most 1)",
+                inputs.integrate_share
+            ));
         }
         Ok(inputs)
     }
@@ -137,25 +147,32 @@ fn run(inputs: &Inputs) -> Result<(), PartitionError> {
         inputs.halo_seconds_per_byte
     );
     // mufe's all-reduces: the surface motion per grain (4 values each, and 3 more) every
-    // step, the walls' normal force per grain (6 walls) every step, the energy check's 6
-    // values every `solver::step::ENERGY_CHECK_EVERY` = 16 steps
+    // step, the walls' normal force per grain (6 walls) every step, non-blocking while
+    // the rank integrates, the energy check's 6 values every
+    // `solver::step::ENERGY_CHECK_EVERY` = 16 steps
     let every = |values: usize, steps: f64| Reduction {
         values,
         every_steps: steps,
+        hidden_behind: 0.0,
+    };
+    let behind_integration = |values: usize| Reduction {
+        hidden_behind: inputs.integrate_share,
+        ..every(values, 1.0)
     };
     // the rebuild decision's values (largest motion, rebuild vote, travel) and the walls
     const REBUILD_VALUES: usize = 3;
     const WALLS: usize = 6;
     let per_grain = [
         every(4 * GRAIN_COUNT + REBUILD_VALUES, 1.0),
-        every(WALLS * GRAIN_COUNT, 1.0),
+        behind_integration(WALLS * GRAIN_COUNT),
     ];
     let energy = every(6, 16.0);
     println!(
         "all-reduces: {} + {} values per step (surface motion per grain, walls' forces per grain), 6 every 16 steps (energy); \
-         network assumed: {:.1} µs latency, {:.1} GB/s per rank",
+         the walls' sum behind the integrator ({:.1} % of the element work); network assumed: {:.1} µs latency, {:.1} GB/s per rank",
         per_grain[0].values,
         per_grain[1].values,
+        100.0 * inputs.integrate_share,
         inputs.latency * 1e6,
         inputs.bandwidth / 1e9
     );
@@ -176,7 +193,11 @@ fn run(inputs: &Inputs) -> Result<(), PartitionError> {
     let today = costs(vec![per_grain[0], per_grain[1], energy]);
     // what no neighbour exchange can replace: every rank must take the same rebuild
     // decision and move the walls by the same total forces
-    let global_only = costs(vec![every(REBUILD_VALUES, 1.0), every(WALLS, 1.0), energy]);
+    let global_only = costs(vec![
+        every(REBUILD_VALUES, 1.0),
+        behind_integration(WALLS),
+        energy,
+    ]);
     println!();
     println!(
         "| parts | imbalance | cut edges | cut edges/part max | neighbours max | halo kB/step max | METIS ms \
