@@ -369,8 +369,8 @@ fn child_collectives() {
     assert_eq!(m, [1.0, 0.0, 10.0]);
 
     // A sum started, the caller's values changed meanwhile, then finished: rank 1 starts
-    // late, so rank 0 finishes while rank 1 has not yet started; the buffers come back for
-    // the next sum (96 kB: a rendezvous message, as the per-grain wall forces).
+    // late, so rank 0 waits in `finish` for it; the buffers come back for the next sum
+    // (96 kB: a rendezvous message, as the per-grain wall forces).
     let mut buffers = mufe::domain::SumBuffers::default();
     for round in 0..2 {
         let mut walls: Vec<f64> = (0..12_000).map(|i| (i % 7) as f64 * (r + 1.0)).collect();

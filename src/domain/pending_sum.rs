@@ -1,10 +1,10 @@
 //! A sum over ranks that runs while the rank computes (`MPI_Iallreduce`).
 //!
 //! Why: a blocking all-reduce in the middle of a step makes every rank wait there for the
-//! slowest one, so each step pays the larger of the ranks' times twice over, once for the
-//! stretch before this collective and once for the stretch before the next. Started where
-//! its values are ready and finished where they are first needed, the sum lets a rank that
-//! arrived early compute meanwhile (docs/BENCHMARKS.md, session 67).
+//! slowest one. Started where its values are ready and finished where they are first
+//! needed, the sum lets a rank that arrived early compute meanwhile and hides the
+//! reduction's own latency; a rank that fell behind is still waited for at the next
+//! blocking collective (docs/BENCHMARKS.md, session 67).
 
 use std::marker::PhantomData;
 use std::os::raw::c_void;
@@ -41,12 +41,12 @@ impl Domain {
     ///
     /// # Panics
     /// Above 2³¹−1 values.
-    pub fn start_sum(&self, values: &[f64], mut buffers: SumBuffers) -> PendingSum<'_> {
+    pub fn start_sum(&self, values: &[f64], buffers: SumBuffers) -> PendingSum<'_> {
         let mut pending = PendingSum {
             // SAFETY: a constant the MPI library defines
             request: unsafe { mpi::ffi::RSMPI_REQUEST_NULL },
             done: false,
-            buffers: std::mem::take(&mut buffers),
+            buffers,
             _domain: PhantomData,
         };
         let b = &mut pending.buffers;

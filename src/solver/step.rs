@@ -435,7 +435,8 @@ impl Solver {
         // State-driven walls must move identically on every rank, and stages end at the
         // same step everywhere: one sum over ranks of the walls' normal forces (serial runs:
         // the local forces as they are). Nothing the integrator reads depends on it, so the
-        // sum runs while this rank integrates, and a rank that arrived early waits less.
+        // sum runs while this rank integrates: its latency is hidden there, and a rank
+        // that arrived early computes instead of waiting.
         if model.stages.is_some() {
             timers.time(Stage::Contact, || {
                 let grains = state.partition.owner.len();
