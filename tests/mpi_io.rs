@@ -368,24 +368,32 @@ fn child_collectives() {
     d.max_in_place(&mut m);
     assert_eq!(m, [1.0, 0.0, 10.0]);
 
-    // A sum started, the caller's values changed meanwhile, then finished: rank 1 starts
-    // late, so rank 0 waits in `finish` for it; the buffers come back for the next sum
-    // (96 kB: a rendezvous message, as the per-grain wall forces).
-    let mut buffers = mufe::domain::SumBuffers::default();
+    // A sum and a maximum started, the caller's values changed meanwhile, then finished:
+    // rank 1 starts late, so rank 0 waits in `finish` for it; the buffers come back for the
+    // next round (96 kB: a rendezvous message, as the per-grain wall forces; the maximum
+    // as the rebuild inputs, with −∞ where a rank has nothing to say).
+    use mufe::domain::{Combine, ReductionBuffers};
+    let (mut sum_buffers, mut max_buffers) = (ReductionBuffers::default(), Default::default());
     for round in 0..2 {
         let mut walls: Vec<f64> = (0..12_000).map(|i| (i % 7) as f64 * (r + 1.0)).collect();
+        let mut motion = [r, -r, if rank == 0 { f64::NEG_INFINITY } else { 2.5 }];
         if rank == 1 {
             std::thread::sleep(std::time::Duration::from_millis(50));
         }
-        let pending = d.start_sum(&walls, buffers);
+        let max = d.start_reduction(&motion, Combine::Max, 13, max_buffers);
+        let sum = d.start_reduction(&walls, Combine::Sum, 11, sum_buffers);
         walls.iter_mut().for_each(|w| *w = -1.0);
-        buffers = pending.finish(&mut walls);
+        motion = [0.0; 3];
+        sum_buffers = sum.finish(&mut walls);
+        max_buffers = max.finish(&mut motion);
         let expected = |i: usize| 3.0 * (i % 7) as f64;
         assert!(
             walls.iter().enumerate().all(|(i, &w)| w == expected(i)),
             "round {round}"
         );
+        assert_eq!(motion, [1.0, 0.0, 2.5], "round {round}");
     }
+    drop((sum_buffers, max_buffers));
     let mut m = [r, -r, 10.0 - r];
     d.min_in_place(&mut m);
     assert_eq!(m, [0.0, -1.0, 9.0]);

@@ -24,9 +24,9 @@
 //! job within seconds instead of leaving the other ranks waiting forever in a collective.
 
 pub mod halo;
-mod pending_sum;
+mod pending_reduction;
 
-pub use pending_sum::{PendingSum, SumBuffers};
+pub use pending_reduction::{Combine, PendingReduction, ReductionBuffers, EXCHANGE_RANKS_MAX};
 
 use std::cell::RefCell;
 use std::marker::PhantomData;

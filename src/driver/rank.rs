@@ -2,7 +2,7 @@
 //! grains + ghosts) and the MPI side of a step (halo exchange, reductions).
 
 use crate::domain::halo::{Halo, HaloPlan};
-use crate::domain::{Domain, PendingSum, SumBuffers};
+use crate::domain::{Combine, Domain, PendingReduction, ReductionBuffers};
 use crate::error::{InputError, MufeError, Result};
 use crate::model::decomposition::{Decomposition, GrainBound, Partition, PlanCell};
 use crate::model::global::{ghost_margin, GlobalMesh};
@@ -135,13 +135,53 @@ pub fn initial_cell_length(loaded: &LoadedScene) -> [f64; 3] {
     PeriodicCell::of_scene(&loaded.scene).map_or([0.0; 3], |c| c.length0)
 }
 
+/// Message tags of the two reductions that run through a stage (beside the halo's).
+const WALL_SUM_TAG: i32 = 111;
+const REBUILD_MAX_TAG: i32 = 113;
+
 /// The MPI side of a step: ghost exchange and reductions.
 pub struct RankHooks<'d> {
     pub domain: &'d Domain,
     pub halo: Halo<'d>,
-    /// The sum over ranks begun by `start_sum`, and the buffers between two sums.
-    sum_in_flight: Option<PendingSum<'d>>,
-    sum_buffers: SumBuffers,
+    /// The walls' sum begun by `start_sum`, and the rebuild inputs' maximum begun by
+    /// `start_max`.
+    wall_sum: Reducing<'d>,
+    rebuild_max: Reducing<'d>,
+}
+
+/// A reduction over ranks in flight, or the buffers kept between two.
+struct Reducing<'d> {
+    combine: Combine,
+    tag: i32,
+    in_flight: Option<PendingReduction<'d>>,
+    buffers: ReductionBuffers<'d>,
+}
+
+impl<'d> Reducing<'d> {
+    fn new(combine: Combine, tag: i32) -> Self {
+        Self {
+            combine,
+            tag,
+            in_flight: None,
+            buffers: ReductionBuffers::default(),
+        }
+    }
+
+    /// Starts one on `domain`; one left unfinished (a solver replaced while it ran) is
+    /// waited for and dropped first, as every rank does.
+    fn start(&mut self, domain: &'d Domain, values: &[f64]) {
+        let buffers = match self.in_flight.take() {
+            Some(stale) => stale.discard(),
+            None => std::mem::take(&mut self.buffers),
+        };
+        let pending = domain.start_reduction(values, self.combine, self.tag, buffers);
+        self.in_flight = Some(pending);
+    }
+
+    fn finish(&mut self, values: &mut [f64]) {
+        let pending = (self.in_flight.take()).expect("a reduction over ranks was started");
+        self.buffers = pending.finish(values);
+    }
 }
 
 impl<'d> RankHooks<'d> {
@@ -149,8 +189,8 @@ impl<'d> RankHooks<'d> {
         Self {
             domain,
             halo,
-            sum_in_flight: None,
-            sum_buffers: SumBuffers::default(),
+            wall_sum: Reducing::new(Combine::Sum, WALL_SUM_TAG),
+            rebuild_max: Reducing::new(Combine::Max, REBUILD_MAX_TAG),
         }
     }
 }
@@ -192,12 +232,20 @@ impl StepHooks for RankHooks<'_> {
         }
     }
     fn start_sum(&mut self, values: &[f64]) {
-        assert!(self.sum_in_flight.is_none(), "one sum over ranks at a time");
-        let buffers = std::mem::take(&mut self.sum_buffers);
-        self.sum_in_flight = Some(self.domain.start_sum(values, buffers));
+        self.wall_sum.start(self.domain, values);
     }
     fn finish_sum(&mut self, values: &mut [f64]) {
-        let pending = (self.sum_in_flight.take()).expect("a sum over ranks was started");
-        self.sum_buffers = pending.finish(values);
+        self.wall_sum.finish(values);
+    }
+    /// The driver changes a solver between steps only by replacing it (migration) or
+    /// through `Solver::restore`, both of which drop the measure.
+    fn decides_rebuild_ahead(&self) -> bool {
+        true
+    }
+    fn start_max(&mut self, values: &[f64]) {
+        self.rebuild_max.start(self.domain, values);
+    }
+    fn finish_max(&mut self, values: &mut [f64]) {
+        self.rebuild_max.finish(values);
     }
 }

@@ -76,12 +76,25 @@ pub trait StepHooks {
     /// Sums over ranks in place (all ranks must call).
     fn sum(&mut self, _values: &mut [f64]) {}
     /// Starts the sum over ranks of `values` and returns at once (all ranks must call);
-    /// [`StepHooks::finish_sum`] gives the result. One sum is in flight at a time, and no
-    /// other collective is called until it is finished.
+    /// [`StepHooks::finish_sum`] gives the result. One sum is in flight at a time.
     fn start_sum(&mut self, _values: &[f64]) {}
     /// Writes the sum begun by [`StepHooks::start_sum`] into `values` (the same length),
     /// waiting for the other ranks if it has not arrived.
     fn finish_sum(&mut self, _values: &mut [f64]) {}
+    /// Whether the step measures the next step's rebuild inputs at its own end and
+    /// reduces them over ranks while the next force stage runs ([`StepHooks::start_max`]).
+    /// Only a caller that changes nothing between steps but through [`Solver::restore`]
+    /// or a new solver may say yes: the measure is of the state the step left.
+    fn decides_rebuild_ahead(&self) -> bool {
+        false
+    }
+    /// Starts the element-wise maximum over ranks of `values` and returns at once (all
+    /// ranks must call); [`StepHooks::finish_max`] gives the result. One maximum is in
+    /// flight at a time; starting one drops (after waiting for) any left unfinished.
+    fn start_max(&mut self, _values: &[f64]) {}
+    /// Writes the maximum begun by [`StepHooks::start_max`] into `values` (the same
+    /// length), waiting for the other ranks if it has not arrived.
+    fn finish_max(&mut self, _values: &mut [f64]) {}
 }
 
 /// Steps between two blow-up checks of the energy ledger, at steps that are multiples of
@@ -93,6 +106,39 @@ pub trait StepHooks {
 /// becomes non-finite or inverts sooner is caught every step by the element and velocity
 /// checks.
 pub const ENERGY_CHECK_EVERY: u64 = 16;
+
+/// Measures this rank's rebuild inputs at the state's x_n into `scratch.over_ranks`, for
+/// the maximum over ranks: each grain's surface motion
+/// (`crate::contact::share_surface_motion`), then the largest displacement, the rebuild
+/// vote, the travel into this step and whether the lists are still to be built.
+fn measure_rebuild_inputs(model: &Model, state: &State, scratch: &mut Scratch, dt: f64) {
+    let local = crate::contact::needs_rebuild(
+        model,
+        &state.x,
+        state.time,
+        state.step,
+        dt,
+        &state.contact,
+        &mut scratch.contact,
+    );
+    // Every rank skips entries by the largest displacement of any surface node, ghosts
+    // included (their owners count them): a rank whose own grains rest must still see a
+    // ghost grain that comes at them. The same reduction gives every ghost surface its
+    // owner's motion since the rebuild, which bounds the entries evaluated.
+    let over_ranks = &mut scratch.over_ranks;
+    let grains = state.partition.owner.len();
+    crate::contact::share_surface_motion(model, &scratch.contact, grains, over_ranks);
+    let broad = &scratch.contact.broad;
+    over_ranks.extend([
+        broad.moved,
+        f64::from(u8::from(local)),
+        broad.travel_into(state.step),
+        f64::from(u8::from(crate::contact::has_no_lists_yet(
+            model,
+            &scratch.contact,
+        ))),
+    ]);
+}
 
 /// One rank, nothing to exchange.
 pub struct Serial;
@@ -126,6 +172,9 @@ pub struct Scratch {
     /// (`crate::contact::share_surface_motion`), then the largest displacement and the
     /// rebuild vote.
     over_ranks: Vec<f64>,
+    /// The step whose rebuild inputs `over_ranks` holds, their maximum over ranks in
+    /// flight (`StepHooks::decides_rebuild_ahead`).
+    rebuild_inputs_for: Option<u64>,
 }
 
 /// Model + motions + state + scratch: one rank's explicit solver.
@@ -194,6 +243,7 @@ impl Solver {
             grain_centres: Vec::with_capacity(model.grains.len()),
             cell_grain_sums: Vec::new(),
             over_ranks: Vec::new(),
+            rebuild_inputs_for: None,
         };
         Self {
             model,
@@ -242,6 +292,8 @@ impl Solver {
             self.state.step_origin = self.state.step;
         }
         self.scratch.contact = ContactScratch::default();
+        // rebuild inputs measured on the state replaced are not this state's
+        self.scratch.rebuild_inputs_for = None;
         Ok(())
     }
 
@@ -283,37 +335,19 @@ impl Solver {
                 refresh_local_images(model, &mut state.x, &mut state.v, &cell_before)
             });
         }
-        let local = timers.time(Stage::Contact, || {
-            crate::contact::needs_rebuild(
-                model,
-                &state.x,
-                state.time,
-                state.step,
-                dt,
-                &state.contact,
-                &mut scratch.contact,
-            )
-        });
-        // Every rank skips entries by the largest displacement of any surface node, ghosts
-        // included (their owners count them): a rank whose own grains rest must still see
-        // a ghost grain that comes at them. The same reduction gives every ghost surface its
-        // owner's motion since the rebuild, which bounds the entries evaluated.
-        let over_ranks = &mut scratch.over_ranks;
-        timers.time(Stage::Contact, || {
-            let grains = state.partition.owner.len();
-            crate::contact::share_surface_motion(model, &scratch.contact, grains, over_ranks);
-            let broad = &scratch.contact.broad;
-            over_ranks.extend([
-                broad.moved,
-                f64::from(u8::from(local)),
-                broad.travel_into(state.step),
-                f64::from(u8::from(crate::contact::has_no_lists_yet(
-                    model,
-                    &scratch.contact,
-                ))),
-            ]);
-        });
-        timers.time(Stage::Sync, || hooks.max(over_ranks));
+        // The rebuild inputs at x_n: measured at the end of the previous step and reduced
+        // while this rank computed its forces, or here (the first step, after a restore
+        // or a new solver, and for a periodic cell, which moves its images in between).
+        if scratch.rebuild_inputs_for == Some(state.step) {
+            timers.time(Stage::Sync, || hooks.finish_max(&mut scratch.over_ranks));
+        } else {
+            timers.time(Stage::Contact, || {
+                measure_rebuild_inputs(model, state, scratch, dt)
+            });
+            timers.time(Stage::Sync, || hooks.max(&mut scratch.over_ranks));
+        }
+        scratch.rebuild_inputs_for = None;
+        let over_ranks = &scratch.over_ranks;
         let [moved, rebuild, travel, no_lists] = over_ranks[over_ranks.len() - 4..] else {
             unreachable!("four values were appended")
         };
@@ -548,6 +582,16 @@ impl Solver {
         if model.periodic.is_none() {
             let travel = 3f64.sqrt() * dt * partials.max_speed;
             scratch.contact.broad.note_travel(state.step, travel);
+        }
+        // The state is now the next step's x_n: its rebuild inputs are measured here and
+        // their maximum over ranks runs through the next force stage, so that a rank whose
+        // force stage ran faster does not wait for the others' there.
+        if hooks.decides_rebuild_ahead() && model.periodic.is_none() {
+            timers.time(Stage::Contact, || {
+                measure_rebuild_inputs(model, state, scratch, dt)
+            });
+            timers.time(Stage::Sync, || hooks.start_max(&scratch.over_ranks));
+            scratch.rebuild_inputs_for = Some(state.step);
         }
 
         // Exploding energy: with every force accounted for, KE + U cannot exceed the energy
