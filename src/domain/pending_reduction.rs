@@ -15,10 +15,10 @@
 //! [`EXCHANGE_RANKS_MAX`] ranks every rank instead sends its values to every other one at
 //! the start and combines what it received at the finish, in rank order: one round.
 //! Measured on the 2000-grain cell with the rebuild decision's maximum started at a step's
-//! end and finished after the next force stage, the exchange took the two ranks' wait in
-//! `sync` from 7.3 / 6.0 to 5.0 / 3.8 ms per step, and `MPI_Iallreduce` to 8.6 / 6.3
-//! (docs/BENCHMARKS.md, session 68). Beyond that many ranks, p² messages per reduction
-//! would cost more than they save, and `MPI_Iallreduce` is used.
+//! end and finished after the next force stage, the exchange took the ranks' wait in
+//! `sync` from 6.6 to 4.5 ms per step on average, where `MPI_Iallreduce` left it at 8.6 /
+//! 6.3 (docs/BENCHMARKS.md, session 68). Beyond that many ranks the exchange's p − 1
+//! messages per rank and reduction grow with the job, and `MPI_Iallreduce` is used.
 
 use std::marker::PhantomData;
 use std::os::raw::c_void;
@@ -47,6 +47,9 @@ pub struct ReductionBuffers<'d> {
     send: Vec<f64>,
     recv: Vec<f64>,
     sends: Vec<mpi::ffi::MPI_Request>,
+    /// The exchange's receives, or the one `MPI_Iallreduce` request, of the reduction
+    /// these buffers are lent to.
+    receives: Vec<mpi::ffi::MPI_Request>,
     // Live requests need MPI: tie the buffers to the Domain.
     _domain: PhantomData<&'d Domain>,
 }
@@ -60,7 +63,8 @@ impl ReductionBuffers<'_> {
 
 impl Drop for ReductionBuffers<'_> {
     fn drop(&mut self) {
-        // a receiver may still read the send buffer
+        // MPI may still write the receive buffer, and a receiver read the send buffer
+        wait_all(&mut self.receives);
         self.wait_for_sends();
     }
 }
@@ -77,8 +81,6 @@ pub struct PendingReduction<'d> {
     rank: usize,
     ranks: usize,
     len: usize,
-    /// The exchange's receives, or the one `MPI_Iallreduce` request.
-    requests: Vec<mpi::ffi::MPI_Request>,
     exchange: bool,
     // Ties the reduction to the Domain (MPI must outlive it) and keeps it on its thread.
     _domain: PhantomData<&'d Domain>,
@@ -111,11 +113,11 @@ impl Domain {
             rank,
             ranks,
             len,
-            requests: Vec::new(),
             exchange,
             _domain: PhantomData,
         };
         let b = &mut pending.buffers;
+        b.receives.clear();
         b.send.clear();
         b.send.extend_from_slice(values);
         b.recv.clear();
@@ -145,7 +147,7 @@ impl Domain {
                     comm,
                     &mut request,
                 );
-                pending.requests.push(request);
+                b.receives.push(request);
                 return pending;
             }
             for other in (0..ranks).filter(|&r| r != rank) {
@@ -159,7 +161,7 @@ impl Domain {
                     comm,
                     &mut request,
                 );
-                pending.requests.push(request);
+                b.receives.push(request);
             }
             for other in (0..ranks).filter(|&r| r != rank) {
                 let mut request = null;
@@ -191,7 +193,7 @@ impl<'d> PendingReduction<'d> {
             self.len,
             "a reduction finished with another length"
         );
-        wait_all(&mut self.requests);
+        wait_all(&mut self.buffers.receives);
         let b = &self.buffers;
         if !self.exchange {
             values.copy_from_slice(&b.recv);
@@ -220,7 +222,7 @@ impl<'d> PendingReduction<'d> {
     /// Waits for the reduction and drops its result (a caller that no longer needs it:
     /// every rank must still have started it); returns the buffers.
     pub fn discard(mut self) -> ReductionBuffers<'d> {
-        wait_all(&mut self.requests);
+        wait_all(&mut self.buffers.receives);
         std::mem::take(&mut self.buffers)
     }
 }
@@ -228,7 +230,7 @@ impl<'d> PendingReduction<'d> {
 impl Drop for PendingReduction<'_> {
     fn drop(&mut self) {
         // MPI may still write the receive buffer: wait first.
-        wait_all(&mut self.requests);
+        wait_all(&mut self.buffers.receives);
     }
 }
 
