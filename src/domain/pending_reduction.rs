@@ -20,10 +20,9 @@
 //! 6.3 (docs/BENCHMARKS.md, session 68). Beyond that many ranks the exchange's p − 1
 //! messages per rank and reduction grow with the job, and `MPI_Iallreduce` is used.
 
-use std::marker::PhantomData;
 use std::os::raw::c_void;
 
-use super::{to_count, Domain};
+use super::{to_count, Domain, Exchange, ExchangeBuffers, PendingExchange};
 
 /// Ranks up to which a reduction is one exchange of every rank's values with every other
 /// rank (see the module docs); above, `MPI_Iallreduce`.
@@ -40,33 +39,19 @@ pub enum Combine {
 
 /// The buffers of a reduction, kept by a caller that reduces every step and handed back
 /// to [`Domain::start_reduction`], so that a step allocates nothing once they have grown.
-/// It also holds the exchange's sends, which complete when their receivers take them:
-/// the next start (or dropping the buffers) waits for them, not the finish.
-#[derive(Debug, Default)]
+/// It also holds the last exchange, whose sends complete when their receivers take them:
+/// the next start waits for them, not the finish ([`Exchange::end_receives`]).
+#[derive(Default)]
 pub struct ReductionBuffers<'d> {
-    send: Vec<f64>,
+    /// This rank's values; `MPI_Iallreduce` also sends from here.
+    own: Vec<f64>,
+    /// `MPI_Iallreduce`'s result.
     recv: Vec<f64>,
-    sends: Vec<mpi::ffi::MPI_Request>,
-    /// The exchange's receives, or the one `MPI_Iallreduce` request, of the reduction
-    /// these buffers are lent to.
-    receives: Vec<mpi::ffi::MPI_Request>,
-    // Live requests need MPI: tie the buffers to the Domain.
-    _domain: PhantomData<&'d Domain>,
-}
-
-impl ReductionBuffers<'_> {
-    fn wait_for_sends(&mut self) {
-        wait_all(&mut self.sends);
-        self.sends.clear();
-    }
-}
-
-impl Drop for ReductionBuffers<'_> {
-    fn drop(&mut self) {
-        // MPI may still write the receive buffer, and a receiver read the send buffer
-        wait_all(&mut self.receives);
-        self.wait_for_sends();
-    }
+    /// The exchange's buffers, or the last exchange with its sends still in flight.
+    exchange: ExchangeBuffers,
+    sending: Option<PendingExchange<'d>>,
+    /// `(rank, values)` of every other rank: the exchange's send and receive counts.
+    counts: Vec<(usize, usize)>,
 }
 
 /// A reduction in flight, returned by [`Domain::start_reduction`];
@@ -77,13 +62,14 @@ impl Drop for ReductionBuffers<'_> {
 pub struct PendingReduction<'d> {
     buffers: ReductionBuffers<'d>,
     combine: Combine,
-    /// This rank, the ranks and the values per rank.
+    tag: i32,
     rank: usize,
-    ranks: usize,
-    len: usize,
-    exchange: bool,
-    // Ties the reduction to the Domain (MPI must outlive it) and keeps it on its thread.
-    _domain: PhantomData<&'d Domain>,
+    in_flight: Option<InFlight<'d>>,
+}
+
+enum InFlight<'d> {
+    Exchange(PendingExchange<'d>),
+    Allreduce(mpi::ffi::MPI_Request),
 }
 
 impl Domain {
@@ -96,7 +82,7 @@ impl Domain {
     /// other collectives.
     ///
     /// # Panics
-    /// Above 2³¹−1 values.
+    /// Above 2³¹−1 values, or for a tag outside `0..=Exchange::MAX_TAG`.
     pub fn start_reduction<'d>(
         &'d self,
         values: &[f64],
@@ -104,80 +90,57 @@ impl Domain {
         tag: i32,
         mut buffers: ReductionBuffers<'d>,
     ) -> PendingReduction<'d> {
-        buffers.wait_for_sends();
-        let (rank, ranks, len) = (self.rank(), self.size(), values.len());
-        let exchange = ranks <= EXCHANGE_RANKS_MAX;
-        let mut pending = PendingReduction {
-            buffers,
-            combine,
-            rank,
-            ranks,
-            len,
-            exchange,
-            _domain: PhantomData,
+        let (rank, ranks) = (self.rank(), self.size());
+        let exchange = Exchange::new(tag);
+        let mut sent = match buffers.sending.take() {
+            Some(last) => (exchange.end_reusing(last)).expect("every rank reduces alike"),
+            None => std::mem::take(&mut buffers.exchange),
         };
-        let b = &mut pending.buffers;
-        b.receives.clear();
-        b.send.clear();
-        b.send.extend_from_slice(values);
-        b.recv.clear();
-        b.recv.resize(if exchange { len * ranks } else { len }, 0.0);
-        let count = to_count(len);
-        let comm = self.raw_comm();
-        // SAFETY (all calls below): both buffers are heap allocations owned by `pending`,
-        // not resized or moved out until their requests have completed (finish or Drop
-        // waits for the receives, the buffers' next start or Drop for the sends); moving
-        // `pending` does not move their heap data. Each receive writes its own rank's
-        // `len` values of `recv`; datatypes, operation and counts match.
-        unsafe {
-            let null = mpi::ffi::RSMPI_REQUEST_NULL;
-            let double = mpi::ffi::RSMPI_DOUBLE;
-            if !exchange {
+        buffers.own.clear();
+        buffers.own.extend_from_slice(values);
+        let in_flight = if ranks <= EXCHANGE_RANKS_MAX {
+            let counts = &mut buffers.counts;
+            counts.clear();
+            counts.extend((0..ranks).filter(|&r| r != rank).map(|r| (r, values.len())));
+            sent.send.clear();
+            counts
+                .iter()
+                .for_each(|_| sent.send.extend_from_slice(values));
+            let pending = exchange.begin_reusing(self, sent, &counts[..], &counts[..]);
+            InFlight::Exchange(pending.unwrap_or_else(|e| panic!("reduction: {e}")))
+        } else {
+            buffers.exchange = sent;
+            buffers.recv.clear();
+            buffers.recv.resize(values.len(), 0.0);
+            // SAFETY: both buffers are heap allocations owned by the pending reduction,
+            // not resized or moved out until the request has completed (finish or Drop
+            // waits); moving it does not move their heap data. Datatype, operation and
+            // counts match.
+            unsafe {
                 let op = match combine {
                     Combine::Sum => mpi::ffi::RSMPI_SUM,
                     Combine::Max => mpi::ffi::RSMPI_MAX,
                 };
-                let mut request = null;
+                let mut request = mpi::ffi::RSMPI_REQUEST_NULL;
                 mpi::ffi::MPI_Iallreduce(
-                    b.send.as_ptr() as *const c_void,
-                    b.recv.as_mut_ptr() as *mut c_void,
-                    count,
-                    double,
+                    buffers.own.as_ptr() as *const c_void,
+                    buffers.recv.as_mut_ptr() as *mut c_void,
+                    to_count(values.len()),
+                    mpi::ffi::RSMPI_DOUBLE,
                     op,
-                    comm,
+                    self.raw_comm(),
                     &mut request,
                 );
-                b.receives.push(request);
-                return pending;
+                InFlight::Allreduce(request)
             }
-            for other in (0..ranks).filter(|&r| r != rank) {
-                let mut request = null;
-                mpi::ffi::MPI_Irecv(
-                    b.recv[other * len..].as_mut_ptr() as *mut c_void,
-                    count,
-                    double,
-                    other as i32,
-                    tag,
-                    comm,
-                    &mut request,
-                );
-                b.receives.push(request);
-            }
-            for other in (0..ranks).filter(|&r| r != rank) {
-                let mut request = null;
-                mpi::ffi::MPI_Isend(
-                    b.send.as_ptr() as *const c_void,
-                    count,
-                    double,
-                    other as i32,
-                    tag,
-                    comm,
-                    &mut request,
-                );
-                b.sends.push(request);
-            }
+        };
+        PendingReduction {
+            buffers,
+            combine,
+            tag,
+            rank,
+            in_flight: Some(in_flight),
         }
-        pending
     }
 }
 
@@ -188,33 +151,25 @@ impl<'d> PendingReduction<'d> {
     /// # Panics
     /// When `values` has another length than the reduction.
     pub fn finish(mut self, values: &mut [f64]) -> ReductionBuffers<'d> {
+        let b = &mut self.buffers;
         assert_eq!(
             values.len(),
-            self.len,
+            b.own.len(),
             "a reduction finished with another length"
         );
-        wait_all(&mut self.buffers.receives);
-        let b = &self.buffers;
-        if !self.exchange {
-            values.copy_from_slice(&b.recv);
-        } else {
-            let from = |r: usize| {
-                if r == self.rank {
-                    &b.send[..]
-                } else {
-                    &b.recv[r * self.len..(r + 1) * self.len]
-                }
-            };
-            values.copy_from_slice(from(0));
-            for r in 1..self.ranks {
-                let theirs = from(r);
-                match self.combine {
-                    Combine::Sum => (values.iter_mut().zip(theirs)).for_each(|(v, t)| *v += t),
-                    Combine::Max => (values.iter_mut().zip(theirs)).for_each(|(v, t)| {
-                        *v = v.max(*t);
-                    }),
-                }
+        match self.in_flight.take() {
+            Some(InFlight::Exchange(mut pending)) => {
+                let exchange = Exchange::new(self.tag);
+                (exchange.end_receives(&mut pending)).expect("every rank reduces alike");
+                let theirs = pending.received().map(|(_, data)| data);
+                combine_in_rank_order(self.combine, values, (self.rank, &b.own), theirs);
+                b.sending = Some(pending);
             }
+            Some(InFlight::Allreduce(mut request)) => {
+                wait(&mut request);
+                values.copy_from_slice(&b.recv);
+            }
+            None => unreachable!("a reduction is finished once"),
         }
         std::mem::take(&mut self.buffers)
     }
@@ -222,30 +177,52 @@ impl<'d> PendingReduction<'d> {
     /// Waits for the reduction and drops its result (a caller that no longer needs it:
     /// every rank must still have started it); returns the buffers.
     pub fn discard(mut self) -> ReductionBuffers<'d> {
-        wait_all(&mut self.buffers.receives);
+        match self.in_flight.take() {
+            Some(InFlight::Exchange(pending)) => self.buffers.sending = Some(pending),
+            Some(InFlight::Allreduce(mut request)) => wait(&mut request),
+            None => {}
+        }
         std::mem::take(&mut self.buffers)
     }
 }
 
 impl Drop for PendingReduction<'_> {
     fn drop(&mut self) {
-        // MPI may still write the receive buffer: wait first.
-        wait_all(&mut self.buffers.receives);
+        // MPI may still write the receive buffer: wait first (a pending exchange waits as
+        // it drops).
+        if let Some(InFlight::Allreduce(request)) = &mut self.in_flight {
+            wait(request);
+        }
     }
 }
 
-/// `MPI_Waitall` on `requests` (completed and null ones included); leaves them null.
-fn wait_all(requests: &mut [mpi::ffi::MPI_Request]) {
-    if requests.is_empty() {
-        return;
+/// Writes into `values` every rank's values combined in rank order: `own` (this rank's,
+/// at index `rank`) and `theirs` (the other ranks', in ascending rank order), so that every
+/// rank combines the same numbers in the same order and gets the same bits.
+fn combine_in_rank_order<'a>(
+    combine: Combine,
+    values: &mut [f64],
+    (rank, own): (usize, &'a [f64]),
+    mut theirs: impl Iterator<Item = &'a [f64]>,
+) {
+    let mut by_rank = (0..).map_while(|r| if r == rank { Some(own) } else { theirs.next() });
+    values.copy_from_slice(by_rank.next().expect("at least this rank's values"));
+    for from in by_rank {
+        let pairs = values.iter_mut().zip(from);
+        match combine {
+            Combine::Sum => pairs.for_each(|(v, t)| *v += t),
+            Combine::Max => pairs.for_each(|(v, t)| *v = v.max(*t)),
+        }
     }
-    // SAFETY: every request is live or null; MPI_STATUSES_IGNORE is MPI's own constant.
+}
+
+/// `MPI_Wait` on a live or null request; leaves it null.
+fn wait(request: &mut mpi::ffi::MPI_Request) {
+    // SAFETY: the request is live or null; MPI_Status is a plain C struct, zeroed is valid
+    // and MPI overwrites it.
     unsafe {
-        mpi::ffi::MPI_Waitall(
-            requests.len() as i32,
-            requests.as_mut_ptr(),
-            mpi::ffi::RSMPI_STATUSES_IGNORE,
-        );
+        let mut status: mpi::ffi::MPI_Status = std::mem::zeroed();
+        mpi::ffi::MPI_Wait(request, &mut status);
     }
 }
 
