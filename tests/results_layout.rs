@@ -122,6 +122,19 @@ fn two_rank_results_match_the_documented_layout_and_the_serial_frames() {
     );
     assert!(stdout.contains("re-partitioned at step 100"), "{stdout}");
 
+    // a job's log gets plain progress lines, not a live bar, although Open MPI hands each
+    // rank a pseudo-terminal even when the job's output goes to a pipe or file
+    assert!(
+        !stdout.contains('\r'),
+        "live progress bar in a job log: {stdout}"
+    );
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.contains("% t = ") && l.contains(" step ")),
+        "no progress line: {stdout}"
+    );
+
     // the file against docs/RESULTS.md
     let doc = Path::new(MANIFEST).join("docs/RESULTS.md");
     let report = check_layout(&path, &doc).unwrap_or_else(|e| panic!("{e}"));

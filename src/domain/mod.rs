@@ -47,6 +47,17 @@ const ROOT: i32 = 0;
 /// Largest element count of one MPI message: MPI counts are C `int`s.
 const MAX_COUNT: usize = i32::MAX as usize;
 
+/// Whether an MPI launcher (`mpirun`, `mpiexec`, `srun` through PMI) started this process,
+/// read from the variables Open MPI, MPICH and PMIx set in each rank; MPI itself need not
+/// be initialised. Such a rank does not start processes of its own, and its stdout is not
+/// a user's terminal even when `isatty` says so: Open MPI gives each rank a
+/// pseudo-terminal whatever the job's output goes to.
+pub fn launched_by_mpi_launcher() -> bool {
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some())
+}
+
 /// This process's view of the MPI job: its rank, the number of ranks, and the collectives
 /// the simulation needs. Create exactly one, at the start of `main`, with [`Domain::init`];
 /// MPI is finalised when it is dropped, after which MPI cannot be used again in the process

@@ -1,5 +1,7 @@
 //! Progress reporting: a live bar with ETA on a terminal, plain periodic log lines
-//! otherwise (batch jobs, CI logs).
+//! otherwise (batch jobs, CI logs) and in any rank an MPI launcher started: Open MPI gives
+//! ranks a pseudo-terminal even when the job's output goes to a file, whose log would
+//! otherwise hold one bar redrawn five times a second for the whole run.
 
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
@@ -21,7 +23,7 @@ impl Progress {
         let now = Instant::now();
         Self {
             enabled,
-            terminal: std::io::stdout().is_terminal(),
+            terminal: std::io::stdout().is_terminal() && !crate::domain::launched_by_mpi_launcher(),
             start: now,
             last: now,
             last_fraction: 0.0,
