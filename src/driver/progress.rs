@@ -1,7 +1,6 @@
 //! Progress reporting: a live bar with ETA on a terminal, plain periodic log lines
-//! otherwise (batch jobs, CI logs) and in any rank an MPI launcher started: Open MPI gives
-//! ranks a pseudo-terminal even when the job's output goes to a file, whose log would
-//! otherwise hold one bar redrawn five times a second for the whole run.
+//! otherwise (batch jobs, CI logs) and in a rank an MPI launcher started, whose terminal
+//! may be the launcher's stand-in for a log file ([`crate::domain::launched_by_mpi_launcher`]).
 
 use std::io::{IsTerminal, Write};
 use std::time::{Duration, Instant};
