@@ -489,6 +489,34 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
         .parse()
         .unwrap();
     assert!(whole > 1.0, "whole step {whole} × the force stage");
+    // the narrow phase's line: part of rank 0's contact row, and its three figures agree
+    // (time per step = entries per step × time per entry, to the printed digits)
+    let narrow: Vec<f64> = (stdout.lines())
+        .find_map(|l| l.strip_prefix("contact narrow phase on rank 0: "))
+        .expect("narrow-phase line")
+        .split(|c: char| c == ',' || c == '=')
+        .take(3)
+        .map(|cell| cell.split_whitespace().next().unwrap().parse().unwrap())
+        .collect();
+    let [ms, entries, us] = narrow[..] else {
+        panic!("{narrow:?}")
+    };
+    assert!(ms > 0.0 && entries >= 1.0 && us > 0.0, "{narrow:?}");
+    let rounding = 0.005 / ms + 0.5 / entries + 0.0005 / us;
+    assert!(
+        (entries * us / 1e3 / ms - 1.0).abs() <= rounding,
+        "{entries} entries × {us} µs against {ms} ms per step"
+    );
+    // (the per-rank line leaves out a stage under 0.05 ms/step on every rank)
+    let contact: f64 = by_rank
+        .split(", ")
+        .find_map(|c| c.strip_prefix("contact "))
+        .and_then(|c| c.split(" / ").next())
+        .map_or(0.05, |ms| ms.parse().unwrap());
+    assert!(
+        ms <= contact + 0.05,
+        "narrow {ms} ms of a contact row of {contact} ms"
+    );
 }
 
 /// A grain driven onto one at rest, each on its own rank, until it has pushed in for

@@ -289,6 +289,35 @@ pub struct ContactScratch {
     pub wall_grain_force: GrainWallForces,
     /// Force of the walls on each node they touched at the last step (node, N).
     pub wall_node_force: Vec<(u32, [f64; 3])>,
+    /// What the narrow phase cost on this rank since the scratch was made.
+    pub narrow: NarrowPhaseTally,
+}
+
+/// Wall time and work of the narrow phase (the evaluation of the entries within reach),
+/// summed over the steps since the contact scratch was made (the run's start, a restore
+/// or a re-partition): the largest part of the contact row, and the cost that issue 14's
+/// whole-step measure turns on (docs/BENCHMARKS.md, session 71).
+#[derive(Debug, Default, Clone, Copy)]
+pub struct NarrowPhaseTally {
+    pub seconds: f64,
+    /// Entries evaluated, summed over the steps.
+    pub entries: u64,
+    pub steps: u64,
+}
+
+impl NarrowPhaseTally {
+    /// Milliseconds per step, entries per step and microseconds per entry; `None` before
+    /// any step evaluated an entry.
+    pub fn per_step(&self) -> Option<(f64, f64, f64)> {
+        (self.steps > 0 && self.entries > 0).then(|| {
+            let steps = self.steps as f64;
+            (
+                1e3 * self.seconds / steps,
+                self.entries as f64 / steps,
+                1e6 * self.seconds / self.entries as f64,
+            )
+        })
+    }
 }
 
 /// Stage 1 of the step: detection and grain–grain contact forces at x_n (velocities
@@ -475,11 +504,16 @@ pub fn evaluate_with(
         history: &scratch.history_old,
         friction: cm.friction > 0.0,
     };
+    let started = std::time::Instant::now();
     scratch
         .results
         .par_chunks_mut(ENTRY_CHUNK)
         .zip(scratch.evaluated.par_chunks(ENTRY_CHUNK))
         .for_each(|(out, indices)| evaluate_pipelined(&ctx, &lists.entries, indices, out));
+    let narrow = &mut scratch.narrow;
+    narrow.seconds += started.elapsed().as_secs_f64();
+    narrow.entries += scratch.evaluated.len() as u64;
+    narrow.steps += 1;
 
     let stats = &mut state.stats;
     stats.points = 0;

@@ -276,6 +276,9 @@ pub fn print_run_summary(summary: &RunSummary, solver: &Solver) {
             "whole step = {whole:.2} × the internal-force stage of the slowest rank ({own:.2} × without the wait in sync)"
         );
     }
+    if let Some(line) = narrow_phase_line(summary, solver) {
+        println!("{line}");
+    }
     println!(
         "done: {} steps to t = {:.6e} s in {:.2} s wall ({:.3e} element updates/s, all ranks)",
         summary.steps,
@@ -546,6 +549,33 @@ fn stage_times_by_rank(summary: &RunSummary) -> Option<String> {
         })
         .collect();
     Some(format!("ms/step by rank (0 / 1 / …): {}", cells.join(", ")))
+}
+
+/// The narrow phase of this rank (rank 0 under MPI, like the stage table): its time per
+/// step, the entries it evaluated per step, the cost of one entry, and that cost in
+/// element updates of the same rank's force stage, a ratio that carries across machines
+/// (what issue 14's whole-step measure turns on: docs/BENCHMARKS.md, sessions 64 and 71).
+/// `None` when no entry was evaluated.
+fn narrow_phase_line(summary: &RunSummary, solver: &Solver) -> Option<String> {
+    let (ms, entries, us) = solver.scratch.contact.narrow.per_step()?;
+    let forces = solver.timers.seconds(Stage::InternalForces);
+    let updates = solver.model.owned_elements as f64 * summary.steps_run as f64;
+    let in_updates = if forces > 0.0 && updates > 0.0 {
+        format!(
+            " = {:.0} element updates of the force stage",
+            us * updates / (1e6 * forces)
+        )
+    } else {
+        String::new()
+    };
+    let whose = if summary.stage_seconds_by_rank.len() > 1 {
+        " on rank 0"
+    } else {
+        ""
+    };
+    Some(format!(
+        "contact narrow phase{whose}: {ms:.2} ms/step, {entries:.0} entries evaluated per step, {us:.3} µs per entry{in_updates}"
+    ))
 }
 
 /// The whole step (every stage, the wait included) over the internal-force stage of the
