@@ -494,7 +494,7 @@ fn a_trimmed_halo_gives_the_whole_halo_results_bit_for_bit_and_sends_less() {
     let narrow: Vec<f64> = (stdout.lines())
         .find_map(|l| l.strip_prefix("contact narrow phase on rank 0: "))
         .expect("narrow-phase line")
-        .split(|c: char| c == ',' || c == '=')
+        .split([',', '='])
         .take(3)
         .map(|cell| cell.split_whitespace().next().unwrap().parse().unwrap())
         .collect();
