@@ -574,7 +574,7 @@ fn narrow_phase_line(summary: &RunSummary, solver: &Solver) -> Option<String> {
         ""
     };
     Some(format!(
-        "contact narrow phase{whose}: {ms:.2} ms/step, {entries:.0} entries evaluated per step, {us:.3} µs per entry{in_updates}"
+        "contact narrow phase{whose}: {ms:.3} ms/step, {entries:.0} entries evaluated per step, {us:.3} µs per entry{in_updates}"
     ))
 }
 
