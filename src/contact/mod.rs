@@ -289,14 +289,14 @@ pub struct ContactScratch {
     pub wall_grain_force: GrainWallForces,
     /// Force of the walls on each node they touched at the last step (node, N).
     pub wall_node_force: Vec<(u32, [f64; 3])>,
-    /// What the narrow phase cost on this rank since the scratch was made.
+    /// What the narrow phase cost on this rank over the run's steps (see the type).
     pub narrow: NarrowPhaseTally,
 }
 
 /// Wall time and work of the narrow phase (the evaluation of the entries within reach),
-/// summed over the steps since the contact scratch was made (the run's start, a restore
-/// or a re-partition): the largest part of the contact row, and the cost that issue 14's
-/// whole-step measure turns on (docs/BENCHMARKS.md, session 71).
+/// summed over the steps the stage timers cover: from the run's start or its restart,
+/// carried over a re-partition as they are. The largest part of the contact row, and the
+/// cost that issue 14's whole-step measure turns on (docs/BENCHMARKS.md, session 71).
 #[derive(Debug, Default, Clone, Copy)]
 pub struct NarrowPhaseTally {
     pub seconds: f64,

@@ -292,6 +292,8 @@ pub fn redistribute(
     // run-level state that is not per grain (this rank keeps its own totals)
     solver.state.take_run_level_from(&old.state);
     solver.timers = old.timers.clone();
+    // the narrow phase's tally spans the same steps as the stage table it is read beside
+    solver.scratch.contact.narrow = old.scratch.contact.narrow;
     solver.state.contact.history.clear();
     let mut installed = unpack_grains(&mut solver, &local)?;
     for (_, data) in &received {
