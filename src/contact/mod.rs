@@ -92,6 +92,7 @@
 //!    [`ContactStats::energy`] and [`ContactState::wall_external_work`].
 
 pub mod broad;
+mod candidate_facet;
 pub mod fabric;
 pub mod friction;
 pub mod narrow;
@@ -496,7 +497,7 @@ pub fn evaluate_with(
     let ctx = EvalContext {
         cm,
         passes: &lists.passes,
-        candidates: &lists.candidates,
+        facets: &lists.candidate_facets,
         x,
         v,
         mass: &model.mass,

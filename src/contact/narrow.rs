@@ -19,14 +19,15 @@
 //! (a faceted normal tilts with the tangential offset of a node-on-node contact and takes
 //! the tilt off the friction angle).
 
+pub use super::candidate_facet::CandidateFacet;
 use super::friction::{return_map, rotate_onto_plane, tangential};
 use super::patch::Patch;
-use super::triangle::nearest_candidate;
 pub use super::triangle::{closest_point_on_triangle, Closest, Feature};
+use super::triangle::{nearest_candidate, nearest_record};
 use super::vertex_normals::{
     facet_normal, pseudo_normal_at_vertex, smooth_normal, triangle_normal,
 };
-use super::{ContactKey, ContactModel, FrictionPoint, NONE};
+use super::{ContactKey, ContactModel, FrictionPoint};
 use crate::math::{add, dot, norm, scale, sub};
 
 /// Axis-aligned bounding box.
@@ -289,7 +290,8 @@ pub const PASS_WEIGHT: f64 = 0.5;
 pub struct EvalContext<'a> {
     pub cm: &'a ContactModel,
     pub passes: &'a [Pass],
-    pub candidates: &'a [u32],
+    /// The entries' candidate facets (`CandidateLists::candidate_facets`).
+    pub facets: &'a [CandidateFacet],
     pub x: &'a [[f64; 3]],
     pub v: &'a [[f64; 3]],
     /// Nodal masses used by the integrator (for the contact damping).
@@ -340,20 +342,29 @@ impl HistoryCursor {
     }
 }
 
-/// Outward pseudo-normal of the master surface at a closest-point feature.
-fn pseudo_normal(cm: &ContactModel, x: &[[f64; 3]], facet: usize, feature: Feature) -> [f64; 3] {
+/// The unit normal of a facet at positions `x`.
+fn record_normal(x: &[[f64; 3]], facet: &CandidateFacet) -> [f64; 3] {
+    let [a, b, c] = facet.corners.map(|n| x[n as usize]);
+    triangle_normal(a, b, c)
+}
+
+/// Outward pseudo-normal of the master surface at a closest-point feature of `facet`.
+fn pseudo_normal(
+    cm: &ContactModel,
+    x: &[[f64; 3]],
+    facet: &CandidateFacet,
+    feature: Feature,
+) -> [f64; 3] {
     match feature {
-        Feature::Face => facet_normal(cm, x, facet),
+        Feature::Face => record_normal(x, facet),
         Feature::Edge(k) => {
-            let other = cm.facet_adjacent[facet][k as usize];
-            let n = facet_normal(cm, x, facet);
-            if other == NONE {
-                n
-            } else {
-                add(n, facet_normal(cm, x, other as usize))
+            let n = record_normal(x, facet);
+            match facet.across(k as usize) {
+                None => n,
+                Some(other) => add(n, facet_normal(cm, x, other)),
             }
         }
-        Feature::Vertex(k) => pseudo_normal_at_vertex(cm, x, cm.facet[facet][k as usize]),
+        Feature::Vertex(k) => pseudo_normal_at_vertex(cm, x, facet.corners[k as usize]),
     }
 }
 
@@ -361,8 +372,8 @@ fn pseudo_normal(cm: &ContactModel, x: &[[f64; 3]], facet: usize, feature: Featu
 #[derive(Debug, Clone, Copy)]
 pub struct Located {
     pub closest: Closest,
-    /// Global facet index of the closest point.
-    pub facet: usize,
+    /// The facet of the closest point.
+    pub facet: CandidateFacet,
     /// Penetration depth (> 0 inside the master) or −distance (outside), m.
     pub depth: f64,
     /// Outward master normal at the contact point (unit; meaningful when inside).
@@ -384,7 +395,20 @@ pub fn locate(
 /// [`locate`] once the nearest candidate facet (by the flat closest-point distance) is
 /// known.
 pub fn locate_on_facet(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], facet: usize) -> Located {
-    let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
+    locate_on_record(cm, x, xs, &CandidateFacet::of(cm, facet))
+}
+
+/// [`locate_on_facet`] with the facet's record at hand: its topology is read from there
+/// (see [`super::candidate_facet`]), not from `cm`, except for the rarer neighbour across
+/// an edge and the flat pseudo-normal.
+pub fn locate_on_record(
+    cm: &ContactModel,
+    x: &[[f64; 3]],
+    xs: [f64; 3],
+    facet: &CandidateFacet,
+) -> Located {
+    let facet = *facet;
+    let [a, b, c] = facet.corners.map(|n| x[n as usize]);
     let cl = closest_point_on_triangle(xs, a, b, c);
     let d = sub(xs, cl.point);
     let dist = cl.dist2.sqrt();
@@ -392,12 +416,12 @@ pub fn locate_on_facet(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], facet: u
     // (a flat facet, or a node beyond twice the patch's bulge): a contact node is well
     // within the bulge, and at a vertex this test costs an `acos` per facet of the ring.
     let flat_inside_along = |pn: [f64; 3]| dot(d, pn) < 0.0 && dist > 0.0;
-    let flat_inside = || flat_inside_along(pseudo_normal(cm, x, facet, cl.feature));
-    let corners = cm.facet[facet].map(|v| smooth_normal(cm, x, v));
-    if let Some(on_patch) = locate_on_patch(cm, x, &corners, xs, facet, cl, flat_inside) {
+    let flat_inside = || flat_inside_along(pseudo_normal(cm, x, &facet, cl.feature));
+    let corners = [0, 1, 2].map(|k| smooth_normal(x, facet.corners[k], facet.fan(cm, k)));
+    if let Some(on_patch) = locate_on_patch(cm, x, &corners, xs, &facet, cl, flat_inside) {
         return on_patch;
     }
-    let pn = pseudo_normal(cm, x, facet, cl.feature);
+    let pn = pseudo_normal(cm, x, &facet, cl.feature);
     if !flat_inside_along(pn) {
         return Located {
             closest: cl,
@@ -423,12 +447,11 @@ pub fn locate_on_facet(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], facet: u
 
 /// The curved patch of a master facet, or `None` when it stays flat.
 fn facet_patch(
-    cm: &ContactModel,
     x: &[[f64; 3]],
-    facet: usize,
+    facet: &CandidateFacet,
     vertex_normal: impl Fn(usize) -> Option<[f64; 3]>,
 ) -> Option<Patch> {
-    let [a, b, c] = cm.facet[facet].map(|n| x[n as usize]);
+    let [a, b, c] = facet.corners.map(|n| x[n as usize]);
     Patch::of_facet([a, b, c], triangle_normal(a, b, c), vertex_normal)
 }
 
@@ -443,11 +466,12 @@ fn locate_on_patch(
     x: &[[f64; 3]],
     corners: &[Option<[f64; 3]>; 3],
     xs: [f64; 3],
-    facet: usize,
+    facet: &CandidateFacet,
     cl: Closest,
     flat_inside: impl FnOnce() -> bool,
 ) -> Option<Located> {
-    let patch = facet_patch(cm, x, facet, |k| corners[k])?;
+    let facet = *facet;
+    let patch = facet_patch(x, &facet, |k| corners[k])?;
     let dist = cl.dist2.sqrt();
     let bulge = patch.bulge_bound();
     if dist > 2.0 * bulge && !flat_inside() {
@@ -460,19 +484,18 @@ fn locate_on_patch(
     }
     let mut best = (patch.closest(xs, cl.bary), facet);
     if let Some(k) = best.0.clamped_edge {
-        let other = cm.facet_adjacent[facet][k];
-        if other != NONE {
-            let o = other as usize;
+        if let Some(other) = facet.across(k) {
+            let o = CandidateFacet::of(cm, other);
             // two of the neighbour's corners are this facet's
             let smooth_at = |k: usize| {
-                let v = cm.facet[o][k];
-                match cm.facet[facet].iter().position(|&c| c == v) {
+                let v = o.corners[k];
+                match facet.corners.iter().position(|&c| c == v) {
                     Some(i) => corners[i],
-                    None => smooth_normal(cm, x, v),
+                    None => smooth_normal(x, v, o.fan(cm, k)),
                 }
             };
-            if let Some(p) = facet_patch(cm, x, o, smooth_at) {
-                let [a, b, c] = cm.facet[o].map(|n| x[n as usize]);
+            if let Some(p) = facet_patch(x, &o, smooth_at) {
+                let [a, b, c] = o.corners.map(|n| x[n as usize]);
                 let start = closest_point_on_triangle(xs, a, b, c).bary;
                 let candidate = p.closest(xs, start);
                 if candidate.distance < best.0.distance {
@@ -504,12 +527,12 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
 }
 
 /// The candidate facet of `entry` nearest to its slave node (by the flat closest-point
-/// distance), `None` without candidates: the first step of [`evaluate_entry`], which
-/// [`super::prefetch`] needs before the rest.
+/// distance), as an index into `ctx.facets`, `None` without candidates: the first step of
+/// [`evaluate_entry`], which [`super::prefetch`] needs before the rest.
 pub fn nearest_facet(ctx: &EvalContext, entry: &Entry) -> Option<u32> {
-    let cands = &ctx.candidates[entry.start as usize..entry.end as usize];
+    let cands = &ctx.facets[entry.start as usize..entry.end as usize];
     let xs = ctx.x[ctx.cm.node[entry.slave as usize] as usize];
-    nearest_candidate(ctx.cm, ctx.x, xs, cands).map(|i| cands[i])
+    nearest_record(ctx.x, xs, cands).map(|i| entry.start + i as u32)
 }
 
 /// [`evaluate_entry`] with its [`nearest_facet`] already found; `history` finds the
@@ -530,11 +553,11 @@ pub fn evaluate_entry_on(
         ..Default::default()
     };
     let xs = x[s as usize];
-    let Some(facet) = nearest else {
+    let Some(nearest) = nearest else {
         r.separation = f64::INFINITY;
         return r;
     };
-    let loc = locate_on_facet(cm, x, xs, facet as usize);
+    let loc = locate_on_record(cm, x, xs, &ctx.facets[nearest as usize]);
     if loc.depth <= 0.0 {
         r.separation = -loc.depth;
         return r;
@@ -545,11 +568,11 @@ pub fn evaluate_entry_on(
         &cm.surfaces[pass.slave as usize],
         &cm.surfaces[pass.master as usize],
     );
-    let masters = cm.facet[facet];
+    let masters = facet.corners;
     let h_s = cm.node_h[s_flat];
     let mut h_m = 0.0;
-    for (i, &m) in masters.iter().enumerate() {
-        h_m += cl.bary[i] * cm.node_h[cm.surface_index[m as usize] as usize];
+    for (i, &slot) in facet.slots.iter().enumerate() {
+        h_m += cl.bary[i] * cm.node_h[slot as usize];
     }
     let eps = cm.penalty(sg.e_prime.max(mg.e_prime), h_s, h_m);
     let area = cm.node_area[s_flat] * PASS_WEIGHT;

@@ -33,7 +33,7 @@ pub fn check_initial_overlap(model: &Model, file: &str) -> Result<(), InputError
     let ctx = EvalContext {
         cm,
         passes: &lists.passes,
-        candidates: &lists.candidates,
+        facets: &lists.candidate_facets,
         x: x0,
         v: &zeros,
         mass: &[],

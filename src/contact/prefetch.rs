@@ -2,28 +2,27 @@
 //!
 //! Why: an evaluated entry reads one grain pair's corner of the surface arrays, which the
 //! element stage has long evicted (it streams the whole mesh), and reaches it through a
-//! chain of dependent lookups: entry → slave node and candidate facets → their corners'
-//! positions → (nearest facet) → its neighbours and its corners' surface slots → each
-//! corner's fan → the fan's positions. Evaluated one entry after another, every link is a
-//! miss the core waits for.
+//! chain of dependent lookups: entry → its candidate facets' records
+//! ([`super::candidate_facet`]) → their corners' positions → (nearest facet) → its corners'
+//! fans and its neighbours → the fans' and neighbours' positions. Evaluated one entry after
+//! another, every link is a miss the core waits for.
 //!
 //! [`evaluate_pipelined`] walks the chain for batches of [`BATCH`] entries as a software
 //! pipeline: at each turn every [`Stage`] handles its own batch, stage s the batch s
 //! turns behind the first, and each prefetches the next link for its batch. A link is
 //! thus read one whole turn (a batch's evaluation, several µs) after its line was asked
-//! for, when it has arrived, and the misses of eight batches overlap the arithmetic
-//! instead of stalling it (docs/BENCHMARKS.md, session 34: the two-round prefetch before
-//! it stalled on each link's own loads). Only prefetches are added: the results do not
-//! change.
+//! for, when it has arrived, and the misses of the batches in flight overlap the
+//! arithmetic instead of stalling it (docs/BENCHMARKS.md, session 34: the two-round
+//! prefetch before it stalled on each link's own loads). Only prefetches are added: the
+//! results do not change.
 //!
 //! The chain forks at the nearest candidate facet: only its corners' rings are read (the
 //! curved patch's vertex normals). A ring is read as its fan of corner pairs
-//! (`ContactModel::vertex_fans`), not through its facets: one link fewer.
+//! (`ContactModel::vertex_fans`), whose place the facet's record holds.
 
 use super::narrow::{
     evaluate_entry_on, nearest_facet, Entry, EvalContext, HistoryCursor, PointResult,
 };
-use super::vertex_normals::fan_around;
 
 /// Entries per batch: enough misses in flight per stage to fill the core's miss buffers,
 /// few enough that the lines of all batches in the pipeline (≈ 40 per entry) stay in L2.
@@ -32,31 +31,23 @@ pub const BATCH: usize = 16;
 /// What each turn does to its batch, in chain order (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stage {
-    /// The slave's surface slot and its candidate list.
+    /// The slave's surface records and its candidate facets' records.
     EntryHeads,
-    /// The slave's position, velocity and mass; the candidate facets.
-    SlaveAndFacets,
-    /// The candidate facets' corner positions.
-    CandidateCorners,
-    /// Finds the nearest candidate; its neighbours, corner velocities and surface slots.
+    /// The slave's position, velocity and mass; the candidate facets' corner positions.
+    SlaveAndCorners,
+    /// Finds the nearest candidate; its corners' fans, edges and velocities, and its
+    /// neighbours across the edges.
     Nearest,
-    /// The corners' fan offsets and sizes; the neighbours' corners.
-    RingHeads,
-    /// The corners' fans.
-    Fans,
-    /// The fans' positions.
+    /// The fans' positions and the neighbours' corner positions.
     FanPositions,
     /// The evaluation itself.
     Evaluate,
 }
 
-const STAGES: [Stage; 8] = [
+const STAGES: [Stage; 5] = [
     Stage::EntryHeads,
-    Stage::SlaveAndFacets,
-    Stage::CandidateCorners,
+    Stage::SlaveAndCorners,
     Stage::Nearest,
-    Stage::RingHeads,
-    Stage::Fans,
     Stage::FanPositions,
     Stage::Evaluate,
 ];
@@ -136,15 +127,14 @@ fn run_stage(
 ) {
     let cm = ctx.cm;
     let batch = || batch.iter().map(|&i| &entries[i as usize]);
-    let candidates = |e: &Entry| &ctx.candidates[e.start as usize..e.end as usize];
+    let records = |e: &Entry| &ctx.facets[e.start as usize..e.end as usize];
     if stage == Stage::Nearest {
         *nearest = [None; BATCH];
         for (f, e) in nearest.iter_mut().zip(batch()) {
             *f = nearest_facet(ctx, e);
         }
     }
-    let found = || nearest.iter().flatten();
-    let corners = || found().flat_map(|&f| cm.facet[f as usize]);
+    let found = || nearest.iter().flatten().map(|&i| &ctx.facets[i as usize]);
     match stage {
         Stage::EntryHeads => {
             for e in batch() {
@@ -152,13 +142,12 @@ fn run_stage(
                 touch(&cm.node[k]);
                 touch(&cm.node_h[k]);
                 touch(&cm.node_area[k]);
-                if let (Some(first), Some(last)) = (candidates(e).first(), candidates(e).last()) {
-                    touch(first);
-                    touch(last);
+                for r in records(e) {
+                    touch(r);
                 }
             }
         }
-        Stage::SlaveAndFacets => {
+        Stage::SlaveAndCorners => {
             for e in batch() {
                 let s = cm.node[e.slave as usize];
                 touch_node(ctx.x, s);
@@ -166,72 +155,47 @@ fn run_stage(
                 if let Some(m) = ctx.mass.get(s as usize) {
                     touch(m);
                 }
-                for &f in candidates(e) {
-                    touch(&cm.facet[f as usize]);
-                }
-            }
-        }
-        Stage::CandidateCorners => {
-            for e in batch() {
-                for &f in candidates(e) {
-                    for n in cm.facet[f as usize] {
+                for r in records(e) {
+                    for n in r.corners {
                         touch_node(ctx.x, n);
                     }
                 }
             }
         }
         Stage::Nearest => {
-            for &f in found() {
-                touch(&cm.facet_adjacent[f as usize]);
-            }
-            for n in corners() {
-                touch(&cm.surface_index[n as usize]);
-                touch_node(ctx.v, n);
-            }
-        }
-        Stage::RingHeads => {
-            for n in corners() {
-                let s = cm.surface_index[n as usize] as usize;
-                touch(&cm.vertex_facet_offsets[s]);
-                touch(&cm.vertex_facet_offsets[s + 1]);
-                touch(&cm.node_h[s]);
-            }
-            // the neighbour across the edge a patch point may be clamped to
-            for &f in found() {
-                for o in cm.facet_adjacent[f as usize] {
-                    if let Some(facet) = cm.facet.get(o as usize) {
-                        touch(facet);
+            for r in found() {
+                for k in 0..3 {
+                    let fan = r.fan(cm, k);
+                    if let (Some(first), Some(last)) = (fan.first(), fan.last()) {
+                        touch(first);
+                        touch(last);
                     }
-                }
-            }
-        }
-        Stage::Fans => {
-            for n in corners() {
-                let fan = fan_around(cm, n);
-                if let (Some(first), Some(last)) = (fan.first(), fan.last()) {
-                    touch(first);
-                    touch(last);
-                }
-            }
-            for &f in found() {
-                for o in cm.facet_adjacent[f as usize] {
-                    if let Some(facet) = cm.facet.get(o as usize) {
-                        for n in facet {
-                            touch_node(ctx.x, *n);
-                        }
+                    touch(&cm.node_h[r.slots[k] as usize]);
+                    touch_node(ctx.v, r.corners[k]);
+                    // the neighbour across the edge a patch point may be clamped to
+                    if let Some(o) = r.across(k) {
+                        touch(&cm.facet[o]);
                     }
                 }
             }
         }
         Stage::FanPositions => {
-            // around a closed surface's vertex every fan corner comes first in one pair
-            for n in corners() {
-                let fan = fan_around(cm, n);
-                for &[a, _] in fan {
-                    touch_node(ctx.x, a);
-                }
-                if let Some(&[_, b]) = fan.last() {
-                    touch_node(ctx.x, b);
+            for r in found() {
+                for k in 0..3 {
+                    // around a closed surface's vertex every fan corner comes first in one
+                    // pair
+                    let fan = r.fan(cm, k);
+                    for &[a, _] in fan {
+                        touch_node(ctx.x, a);
+                    }
+                    if let Some(&[_, b]) = fan.last() {
+                        touch_node(ctx.x, b);
+                    }
+                    if let Some(o) = r.across(k) {
+                        for n in cm.facet[o] {
+                            touch_node(ctx.x, n);
+                        }
+                    }
                 }
             }
         }

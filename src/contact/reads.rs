@@ -139,8 +139,9 @@ mod tests {
         for e in lists.entries.iter_mut() {
             let kept = &lists.candidates[e.start as usize..e.end as usize];
             let p = x[cm.node[e.slave as usize] as usize];
-            let nearest = kept[nearest_candidate(cm, &x, p, kept).expect("candidates")];
-            lists.candidates[e.start as usize] = nearest;
+            let i = e.start as usize + nearest_candidate(cm, &x, p, kept).expect("candidates");
+            lists.candidates[e.start as usize] = lists.candidates[i];
+            lists.candidate_facets[e.start as usize] = lists.candidate_facets[i];
             e.end = e.start + 1;
         }
         let lists = &scratch.lists;
@@ -149,7 +150,7 @@ mod tests {
             let ctx = EvalContext {
                 cm,
                 passes: &lists.passes,
-                candidates: &lists.candidates,
+                facets: &lists.candidate_facets,
                 x: &x,
                 v: &at_rest,
                 mass: &model.mass,
@@ -209,7 +210,7 @@ mod tests {
                 let ctx = EvalContext {
                     cm,
                     passes: &lists.passes,
-                    candidates: &lists.candidates,
+                    facets: &lists.candidate_facets,
                     x,
                     v,
                     mass: &model.mass,

@@ -17,6 +17,7 @@
 //! contact results do not depend on the path taken (docs/BENCHMARKS.md, session 25: the
 //! candidate loop 2.5–3× faster in cache, the loaded contact stage ≈ 11 % cheaper).
 
+use super::candidate_facet::CandidateFacet;
 use super::ContactModel;
 use crate::lanes::{build, Lanes};
 use crate::math::{add, dot, scale, sub};
@@ -109,16 +110,32 @@ pub fn nearest_candidate(
     p: [f64; 3],
     candidates: &[u32],
 ) -> Option<usize> {
-    if candidates.is_empty() {
+    nearest_of(x, p, candidates.len(), |i| cm.facet[candidates[i] as usize])
+}
+
+/// [`nearest_candidate`] among the facets of `records`.
+pub fn nearest_record(x: &[[f64; 3]], p: [f64; 3], records: &[CandidateFacet]) -> Option<usize> {
+    nearest_of(x, p, records.len(), |i| records[i].corners)
+}
+
+/// [`nearest_candidate`] among `count` triangles, `corner_ids(i)` the model node ids of
+/// triangle i's corners.
+#[inline(always)]
+fn nearest_of(
+    x: &[[f64; 3]],
+    p: [f64; 3],
+    count: usize,
+    corner_ids: impl Fn(usize) -> [u32; 3],
+) -> Option<usize> {
+    if count == 0 {
         return None;
     }
     // indexed, not `map`: the closure must inline into the lane functions (see
     // `crate::lanes::build`)
     let corners = |i: usize| {
-        let [a, b, c] = cm.facet[candidates[i] as usize];
+        let [a, b, c] = corner_ids(i);
         [x[a as usize], x[b as usize], x[c as usize]]
     };
-    let count = candidates.len();
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx512f")

@@ -79,9 +79,9 @@ fn edges_from(x: &[[f64; 3]], p: [f64; 3], fan: [u32; 2]) -> ([f64; 3], [f64; 3]
 }
 
 /// The smooth unit normal at model node `vnode` (Max's weights, module docs), or `None`
-/// at a crease or a degenerate facet (see [`smooth_vertex_normal`]).
-pub fn smooth_normal(cm: &ContactModel, x: &[[f64; 3]], vnode: u32) -> Option<[f64; 3]> {
-    let fan = fan_around(cm, vnode);
+/// at a crease or a degenerate facet (see [`smooth_vertex_normal`]). `fan` is the
+/// vertex's [`fan_around`], as a [`super::candidate_facet::CandidateFacet`] holds it.
+pub fn smooth_normal(x: &[[f64; 3]], vnode: u32, fan: &[[u32; 2]]) -> Option<[f64; 3]> {
     let p = x[vnode as usize];
     let mut kept = [[0.0; 3]; KEPT_NORMALS];
     let mut sum = [0.0; 3];
@@ -152,7 +152,7 @@ mod tests {
         let (mut max_weights, mut angle_weights) = (0.0f64, 0.0f64);
         for &v in &cm.node {
             let radial = unit(sub(x[v as usize], centre));
-            let n = smooth_normal(cm, x, v).expect("a sphere has no crease");
+            let n = smooth_normal(x, v, fan_around(cm, v)).expect("a sphere has no crease");
             max_weights = max_weights.max(norm(sub(n, radial)));
             let pseudo = unit(pseudo_normal_at_vertex(cm, x, v));
             angle_weights = angle_weights.max(norm(sub(pseudo, radial)));

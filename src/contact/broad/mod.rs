@@ -38,7 +38,9 @@
 //! node and the master's nodes moved. The surface motion they need is measured exactly
 //! every [`MEASURE_MOTION_EVERY`] steps and bounded by the travel in between.
 
-use super::narrow::{closest_point_on_triangle, locate_on_facet, Aabb, Bvh, Entry, Pass};
+use super::narrow::{
+    closest_point_on_triangle, locate_on_facet, Aabb, Bvh, CandidateFacet, Entry, Pass,
+};
 use super::triangle::nearest_candidate;
 use super::ContactModel;
 use crate::math::{dot, sub};
@@ -276,6 +278,9 @@ pub struct CandidateLists {
     /// The entries of each pass (entries are built pass by pass).
     pub pass_entries: Vec<std::ops::Range<u32>>,
     pub candidates: Vec<u32>,
+    /// Aligned with `candidates`: each one's record, which the narrow phase reads instead
+    /// of the model's topology arrays (see `super::candidate_facet`).
+    pub candidate_facets: Vec<CandidateFacet>,
     /// (wall index, flat surface node index), ordered by wall then node.
     pub wall_nodes: Vec<(u32, u32)>,
     pub bvh: Vec<Bvh>,
@@ -646,6 +651,7 @@ impl BroadPhase {
         lists.gap_at_rebuild.clear();
         lists.odometer = Some(0.0);
         lists.candidates.clear();
+        lists.candidate_facets.clear();
         for (pi, pass) in lists.passes.iter().enumerate() {
             let first_entry = lists.entries.len() as u32;
             let (s, m) = (pass.slave as usize, pass.master as usize);
@@ -671,6 +677,11 @@ impl BroadPhase {
                 keep_facets_that_can_become_nearest(cm, x, p, facet, skin, &mut lists.query);
                 let start = lists.candidates.len() as u32;
                 lists.candidates.extend_from_slice(&lists.query);
+                let records = lists
+                    .query
+                    .iter()
+                    .map(|&f| CandidateFacet::of(cm, f as usize));
+                lists.candidate_facets.extend(records);
                 lists.entries.push(Entry {
                     slave: k as u32,
                     pass: pi as u32,
