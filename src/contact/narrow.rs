@@ -25,7 +25,7 @@ use super::patch::Patch;
 pub use super::triangle::{closest_point_on_triangle, Closest, Feature};
 use super::triangle::{nearest_candidate, nearest_record};
 use super::vertex_normals::{
-    facet_normal, pseudo_normal_at_vertex, smooth_normal, triangle_normal,
+    facet_normal, fan_around, pseudo_normal_at_vertex, smooth_normal, triangle_normal,
 };
 use super::{ContactKey, ContactModel, FrictionPoint};
 use crate::math::{add, dot, norm, scale, sub};
@@ -317,6 +317,7 @@ pub struct HistoryCursor {
 
 impl HistoryCursor {
     /// The point of `history` with key `key`, if any.
+    #[inline(always)]
     pub fn find<'h>(
         &mut self,
         history: &'h [FrictionPoint],
@@ -372,8 +373,9 @@ fn pseudo_normal(
 #[derive(Debug, Clone, Copy)]
 pub struct Located {
     pub closest: Closest,
-    /// The facet of the closest point.
-    pub facet: CandidateFacet,
+    /// Global facet index of the closest point, and its corners (model node ids).
+    pub facet: usize,
+    pub corners: [u32; 3],
     /// Penetration depth (> 0 inside the master) or −distance (outside), m.
     pub depth: f64,
     /// Outward master normal at the contact point (unit; meaningful when inside).
@@ -401,13 +403,13 @@ pub fn locate_on_facet(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], facet: u
 /// [`locate_on_facet`] with the facet's record at hand: its topology is read from there
 /// (see [`super::candidate_facet`]), not from `cm`, except for the rarer neighbour across
 /// an edge and the flat pseudo-normal.
+#[inline(always)]
 pub fn locate_on_record(
     cm: &ContactModel,
     x: &[[f64; 3]],
     xs: [f64; 3],
     facet: &CandidateFacet,
 ) -> Located {
-    let facet = *facet;
     let [a, b, c] = facet.corners.map(|n| x[n as usize]);
     let cl = closest_point_on_triangle(xs, a, b, c);
     let d = sub(xs, cl.point);
@@ -416,16 +418,23 @@ pub fn locate_on_record(
     // (a flat facet, or a node beyond twice the patch's bulge): a contact node is well
     // within the bulge, and at a vertex this test costs an `acos` per facet of the ring.
     let flat_inside_along = |pn: [f64; 3]| dot(d, pn) < 0.0 && dist > 0.0;
-    let flat_inside = || flat_inside_along(pseudo_normal(cm, x, &facet, cl.feature));
-    let corners = [0, 1, 2].map(|k| smooth_normal(x, facet.corners[k], facet.fan(cm, k)));
-    if let Some(on_patch) = locate_on_patch(cm, x, &corners, xs, &facet, cl, flat_inside) {
+    let flat_inside = || flat_inside_along(pseudo_normal(cm, x, facet, cl.feature));
+    // a loop, not `map`: a closure would be compiled apart, without the caller's target
+    // features (`super::prefetch::evaluate_pipelined`)
+    let mut corners = [None; 3];
+    for (k, normal) in corners.iter_mut().enumerate() {
+        *normal = smooth_normal(x, facet.corners[k], facet.fan(cm, k));
+    }
+    if let Some(on_patch) = locate_on_patch(cm, x, &corners, xs, facet, cl, flat_inside) {
         return on_patch;
     }
-    let pn = pseudo_normal(cm, x, &facet, cl.feature);
+    let pn = pseudo_normal(cm, x, facet, cl.feature);
+    let (index, corners) = (facet.facet as usize, facet.corners);
     if !flat_inside_along(pn) {
         return Located {
             closest: cl,
-            facet,
+            facet: index,
+            corners,
             depth: -dist,
             normal: [0.0; 3],
         };
@@ -439,19 +448,21 @@ pub fn locate_on_record(
     };
     Located {
         closest: cl,
-        facet,
+        facet: index,
+        corners,
         depth,
         normal,
     }
 }
 
 /// The curved patch of a master facet, or `None` when it stays flat.
+#[inline(always)]
 fn facet_patch(
     x: &[[f64; 3]],
-    facet: &CandidateFacet,
+    corners: [u32; 3],
     vertex_normal: impl Fn(usize) -> Option<[f64; 3]>,
 ) -> Option<Patch> {
-    let [a, b, c] = facet.corners.map(|n| x[n as usize]);
+    let [a, b, c] = corners.map(|n| x[n as usize]);
     Patch::of_facet([a, b, c], triangle_normal(a, b, c), vertex_normal)
 }
 
@@ -461,6 +472,7 @@ fn facet_patch(
 /// less the bulge is returned: a lower bound of the patch distance, which is all the
 /// broad phase needs. `flat_inside` (the flat pseudo-normal's sign test) is called only
 /// there, beyond twice the bulge.
+#[inline(always)]
 fn locate_on_patch(
     cm: &ContactModel,
     x: &[[f64; 3]],
@@ -470,41 +482,42 @@ fn locate_on_patch(
     cl: Closest,
     flat_inside: impl FnOnce() -> bool,
 ) -> Option<Located> {
-    let facet = *facet;
-    let patch = facet_patch(x, &facet, |k| corners[k])?;
+    let patch = facet_patch(x, facet.corners, |k| corners[k])?;
     let dist = cl.dist2.sqrt();
     let bulge = patch.bulge_bound();
+    let here = (facet.facet as usize, facet.corners);
     if dist > 2.0 * bulge && !flat_inside() {
         return Some(Located {
             closest: cl,
-            facet,
+            facet: here.0,
+            corners: here.1,
             depth: -(dist - bulge),
             normal: [0.0; 3],
         });
     }
-    let mut best = (patch.closest(xs, cl.bary), facet);
+    let mut best = (patch.closest(xs, cl.bary), here);
     if let Some(k) = best.0.clamped_edge {
         if let Some(other) = facet.across(k) {
-            let o = CandidateFacet::of(cm, other);
-            // two of the neighbour's corners are this facet's
-            let smooth_at = |k: usize| {
-                let v = o.corners[k];
-                match facet.corners.iter().position(|&c| c == v) {
+            let o = cm.facet[other];
+            // two of the neighbour's corners are this facet's (a loop, as above)
+            let mut normals = [None; 3];
+            for (normal, &v) in normals.iter_mut().zip(&o) {
+                *normal = match facet.corners.iter().position(|&c| c == v) {
                     Some(i) => corners[i],
-                    None => smooth_normal(x, v, o.fan(cm, k)),
-                }
-            };
-            if let Some(p) = facet_patch(x, &o, smooth_at) {
-                let [a, b, c] = o.corners.map(|n| x[n as usize]);
+                    None => smooth_normal(x, v, fan_around(cm, v)),
+                };
+            }
+            if let Some(p) = facet_patch(x, o, |k| normals[k]) {
+                let [a, b, c] = o.map(|n| x[n as usize]);
                 let start = closest_point_on_triangle(xs, a, b, c).bary;
                 let candidate = p.closest(xs, start);
                 if candidate.distance < best.0.distance {
-                    best = (candidate, o);
+                    best = (candidate, (other, o));
                 }
             }
         }
     }
-    let (pp, facet) = best;
+    let (pp, (facet, corners)) = best;
     Some(Located {
         closest: Closest {
             point: pp.point,
@@ -513,6 +526,7 @@ fn locate_on_patch(
             dist2: pp.distance * pp.distance,
         },
         facet,
+        corners,
         depth: pp.depth,
         normal: if pp.depth > 0.0 { pp.normal } else { [0.0; 3] },
     })
@@ -529,6 +543,7 @@ pub fn evaluate_entry(ctx: &EvalContext, entry: &Entry) -> PointResult {
 /// The candidate facet of `entry` nearest to its slave node (by the flat closest-point
 /// distance), as an index into `ctx.facets`, `None` without candidates: the first step of
 /// [`evaluate_entry`], which [`super::prefetch`] needs before the rest.
+#[inline(always)]
 pub fn nearest_facet(ctx: &EvalContext, entry: &Entry) -> Option<u32> {
     let cands = &ctx.facets[entry.start as usize..entry.end as usize];
     let xs = ctx.x[ctx.cm.node[entry.slave as usize] as usize];
@@ -537,6 +552,7 @@ pub fn nearest_facet(ctx: &EvalContext, entry: &Entry) -> Option<u32> {
 
 /// [`evaluate_entry`] with its [`nearest_facet`] already found; `history` finds the
 /// friction point (fastest when entries come in order).
+#[inline(always)]
 pub fn evaluate_entry_on(
     ctx: &EvalContext,
     entry: &Entry,
@@ -557,7 +573,8 @@ pub fn evaluate_entry_on(
         r.separation = f64::INFINITY;
         return r;
     };
-    let loc = locate_on_record(cm, x, xs, &ctx.facets[nearest as usize]);
+    let record = &ctx.facets[nearest as usize];
+    let loc = locate_on_record(cm, x, xs, record);
     if loc.depth <= 0.0 {
         r.separation = -loc.depth;
         return r;
@@ -568,10 +585,16 @@ pub fn evaluate_entry_on(
         &cm.surfaces[pass.slave as usize],
         &cm.surfaces[pass.master as usize],
     );
-    let masters = facet.corners;
+    let masters = loc.corners;
+    // the record knows where its corners' edges are; a neighbour's are looked up
+    let slots = if facet == record.facet as usize {
+        record.slots
+    } else {
+        masters.map(|m| cm.surface_index[m as usize])
+    };
     let h_s = cm.node_h[s_flat];
     let mut h_m = 0.0;
-    for (i, &slot) in facet.slots.iter().enumerate() {
+    for (i, &slot) in slots.iter().enumerate() {
         h_m += cl.bary[i] * cm.node_h[slot as usize];
     }
     let eps = cm.penalty(sg.e_prime.max(mg.e_prime), h_s, h_m);

@@ -74,6 +74,7 @@ pub struct PatchPoint {
 /// surrounding facets have the normals `facet_normals` (any lengths, e.g. area normals), or
 /// `None` when the vertex is sharp: some facet's normal is more than [`CREASE_DEG`] from it,
 /// or it or a facet's normal is zero (a degenerate facet).
+#[inline(always)]
 pub fn smooth_vertex_normal(
     vertex_normal: [f64; 3],
     facet_normals: impl IntoIterator<Item = [f64; 3]>,
@@ -99,6 +100,7 @@ impl Patch {
     /// The patch of a facet, or `None` when it is flat (every corner sharp).
     /// `smooth_normal(k)` is the unit vertex normal at corner k, or `None` at a sharp
     /// corner (see [`smooth_vertex_normal`]), where the facet's own `flat_normal` is used.
+    #[inline(always)]
     pub fn of_facet(
         corners: [[f64; 3]; 3],
         flat_normal: [f64; 3],
@@ -120,6 +122,7 @@ impl Patch {
     }
 
     /// Bound of the patch's distance from the flat facet (m): ½ max |(pⱼ − pᵢ)·nᵢ|.
+    #[inline(always)]
     pub fn bulge_bound(&self) -> f64 {
         let mut m = 0.0f64;
         for i in 0..3 {
@@ -131,6 +134,7 @@ impl Patch {
     }
 
     /// Point and tangents ∂q/∂u, ∂q/∂v at b = (1−u−v, u, v).
+    #[inline(always)]
     fn eval(&self, u: f64, v: f64) -> ([f64; 3], [f64; 3], [f64; 3]) {
         let [p0, p1, p2] = self.corners;
         let b = [1.0 - u - v, u, v];
@@ -156,6 +160,7 @@ impl Patch {
 
     /// Closest patch point to `xs` by Gauss–Newton from the barycentric start `bary`,
     /// clamped to the triangle.
+    #[inline(always)]
     pub fn closest(&self, xs: [f64; 3], bary: [f64; 3]) -> PatchPoint {
         let outward = self.outward;
         let (mut u, mut v) = (bary[1], bary[2]);

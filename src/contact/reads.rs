@@ -85,17 +85,8 @@ mod tests {
     use super::*;
     use crate::contact::broad::CandidateLists;
     use crate::contact::narrow::{evaluate_entry, EvalContext, PointResult};
+    use crate::contact::tests::result_bits as bits;
     use crate::contact::triangle::nearest_candidate;
-
-    /// What an evaluation depends on, to the bit.
-    fn bits(r: &PointResult) -> Vec<u64> {
-        let mut b = vec![u64::from(r.active), r.gap.to_bits(), r.separation.to_bits()];
-        for v in [r.force, r.normal, r.traction, r.weights] {
-            b.extend(v.map(f64::to_bits));
-        }
-        b.extend(r.masters.map(u64::from));
-        b
-    }
 
     /// Two spheres pressed together, lists built, then every node moved by just under half
     /// the skin (as far as it may go before a rebuild), and then grain b slid sideways by

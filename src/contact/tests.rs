@@ -18,6 +18,16 @@ pub(super) fn solver(text: &str) -> Solver {
     build_solver(&loaded).expect("model builds")
 }
 
+/// What an evaluation depends on, to the bit.
+pub(super) fn result_bits(r: &narrow::PointResult) -> Vec<u64> {
+    let mut b = vec![u64::from(r.active), r.gap.to_bits(), r.separation.to_bits()];
+    for v in [r.force, r.normal, r.traction, r.weights] {
+        b.extend(v.map(f64::to_bits));
+    }
+    b.extend(r.masters.map(u64::from));
+    b
+}
+
 /// Contact forces on every node (zero elsewhere) at the solver's current state.
 fn contact_forces(s: &mut Solver) -> Vec<[f64; 3]> {
     let mut f = vec![NodeForce::ZERO; s.model.num_nodes()];

@@ -43,6 +43,7 @@ pub struct Closest {
 
 /// Exact closest point of triangle (a, b, c) to p, with its feature and barycentric
 /// coordinates (Voronoi-region tests, no square roots).
+#[inline(always)]
 pub fn closest_point_on_triangle(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> Closest {
     let done = |point: [f64; 3], bary: [f64; 3], feature| Closest {
         point,

@@ -81,6 +81,7 @@ fn edges_from(x: &[[f64; 3]], p: [f64; 3], fan: [u32; 2]) -> ([f64; 3], [f64; 3]
 /// The smooth unit normal at model node `vnode` (Max's weights, module docs), or `None`
 /// at a crease or a degenerate facet (see [`smooth_vertex_normal`]). `fan` is the
 /// vertex's [`fan_around`], as a [`super::candidate_facet::CandidateFacet`] holds it.
+#[inline(always)]
 pub fn smooth_normal(x: &[[f64; 3]], vnode: u32, fan: &[[u32; 2]]) -> Option<[f64; 3]> {
     let p = x[vnode as usize];
     let mut kept = [[0.0; 3]; KEPT_NORMALS];
