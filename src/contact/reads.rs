@@ -3,7 +3,7 @@
 //! candidate facets and of their neighbours across an edge (edge pseudo-normals; the
 //! second patch solve across a clamped edge, whose corners then give v at the contact
 //! point), each with its ring of neighbours (its vertex normal and vertex pseudo-normal):
-//! `narrow::locate_on_facet`, `narrow::evaluate_entry_on`. Nothing else is read between
+//! `narrow::locate_on_record`, `narrow::evaluate_entry_on`. Nothing else is read between
 //! rebuilds, so a ghost's other nodes need not be fresh then (`crate::domain::halo`, "What
 //! contact reads").
 
