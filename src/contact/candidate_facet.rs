@@ -4,11 +4,11 @@
 //! dependent lookups (candidate → facet → corners' surface slots → fan offsets → fans),
 //! each a cache miss the pipeline of [`super::prefetch`] could only start once the one
 //! before had arrived. Most of the narrow phase's wait for memory was this chain, not the
-//! positions (docs/BENCHMARKS.md, session 71). The broad phase therefore writes, beside
-//! each candidate facet of an entry, a [`CandidateFacet`] that holds every index the
+//! positions (docs/BENCHMARKS.md, session 71). The broad phase therefore lists each
+//! candidate facet of an entry as a [`CandidateFacet`] that holds every index the
 //! evaluation follows from it: its corners, its neighbours across the edges, and where each
 //! corner's edge length and fan are. The entry's candidates are then contiguous lines, and
-//! from them the positions and fans are one step away.
+//! from them the positions and fans are one step away (docs/BENCHMARKS.md, session 72).
 //!
 //! The values are copies of [`ContactModel`]'s, read in the same order, so an evaluation
 //! through a record is the same to the bit as one through the model.

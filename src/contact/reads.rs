@@ -7,9 +7,9 @@
 //! rebuilds, so a ghost's other nodes need not be fresh then (`crate::domain::halo`, "What
 //! contact reads").
 
-use super::narrow::Entry;
+use super::narrow::{CandidateFacet, Entry};
 use super::vertex_normals::fan_around;
-use super::{ContactModel, ContactScratch, NONE};
+use super::{ContactModel, ContactScratch};
 use crate::model::Model;
 
 /// Per model node: whether the contact lists read it, and the facet corners whose rings
@@ -36,15 +36,16 @@ pub fn mark_nodes_the_lists_read(
 ) {
     let lists = &scratch.lists;
     let cm = &model.contact;
-    mark_nodes_read_by(cm, &lists.entries, &lists.candidates, model.x0.len(), marks);
+    let (entries, facets) = (&lists.entries, &lists.candidate_facets);
+    mark_nodes_read_by(cm, entries, facets, model.x0.len(), marks);
 }
 
-/// [`mark_nodes_the_lists_read`] for `entries` with their `candidates`, in a model of
-/// `nodes` nodes.
+/// [`mark_nodes_the_lists_read`] for `entries` with their candidate `facets`, in a model
+/// of `nodes` nodes.
 fn mark_nodes_read_by(
     cm: &ContactModel,
     entries: &[Entry],
-    candidates: &[u32],
+    facets: &[CandidateFacet],
     nodes: usize,
     marks: &mut NodeReadMarks,
 ) {
@@ -55,10 +56,9 @@ fn mark_nodes_read_by(
     }
     for e in entries {
         read[cm.node[e.slave as usize] as usize] = true;
-        for &f in &candidates[e.start as usize..e.end as usize] {
-            let f = f as usize;
-            let across = cm.facet_adjacent[f].into_iter().filter(|&o| o != NONE);
-            for g in std::iter::once(f).chain(across.map(|o| o as usize)) {
+        for r in &facets[e.start as usize..e.end as usize] {
+            let across = (0..3).filter_map(|k| r.across(k));
+            for g in std::iter::once(r.facet as usize).chain(across) {
                 for c in cm.facet[g] {
                     corners[c as usize] = true;
                 }
@@ -86,7 +86,7 @@ mod tests {
     use crate::contact::broad::CandidateLists;
     use crate::contact::narrow::{evaluate_entry, EvalContext, PointResult};
     use crate::contact::tests::result_bits as bits;
-    use crate::contact::triangle::nearest_candidate;
+    use crate::contact::triangle::nearest_record;
 
     /// Two spheres pressed together, lists built, then every node moved by just under half
     /// the skin (as far as it may go before a rebuild), and then grain b slid sideways by
@@ -128,10 +128,9 @@ mod tests {
 
         let lists = &mut scratch.lists;
         for e in lists.entries.iter_mut() {
-            let kept = &lists.candidates[e.start as usize..e.end as usize];
+            let kept = &lists.candidate_facets[e.start as usize..e.end as usize];
             let p = x[cm.node[e.slave as usize] as usize];
-            let i = e.start as usize + nearest_candidate(cm, &x, p, kept).expect("candidates");
-            lists.candidates[e.start as usize] = lists.candidates[i];
+            let i = e.start as usize + nearest_record(&x, p, kept).expect("candidates");
             lists.candidate_facets[e.start as usize] = lists.candidate_facets[i];
             e.end = e.start + 1;
         }
@@ -154,7 +153,7 @@ mod tests {
         let mut active = 0;
         for e in lists.entries.iter().filter(in_contact) {
             let one = std::slice::from_ref(e);
-            mark_nodes_read_by(cm, one, &lists.candidates, x.len(), &mut marks);
+            mark_nodes_read_by(cm, one, &lists.candidate_facets, x.len(), &mut marks);
             let motion = (skin, 0.5 * seeding, b.clone());
             let read = marks.read();
             active +=

@@ -211,7 +211,7 @@ fn a_thin_skin_leaves_the_run_unchanged() {
             push(&mut fixed, 10.0 * slow);
         }
         for (c, s) in candidates.iter_mut().zip([&thin, &fixed]) {
-            *c = s.scratch.contact.lists.candidates.len();
+            *c = s.scratch.contact.lists.candidate_facets.len();
         }
         touching += usize::from(thin.state.contact.stats.points > 0);
     }

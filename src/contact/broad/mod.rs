@@ -277,9 +277,8 @@ pub struct CandidateLists {
     pub gap_at_rebuild: Vec<f64>,
     /// The entries of each pass (entries are built pass by pass).
     pub pass_entries: Vec<std::ops::Range<u32>>,
-    pub candidates: Vec<u32>,
-    /// Aligned with `candidates`: each one's record, which the narrow phase reads instead
-    /// of the model's topology arrays (see `super::candidate_facet`).
+    /// The entries' candidate facets, as records the narrow phase reads instead of the
+    /// model's topology arrays (see `super::candidate_facet`).
     pub candidate_facets: Vec<CandidateFacet>,
     /// (wall index, flat surface node index), ordered by wall then node.
     pub wall_nodes: Vec<(u32, u32)>,
@@ -650,7 +649,6 @@ impl BroadPhase {
         lists.pass_entries.clear();
         lists.gap_at_rebuild.clear();
         lists.odometer = Some(0.0);
-        lists.candidates.clear();
         lists.candidate_facets.clear();
         for (pi, pass) in lists.passes.iter().enumerate() {
             let first_entry = lists.entries.len() as u32;
@@ -675,8 +673,7 @@ impl BroadPhase {
                     continue;
                 }
                 keep_facets_that_can_become_nearest(cm, x, p, facet, skin, &mut lists.query);
-                let start = lists.candidates.len() as u32;
-                lists.candidates.extend_from_slice(&lists.query);
+                let start = lists.candidate_facets.len() as u32;
                 let records = lists
                     .query
                     .iter()
@@ -686,7 +683,7 @@ impl BroadPhase {
                     slave: k as u32,
                     pass: pi as u32,
                     start,
-                    end: lists.candidates.len() as u32,
+                    end: lists.candidate_facets.len() as u32,
                 });
                 lists.gap_at_rebuild.push(d0);
             }

@@ -1,6 +1,7 @@
 //! Tests of the broad phase: candidate lists, the Verlet skin and detection references.
 
 use super::*;
+use crate::contact::triangle::nearest_record;
 
 /// Two passes over surfaces 0 and 1 whose entries had the gaps `gaps` at the rebuild.
 fn lists(gaps: [&[f64]; 2]) -> CandidateLists {
@@ -209,8 +210,8 @@ fn rebuilt_lists_hold_every_nearest_facet_and_contact_the_skin_allows() {
                 continue;
             }
             near += 1;
-            let kept = &lists.candidates[e.start as usize..e.end as usize];
-            let nearest = kept[nearest_candidate(cm, &y, p, kept).expect("candidates")];
+            let kept = &lists.candidate_facets[e.start as usize..e.end as usize];
+            let nearest = kept[nearest_record(&y, p, kept).expect("candidates")].facet;
             assert_eq!(distance(&y, p, nearest), everywhere, "entry {e:?}");
         }
         // every slave node inside its master after the motion has an entry there
