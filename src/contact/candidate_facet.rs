@@ -13,6 +13,7 @@
 //! The values are copies of [`ContactModel`]'s, read in the same order, so an evaluation
 //! through a record is the same to the bit as one through the model.
 
+use super::vertex_normals::around;
 use super::{ContactModel, NONE};
 
 /// A master facet's corners and the indices an evaluation follows from them (module docs).
@@ -39,14 +40,14 @@ impl CandidateFacet {
     /// The record of facet `facet` of `cm`.
     pub fn of(cm: &ContactModel, facet: usize) -> Self {
         let corners = cm.facet[facet];
-        let slots = corners.map(|n| cm.surface_index[n as usize]);
+        let fans = corners.map(|n| around(cm, n));
         Self {
             corners,
             facet: facet as u32,
             adjacent: cm.facet_adjacent[facet],
-            slots,
-            fan_start: slots.map(|s| cm.vertex_facet_offsets[s as usize]),
-            fan_end: slots.map(|s| cm.vertex_facet_offsets[s as usize + 1]),
+            slots: corners.map(|n| cm.surface_index[n as usize]),
+            fan_start: fans.clone().map(|r| r.start as u32),
+            fan_end: fans.map(|r| r.end as u32),
         }
     }
 

@@ -25,7 +25,8 @@ use super::patch::Patch;
 pub use super::triangle::{closest_point_on_triangle, Closest, Feature};
 use super::triangle::{nearest_candidate, nearest_record};
 use super::vertex_normals::{
-    facet_normal, fan_around, pseudo_normal_at_vertex, smooth_normal, triangle_normal,
+    corners_normal, facet_normal, fan_around, pseudo_normal_at_vertex, smooth_normal,
+    triangle_normal,
 };
 use super::{ContactKey, ContactModel, FrictionPoint};
 use crate::math::{add, dot, norm, scale, sub};
@@ -343,12 +344,6 @@ impl HistoryCursor {
     }
 }
 
-/// The unit normal of a facet at positions `x`.
-fn record_normal(x: &[[f64; 3]], facet: &CandidateFacet) -> [f64; 3] {
-    let [a, b, c] = facet.corners.map(|n| x[n as usize]);
-    triangle_normal(a, b, c)
-}
-
 /// Outward pseudo-normal of the master surface at a closest-point feature of `facet`.
 fn pseudo_normal(
     cm: &ContactModel,
@@ -357,9 +352,9 @@ fn pseudo_normal(
     feature: Feature,
 ) -> [f64; 3] {
     match feature {
-        Feature::Face => record_normal(x, facet),
+        Feature::Face => corners_normal(x, facet.corners),
         Feature::Edge(k) => {
-            let n = record_normal(x, facet);
+            let n = corners_normal(x, facet.corners);
             match facet.across(k as usize) {
                 None => n,
                 Some(other) => add(n, facet_normal(cm, x, other)),

@@ -258,7 +258,7 @@ mod tests {
         let (model, lists) = (&solver.model, &solver.scratch.contact.lists);
         let cm = &model.contact;
         let mut rng = crate::math::SplitMix64(7);
-        let mut x = x0.clone();
+        let mut x = x0;
         let mut v = vec![[0.0; 3]; x.len()];
         for &n in &cm.node {
             let (stray, speed) = (rng.direction(), rng.direction());

@@ -42,14 +42,21 @@ pub fn triangle_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
 /// Unit normal of facet `f` at positions `x`.
 #[inline]
 pub fn facet_normal(cm: &ContactModel, x: &[[f64; 3]], f: usize) -> [f64; 3] {
-    let [a, b, c] = cm.facet[f].map(|n| x[n as usize]);
+    corners_normal(x, cm.facet[f])
+}
+
+/// Unit normal of the facet with corners `corners` (model node ids, in its orientation)
+/// at positions `x`.
+#[inline]
+pub fn corners_normal(x: &[[f64; 3]], corners: [u32; 3]) -> [f64; 3] {
+    let [a, b, c] = corners.map(|n| x[n as usize]);
     triangle_normal(a, b, c)
 }
 
 /// The range of `vertex_facets` and `vertex_fans` that holds the surface vertex at model
 /// node `vnode`.
 #[inline]
-fn around(cm: &ContactModel, vnode: u32) -> std::ops::Range<usize> {
+pub(super) fn around(cm: &ContactModel, vnode: u32) -> std::ops::Range<usize> {
     let s = cm.surface_index[vnode as usize] as usize;
     cm.vertex_facet_offsets[s] as usize..cm.vertex_facet_offsets[s + 1] as usize
 }
