@@ -10,6 +10,13 @@
 //! corner's edge length and fan are. The entry's candidates are then contiguous lines, and
 //! from them the positions and fans are one step away (docs/BENCHMARKS.md, session 72).
 //!
+//! A record's second line holds the neighbours across its edges and where their far
+//! corners' fans are: a curved patch point clamped to an edge (about a quarter of the
+//! evaluated entries) is looked for on the neighbour's patch too, which needs the far
+//! corner's smooth normal. Reached through the model (facet → far corner's surface slot →
+//! fan offsets → fan), that chain was four dependent misses no stage of the pipeline had
+//! asked for, and an eighth of the pipeline's time (docs/BENCHMARKS.md, session 73).
+//!
 //! The values are copies of [`ContactModel`]'s, read in the same order, so an evaluation
 //! through a record is the same to the bit as one through the model.
 
@@ -17,7 +24,9 @@ use super::vertex_normals::around;
 use super::{ContactModel, NONE};
 
 /// A master facet's corners and the indices an evaluation follows from them (module docs).
-/// 64 bytes, aligned to a cache line.
+/// Two cache lines: the first is read for every evaluation, the second (from
+/// `neighbours` on) only for a patch point clamped to an edge and for an edge's
+/// pseudo-normal.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[repr(C, align(64))]
 pub struct CandidateFacet {
@@ -32,23 +41,58 @@ pub struct CandidateFacet {
     /// Each corner's fan is `ContactModel::vertex_fans[fan_start[k]..fan_end[k]]`.
     pub fan_start: [u32; 3],
     pub fan_end: [u32; 3],
+    /// The corners of the facet across each edge, in its orientation (`ContactModel::facet`
+    /// of `adjacent[k]`), or [`NONE`]s.
+    pub neighbours: [[u32; 3]; 3],
+    /// The fan of the far corner of `neighbours[k]` (the one not on edge k) is
+    /// `ContactModel::vertex_fans[far_fan_start[k]..far_fan_end[k]]` (empty without a
+    /// neighbour).
+    pub far_fan_start: [u32; 3],
+    pub far_fan_end: [u32; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<CandidateFacet>() == 64);
+const _: () = assert!(std::mem::size_of::<CandidateFacet>() == 128);
+// the evaluation's first line ends where the neighbours begin
+const _: () = assert!(std::mem::offset_of!(CandidateFacet, neighbours) == 64);
 
 impl CandidateFacet {
     /// The record of facet `facet` of `cm`.
     pub fn of(cm: &ContactModel, facet: usize) -> Self {
         let corners = cm.facet[facet];
         let fans = corners.map(|n| around(cm, n));
+        let adjacent = cm.facet_adjacent[facet];
+        let neighbours = adjacent.map(|o| {
+            if o == NONE {
+                [NONE; 3]
+            } else {
+                cm.facet[o as usize]
+            }
+        });
+        let far_fans =
+            neighbours.map(
+                |o| match o.iter().find(|&&v| v != NONE && !corners.contains(&v)) {
+                    Some(&far) => around(cm, far),
+                    None => 0..0,
+                },
+            );
         Self {
             corners,
             facet: facet as u32,
-            adjacent: cm.facet_adjacent[facet],
+            adjacent,
             slots: corners.map(|n| cm.surface_index[n as usize]),
             fan_start: fans.clone().map(|r| r.start as u32),
             fan_end: fans.map(|r| r.end as u32),
+            neighbours,
+            far_fan_start: far_fans.clone().map(|r| r.start as u32),
+            far_fan_end: far_fans.map(|r| r.end as u32),
         }
+    }
+
+    /// The fan (as [`Self::fan`]) of the corner of `neighbours[k]` that is not one of
+    /// this facet's.
+    #[inline]
+    pub fn far_fan<'a>(&self, cm: &'a ContactModel, k: usize) -> &'a [[u32; 2]] {
+        &cm.vertex_fans[self.far_fan_start[k] as usize..self.far_fan_end[k] as usize]
     }
 
     /// For each facet around corner `k`, its other two corners in orientation order (see
@@ -87,6 +131,15 @@ mod tests {
                 assert_eq!(r.fan(cm, k), fan_around(cm, n));
                 let o = cm.facet_adjacent[f][k];
                 assert_eq!(r.across(k), (o != NONE).then_some(o as usize));
+                if o != NONE {
+                    let neighbour = cm.facet[o as usize];
+                    assert_eq!(r.neighbours[k], neighbour);
+                    let far: Vec<u32> = (neighbour.into_iter())
+                        .filter(|v| !cm.facet[f].contains(v))
+                        .collect();
+                    assert_eq!(far.len(), 1, "facet {f} edge {k}: {neighbour:?}");
+                    assert_eq!(r.far_fan(cm, k), fan_around(cm, far[0]));
+                }
             }
         }
     }

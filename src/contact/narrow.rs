@@ -25,8 +25,7 @@ use super::patch::Patch;
 pub use super::triangle::{closest_point_on_triangle, Closest, Feature};
 use super::triangle::{nearest_candidate, nearest_record};
 use super::vertex_normals::{
-    corners_normal, facet_normal, fan_around, pseudo_normal_at_vertex, smooth_normal,
-    triangle_normal,
+    corners_normal, pseudo_normal_at_vertex, smooth_normal, triangle_normal,
 };
 use super::{ContactKey, ContactModel, FrictionPoint};
 use crate::math::{add, dot, norm, scale, sub};
@@ -357,7 +356,7 @@ fn pseudo_normal(
             let n = corners_normal(x, facet.corners);
             match facet.across(k as usize) {
                 None => n,
-                Some(other) => add(n, facet_normal(cm, x, other)),
+                Some(_) => add(n, corners_normal(x, facet.neighbours[k as usize])),
             }
         }
         Feature::Vertex(k) => pseudo_normal_at_vertex(cm, x, facet.corners[k as usize]),
@@ -396,8 +395,8 @@ pub fn locate_on_facet(cm: &ContactModel, x: &[[f64; 3]], xs: [f64; 3], facet: u
 }
 
 /// [`locate_on_facet`] with the facet's record at hand: its topology is read from there
-/// (see [`super::candidate_facet`]), not from `cm`, except for the rarer neighbour across
-/// an edge and the flat pseudo-normal.
+/// (see [`super::candidate_facet`]), not from `cm`, except for the flat pseudo-normal at
+/// a vertex (rare: asked for only where the patch does not decide).
 #[inline(always)]
 pub fn locate_on_record(
     cm: &ContactModel,
@@ -493,13 +492,14 @@ fn locate_on_patch(
     let mut best = (patch.closest(xs, cl.bary), here);
     if let Some(k) = best.0.clamped_edge {
         if let Some(other) = facet.across(k) {
-            let o = cm.facet[other];
-            // two of the neighbour's corners are this facet's (a loop, as above)
+            let o = facet.neighbours[k];
+            // two of the neighbour's corners are this facet's, the third is the far one
+            // (a loop, as above)
             let mut normals = [None; 3];
             for (normal, &v) in normals.iter_mut().zip(&o) {
                 *normal = match facet.corners.iter().position(|&c| c == v) {
                     Some(i) => corners[i],
-                    None => smooth_normal(x, v, fan_around(cm, v)),
+                    None => smooth_normal(x, v, facet.far_fan(cm, k)),
                 };
             }
             if let Some(p) = facet_patch(x, o, |k| normals[k]) {

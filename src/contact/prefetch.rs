@@ -4,7 +4,7 @@
 //! element stage has long evicted (it streams the whole mesh), and reaches it through a
 //! chain of dependent lookups: entry → its candidate facets' records
 //! ([`super::candidate_facet`]) → their corners' positions → (nearest facet) → its corners'
-//! fans and its neighbours → the fans' and neighbours' positions. Evaluated one entry after
+//! fans, and its neighbours' far corners and their fans → the fans' positions. Evaluated one entry after
 //! another, every link is a miss the core waits for.
 //!
 //! [`evaluate_pipelined`] walks the chain for batches of [`BATCH`] entries as a software
@@ -18,7 +18,10 @@
 //!
 //! The chain forks at the nearest candidate facet: only its corners' rings are read (the
 //! curved patch's vertex normals). A ring is read as its fan of corner pairs
-//! (`ContactModel::vertex_fans`), whose place the facet's record holds.
+//! (`ContactModel::vertex_fans`), whose place the facet's record holds, as it holds the
+//! fans of the neighbours' far corners (a patch point clamped to an edge needs the far
+//! corner's normal). Those fans' positions are not asked for ahead: most are on the
+//! facet's own corners' rings.
 
 use super::narrow::{
     evaluate_entry_on, nearest_facet, Entry, EvalContext, HistoryCursor, PointResult,
@@ -36,9 +39,9 @@ enum Stage {
     /// The slave's position, velocity and mass; the candidate facets' corner positions.
     SlaveAndCorners,
     /// Finds the nearest candidate; its corners' fans, edges and velocities, and its
-    /// neighbours across the edges.
+    /// record's second line (the neighbours across its edges).
     Nearest,
-    /// The fans' positions and the neighbours' corner positions.
+    /// The fans' positions; the neighbours' far corners' positions and fans.
     FanPositions,
     /// The evaluation itself.
     Evaluate,
@@ -206,11 +209,9 @@ fn run_stage(
                     }
                     touch(&cm.node_h[r.slots[k] as usize]);
                     touch_node(ctx.v, r.corners[k]);
-                    // the neighbour across the edge a patch point may be clamped to
-                    if let Some(o) = r.across(k) {
-                        touch(&cm.facet[o]);
-                    }
                 }
+                // the neighbours across the edges a patch point may be clamped to
+                touch(&r.neighbours);
             }
         }
         Stage::FanPositions => {
@@ -225,9 +226,19 @@ fn run_stage(
                     if let Some(&[_, b]) = fan.last() {
                         touch_node(ctx.x, b);
                     }
-                    if let Some(o) = r.across(k) {
-                        for n in cm.facet[o] {
-                            touch_node(ctx.x, n);
+                    // the neighbour's far corner and its fan (the others are this
+                    // facet's)
+                    if r.across(k).is_some() {
+                        let edge = [r.corners[k], r.corners[(k + 1) % 3]];
+                        for n in r.neighbours[k] {
+                            if !edge.contains(&n) {
+                                touch_node(ctx.x, n);
+                            }
+                        }
+                        let far_fan = r.far_fan(cm, k);
+                        if let (Some(first), Some(last)) = (far_fan.first(), far_fan.last()) {
+                            touch(first);
+                            touch(last);
                         }
                     }
                 }
