@@ -1,4 +1,4 @@
-//! What the narrow phase reads of a master facet's topology, in one cache line.
+//! What the narrow phase reads of a master facet's topology, in two cache lines.
 //!
 //! Why: evaluating a cached entry reached the master's topology through a chain of
 //! dependent lookups (candidate → facet → corners' surface slots → fan offsets → fans),
@@ -16,6 +16,9 @@
 //! corner's smooth normal. Reached through the model (facet → far corner's surface slot →
 //! fan offsets → fan), that chain was four dependent misses no stage of the pipeline had
 //! asked for, and an eighth of the pipeline's time (docs/BENCHMARKS.md, session 73).
+//! Only the nearest candidate's second line is read; the candidates' first lines are what
+//! every evaluation streams. (The second lines as a list of their own, so that the
+//! candidates' first lines are contiguous, measured no faster: one record it is.)
 //!
 //! The values are copies of [`ContactModel`]'s, read in the same order, so an evaluation
 //! through a record is the same to the bit as one through the model.

@@ -4,8 +4,8 @@
 //! element stage has long evicted (it streams the whole mesh), and reaches it through a
 //! chain of dependent lookups: entry → its candidate facets' records
 //! ([`super::candidate_facet`]) → their corners' positions → (nearest facet) → its corners'
-//! fans, and its neighbours' far corners and their fans → the fans' positions. Evaluated one entry after
-//! another, every link is a miss the core waits for.
+//! fans, and its neighbours' far corners and their fans → the fans' positions. Evaluated
+//! one entry after another, every link is a miss the core waits for.
 //!
 //! [`evaluate_pipelined`] walks the chain for batches of [`BATCH`] entries as a software
 //! pipeline: at each turn every [`Stage`] handles its own batch, stage s the batch s
