@@ -64,20 +64,11 @@ impl CandidateFacet {
         let corners = cm.facet[facet];
         let fans = corners.map(|n| around(cm, n));
         let adjacent = cm.facet_adjacent[facet];
-        let neighbours = adjacent.map(|o| {
-            if o == NONE {
-                [NONE; 3]
-            } else {
-                cm.facet[o as usize]
-            }
+        let neighbours = adjacent.map(|o| match o {
+            NONE => [NONE; 3],
+            o => cm.facet[o as usize],
         });
-        let far_fans =
-            neighbours.map(
-                |o| match o.iter().find(|&&v| v != NONE && !corners.contains(&v)) {
-                    Some(&far) => around(cm, far),
-                    None => 0..0,
-                },
-            );
+        let far_fans = neighbours.map(|o| far_of(corners, o).map_or(0..0, |v| around(cm, v)));
         Self {
             corners,
             facet: facet as u32,
@@ -91,8 +82,14 @@ impl CandidateFacet {
         }
     }
 
-    /// The fan (as [`Self::fan`]) of the corner of `neighbours[k]` that is not one of
-    /// this facet's.
+    /// The corner of `neighbours[k]` that is not one of this facet's, if there is a
+    /// neighbour.
+    #[inline]
+    pub fn far_corner(&self, k: usize) -> Option<u32> {
+        far_of(self.corners, self.neighbours[k])
+    }
+
+    /// The fan (as [`Self::fan`]) of [`Self::far_corner`] `k` (empty without one).
     #[inline]
     pub fn far_fan<'a>(&self, cm: &'a ContactModel, k: usize) -> &'a [[u32; 2]] {
         &cm.vertex_fans[self.far_fan_start[k] as usize..self.far_fan_end[k] as usize]
@@ -112,6 +109,13 @@ impl CandidateFacet {
             .filter(|&o| o != NONE)
             .map(|o| o as usize)
     }
+}
+
+/// The corner of a neighbour's `neighbour` corners that is not one of `corners`
+/// ([`NONE`]s: no neighbour).
+#[inline]
+fn far_of(corners: [u32; 3], neighbour: [u32; 3]) -> Option<u32> {
+    (neighbour.into_iter()).find(|&v| v != NONE && !corners.contains(&v))
 }
 
 #[cfg(test)]

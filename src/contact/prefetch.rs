@@ -228,13 +228,8 @@ fn run_stage(
                     }
                     // the neighbour's far corner and its fan (the others are this
                     // facet's)
-                    if r.across(k).is_some() {
-                        let edge = [r.corners[k], r.corners[(k + 1) % 3]];
-                        for n in r.neighbours[k] {
-                            if !edge.contains(&n) {
-                                touch_node(ctx.x, n);
-                            }
-                        }
+                    if let Some(far) = r.far_corner(k) {
+                        touch_node(ctx.x, far);
                         let far_fan = r.far_fan(cm, k);
                         if let (Some(first), Some(last)) = (far_fan.first(), far_fan.last()) {
                             touch(first);

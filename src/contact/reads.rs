@@ -9,7 +9,7 @@
 
 use super::narrow::{CandidateFacet, Entry};
 use super::vertex_normals::fan_around;
-use super::{ContactModel, ContactScratch};
+use super::{ContactModel, ContactScratch, NONE};
 use crate::model::Model;
 
 /// Per model node: whether the contact lists read it, and the facet corners whose rings
@@ -57,9 +57,9 @@ fn mark_nodes_read_by(
     for e in entries {
         read[cm.node[e.slave as usize] as usize] = true;
         for r in &facets[e.start as usize..e.end as usize] {
-            let across = (0..3).filter_map(|k| r.across(k));
-            for g in std::iter::once(r.facet as usize).chain(across) {
-                for c in cm.facet[g] {
+            let across = r.neighbours.iter().filter(|o| o[0] != NONE);
+            for g in std::iter::once(&r.corners).chain(across) {
+                for &c in g {
                     corners[c as usize] = true;
                 }
             }
