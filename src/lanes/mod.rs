@@ -20,7 +20,7 @@
 //! eight). This made the AVX2 kernel 1.9× faster on AMD (session 29) and the AVX-512 one
 //! 1.4–2× faster there (session 31).
 
-use std::ops::{Add, Div, Index, IndexMut, Mul, Neg, Sub};
+use std::ops::{Add, Div, Index, IndexMut, Mul, Neg, Range, Sub};
 
 /// A value per lane: `f64` (one lane), [`F64x4`] (four) or [`F64x8`] (eight).
 pub trait Lanes:
@@ -305,6 +305,23 @@ impl<'a> TetNodes<'a> {
         Self { x, tets }
     }
 
+    /// Tetrahedra `range` of `tets`, whose ids were bounded once when `tets` was built:
+    /// one comparison against `x.len()`, where [`Self::new`] reads every id. A separate
+    /// read of a chunk's ids before its loop was 4–5 % of the kernel's time on a mesh
+    /// beyond L2 (docs/BENCHMARKS.md, session 74).
+    pub fn of(x: &'a [[f64; 3]], tets: &'a Connectivity, range: Range<usize>) -> Self {
+        assert!(
+            tets.node_bound() <= x.len(),
+            "node id {} beyond the {} positions",
+            tets.node_bound().saturating_sub(1),
+            x.len()
+        );
+        Self {
+            x,
+            tets: &tets[range],
+        }
+    }
+
     /// The positions of the four corners of tetrahedron `k`.
     #[inline(always)]
     pub fn corners_of(&self, k: usize) -> [[f64; 3]; 4] {
@@ -323,6 +340,41 @@ impl<'a> TetNodes<'a> {
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.tets.is_empty()
+    }
+}
+
+/// Tetrahedra as four node ids each, with the bound on their ids found once, when they
+/// are built: [`TetNodes::of`] then checks a pass's positions with one comparison. There
+/// is no mutable access to the ids, so the bound stays true.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Connectivity {
+    ids: Vec<[u32; 4]>,
+    /// One more than the largest id (0 without tetrahedra).
+    bound: usize,
+}
+
+impl Connectivity {
+    pub fn new(ids: Vec<[u32; 4]>) -> Self {
+        let bound = ids.iter().flatten().max().map_or(0, |&n| n as usize + 1);
+        Self { ids, bound }
+    }
+
+    /// One more than the largest node id (0 without tetrahedra).
+    pub fn node_bound(&self) -> usize {
+        self.bound
+    }
+}
+
+impl From<Vec<[u32; 4]>> for Connectivity {
+    fn from(ids: Vec<[u32; 4]>) -> Self {
+        Self::new(ids)
+    }
+}
+
+impl std::ops::Deref for Connectivity {
+    type Target = [[u32; 4]];
+    fn deref(&self) -> &[[u32; 4]] {
+        &self.ids
     }
 }
 

@@ -116,6 +116,17 @@ fn a_node_id_beyond_the_positions_panics<T: Lanes>() {
     tets[T::WIDTH - 1][2] = 10;
     let outcome = std::panic::catch_unwind(|| T::gather_corners(&TetNodes::new(&x, &tets), 0));
     assert!(outcome.is_err(), "node 10 of 10 positions was gathered");
+    // the kernel's constructor: the bound found when the tetrahedra were built, whichever
+    // range is gathered
+    let tets = Connectivity::new(tets);
+    assert_eq!(tets.node_bound(), 11);
+    let outcome =
+        std::panic::catch_unwind(|| T::gather_corners(&TetNodes::of(&x, &tets, 0..T::WIDTH), 0));
+    assert!(outcome.is_err(), "node 10 of 10 positions was gathered");
+    let longer = vec![[0.0; 3]; 11];
+    let nodes = TetNodes::of(&longer, &tets, 0..T::WIDTH);
+    assert_eq!(nodes.len(), T::WIDTH);
+    assert_eq!(Connectivity::new(Vec::new()).node_bound(), 0);
 }
 
 #[test]

@@ -350,7 +350,7 @@ pub fn build_model_with_ghosts(
             materials,
             laws,
             x0,
-            tets,
+            tets: tets.into(),
             tet_reference,
             tet_law,
             plastic_slot,

@@ -22,6 +22,7 @@ pub use contact_layout::{ContactModel, NONE};
 pub use global::{serial_images, GlobalMesh};
 
 use crate::element::TetReferences;
+use crate::lanes::Connectivity;
 use crate::material::{ElasticParameters, MaterialLaw};
 use crate::mesh::{self, SurfaceMesh};
 use std::ops::Range;
@@ -55,7 +56,7 @@ pub struct Model {
     pub laws: Vec<MaterialLaw>,
     /// Reference node positions (m).
     pub x0: Vec<[f64; 3]>,
-    pub tets: Vec<[u32; 4]>,
+    pub tets: Connectivity,
     /// Dm⁻¹ and V0 of every element, lane-blocked for the force kernel.
     pub tet_reference: TetReferences,
     /// Material law index per element.

@@ -468,14 +468,13 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
     law: &L,
 ) -> ChunkResult {
     let range = chunk.elements.clone();
-    let tets = &pass.model.tets[range.clone()];
-    let nodes = TetNodes::new(pass.x, tets);
+    let nodes = TetNodes::of(pass.x, &pass.model.tets, range.clone());
     assert!(pass.x.len() <= pass.force.len());
     let blocks = ChunkBlocks::of(&pass.model.tet_reference, range.clone());
     let mut tally = Tally::new(range.start);
     let width = T::WIDTH;
     let groups = if L::VECTORISES && width > 1 {
-        tets.len() / width
+        nodes.len() / width
     } else {
         0
     };
@@ -510,7 +509,7 @@ unsafe fn evaluate_elastic_chunk<L: HyperelasticLaw, T: Lanes>(
             sums[a * width + l] = lanes[l];
         }
     }
-    for k in groups * width..tets.len() {
+    for k in groups * width..nodes.len() {
         let (block, lane) = blocks.at(k);
         let reference = block.element(lane);
         let (nodal, energy, jacobian) = tet_forces_elastic(&nodes.corners_of(k), &reference, law);
@@ -538,8 +537,7 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
     first_slot: usize,
 ) -> ChunkResult {
     let range = chunk.elements.clone();
-    let tets = &pass.model.tets[range.clone()];
-    let nodes = TetNodes::new(pass.x, tets);
+    let nodes = TetNodes::of(pass.x, &pass.model.tets, range.clone());
     assert!(pass.x.len() <= pass.force.len());
     let blocks = ChunkBlocks::of(&pass.model.tet_reference, range.clone());
     let mut tally = Tally::new(range.start);
@@ -553,11 +551,11 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
         }
     };
     let width = T::WIDTH;
-    let groups = if width > 1 { tets.len() / width } else { 0 };
+    let groups = if width > 1 { nodes.len() / width } else { 0 };
     let ahead = Ahead::<T> {
         states: (
             pass.plastic.as_mut_ptr().wrapping_add(first_slot),
-            tets.len(),
+            nodes.len(),
         ),
         ..Ahead::of(&blocks, NodesAhead::of(chunk, pass))
     };
@@ -623,7 +621,7 @@ unsafe fn evaluate_plastic_chunk<T: Lanes>(
             }
         }
     }
-    for k in groups * width..tets.len() {
+    for k in groups * width..nodes.len() {
         let point = *pass.plastic.get(first_slot + k);
         let (block, lane) = blocks.at(k);
         let reference = block.element(lane);

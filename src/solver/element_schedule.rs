@@ -417,10 +417,11 @@ pub(super) mod tests {
         alone.grains.remove(0);
         alone.owned_grains = 1;
         let nodes = alone.grains[0].nodes.clone();
-        alone.tets = alone.tets[shift..].to_vec();
-        for t in alone.tets.iter_mut() {
-            *t = t.map(|n| n - nodes.start as u32);
-        }
+        alone.tets = alone.tets[shift..]
+            .iter()
+            .map(|t| t.map(|n| n - nodes.start as u32))
+            .collect::<Vec<_>>()
+            .into();
         alone.tet_law = alone.tet_law[shift..].to_vec();
         alone.owned_elements = alone.tets.len();
         alone.owned_nodes = nodes.len();
