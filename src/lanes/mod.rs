@@ -195,14 +195,31 @@ pub fn dot3<T: Lanes>(a0: T, b0: T, a1: T, b1: T, a2: T, b2: T) -> T {
 /// change.
 #[inline(always)]
 pub fn prefetch<T>(start: *const T, count: usize) {
+    prefetch_lines::<T, true>(start, count);
+}
+
+/// [`prefetch`] into L2 only: for data needed after the work in hand, which keeps L1 for
+/// itself.
+#[inline(always)]
+pub fn prefetch_to_l2<T>(start: *const T, count: usize) {
+    prefetch_lines::<T, false>(start, count);
+}
+
+#[inline(always)]
+fn prefetch_lines<T, const TO_L1: bool>(start: *const T, count: usize) {
     #[cfg(target_arch = "x86_64")]
     {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0, _MM_HINT_T1};
         let start = start.cast::<i8>();
         for offset in (0..count * std::mem::size_of::<T>()).step_by(64) {
+            let line = start.wrapping_add(offset);
             // SAFETY: a prefetch never faults; the address is only computed (wrapping)
             unsafe {
-                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-                _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset));
+                if TO_L1 {
+                    _mm_prefetch::<_MM_HINT_T0>(line);
+                } else {
+                    _mm_prefetch::<_MM_HINT_T1>(line);
+                }
             }
         }
     }
