@@ -16,7 +16,7 @@ use crate::element::{
     ReferenceBlock, TetReferences,
 };
 use crate::error::InputError;
-use crate::lanes::{prefetch, touch_pointee, Lanes, NodeForce, TetNodes};
+use crate::lanes::{prefetch, prefetch_to_l2, touch_pointee, Lanes, NodeForce, TetNodes};
 #[cfg(target_arch = "x86_64")]
 use crate::lanes::{F64x4, F64x8};
 use crate::material::{
@@ -360,14 +360,22 @@ struct NodesAhead<'a> {
     touches: &'a FirstTouches,
     x: *const [f64; 3],
     force: *const NodeForce,
+    /// The next grain's nodes to hint into L2 ([`ElementChunk::next_grain_nodes`]), and
+    /// how many per touch block.
+    next_grain: std::ops::Range<usize>,
+    next_per_block: usize,
 }
 
 impl<'a> NodesAhead<'a> {
     fn of(chunk: &'a ElementChunk, pass: &Pass) -> Self {
+        let next_grain = chunk.next_grain_nodes.clone();
+        let blocks = chunk.elements.len().div_ceil(TOUCH_BLOCK).max(1);
         Self {
             touches: &chunk.first_touches,
             x: pass.x.as_ptr(),
             force: pass.force.as_mut_ptr().cast_const(),
+            next_per_block: next_grain.len().div_ceil(blocks),
+            next_grain,
         }
     }
 
@@ -375,6 +383,12 @@ impl<'a> NodesAhead<'a> {
     /// `TOUCH_BLOCK·b..`), if the chunk lists any.
     #[inline(always)]
     fn request_block(&self, b: usize) {
+        let next = self.next_grain.start + b * self.next_per_block;
+        if next < self.next_grain.end {
+            let count = self.next_per_block.min(self.next_grain.end - next);
+            prefetch_to_l2(self.x.wrapping_add(next), count);
+            prefetch_to_l2(self.force.wrapping_add(next), count);
+        }
         let block_end = &self.touches.block_end;
         let Some(&end) = block_end.get(b) else {
             return;

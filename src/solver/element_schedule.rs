@@ -56,6 +56,11 @@ pub struct ElementChunk {
     /// The chunk's nodes in the order its elements first reach them; none for a grain
     /// that runs whole (its task fetches all of the grain's node data first).
     pub first_touches: FirstTouches,
+    /// Nodes of the next whole grain of the task list whose positions and forces this
+    /// chunk hints into L2, spread over its blocks (empty for chunks swept by colour and
+    /// for the last whole grain): requested in one burst at that grain's start, they
+    /// stalled the force pass (docs/BENCHMARKS.md, session 74).
+    pub next_grain_nodes: Range<usize>,
 }
 
 /// A chunk's nodes in the order its elements first reach them, so that the force pass can
@@ -220,6 +225,7 @@ impl ElementSchedule {
                         law,
                         plastic_start,
                         first_touches: FirstTouches::default(),
+                        next_grain_nodes: 0..0,
                     },
                 ));
             }
@@ -242,6 +248,21 @@ impl ElementSchedule {
             let number = u32::try_from(k).expect("< 2³² chunks");
             chunk.first_touches =
                 FirstTouches::new(&model.tets, chunk.elements.clone(), &mut stamp, number);
+        }
+        for (i, grain) in tasks.whole_grains.iter().enumerate() {
+            let Some(next) = tasks.whole_nodes.get(i + 1) else {
+                break;
+            };
+            // in proportion to the chunks' elements, so the hints follow the work
+            let ks = &tasks.whole_chunks[grain.clone()];
+            let total: usize = ks.iter().map(|&k| chunks[k].elements.len()).sum();
+            let mut done = 0;
+            for &k in ks {
+                let at = |done: usize| next.start + next.len() * done / total.max(1);
+                let start = at(done);
+                done += chunks[k].elements.len();
+                chunks[k].next_grain_nodes = start..at(done);
+            }
         }
         // the same lists give each chunk's nodes once, for the order between chunks
         let large = (tasks.large_chunks.iter()).map(|&k| &chunks[k].first_touches.nodes[..]);
@@ -303,6 +324,45 @@ pub(super) mod tests {
         }
         assert!(seen.iter().all(|&s| s == 1));
         assert!(schedule.colours.len() > 1);
+    }
+
+    /// The chunks of each whole grain but the last hint the next grain's nodes, all of
+    /// them once, in order and in proportion to their elements; other chunks hint none.
+    #[test]
+    fn whole_grains_hint_the_next_grains_nodes_once() {
+        let model = glass_spheres_model(&[
+            (0.0, 1e-3, 2e-4),
+            (3e-3, 0.5e-3, 1e-4),
+            (6e-3, 0.7e-3, 1.5e-4),
+            (9e-3, 1.5e-3, 1.5e-4),
+        ]);
+        // the first three whole, the largest by colour
+        let limit = model.grains[..3].iter().map(|g| g.elements.len()).max();
+        let schedule = ElementSchedule::with_whole_limit(&model, limit.unwrap());
+        let tasks = &schedule.tasks;
+        assert_eq!(tasks.whole_grains.len(), 3);
+        for (i, grain) in tasks.whole_grains.iter().enumerate() {
+            let ks = &tasks.whole_chunks[grain.clone()];
+            assert!(ks.len() > 1, "a grain of several chunks");
+            let hinted: Vec<_> = ks.iter().map(|&k| &schedule.chunks[k]).collect();
+            let Some(next) = tasks.whole_nodes.get(i + 1) else {
+                assert!(hinted.iter().all(|c| c.next_grain_nodes.is_empty()));
+                continue;
+            };
+            let mut at = next.start;
+            let elements: usize = hinted.iter().map(|c| c.elements.len()).sum();
+            for c in &hinted {
+                assert_eq!(c.next_grain_nodes.start, at);
+                at = c.next_grain_nodes.end;
+                let share = c.elements.len() as f64 / elements as f64;
+                let got = c.next_grain_nodes.len() as f64 / next.len() as f64;
+                assert!((got - share).abs() <= 1.0 / next.len() as f64 + 1e-12);
+            }
+            assert_eq!(at, next.end);
+        }
+        let large = tasks.large_chunks.iter().map(|&k| &schedule.chunks[k]);
+        assert!(large.clone().count() > 0);
+        assert!(large.into_iter().all(|c| c.next_grain_nodes.is_empty()));
     }
 
     /// A chunk swept by colour lists each of its nodes once, in the order its elements

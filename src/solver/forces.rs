@@ -94,21 +94,11 @@ pub fn compute_internal_forces_into(
         .whole_grains
         .par_iter()
         .zip(&tasks.whole_nodes)
-        .enumerate()
-        .for_each(|(i, (g, nodes))| {
+        .for_each(|(g, nodes)| {
             // SAFETY: a grain's nodes are its task's alone
             unsafe { pass.force.slice_mut(nodes.start, nodes.len()) }.fill(NodeForce::ZERO);
             // the elements read these positions in no order a hardware prefetcher follows
             crate::lanes::prefetch(x[nodes.clone()].as_ptr(), nodes.len());
-            // The next grain's positions and forces towards L2 while this one computes
-            // (usually the same thread's next task: rayon splits the list into runs):
-            // fetched only at its own start, they were a stall of ≈ 2 ms/step on the
-            // paper-resolution FCC block (docs/BENCHMARKS.md, session 74).
-            if let Some(next) = tasks.whole_nodes.get(i + 1) {
-                let force = pass.force.as_mut_ptr().cast_const();
-                crate::lanes::prefetch_to_l2(x.as_ptr().wrapping_add(next.start), next.len());
-                crate::lanes::prefetch_to_l2(force.wrapping_add(next.start), next.len());
-            }
             tasks.whole_chunks[g.clone()].iter().for_each(|&k| run(k));
         });
     // a chunk starts once the chunks of earlier colours it shares a node with have
