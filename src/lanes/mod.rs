@@ -310,22 +310,10 @@ pub struct TetNodes<'a> {
 }
 
 impl<'a> TetNodes<'a> {
-    /// Checks every node id of `tets` against `x.len()`.
-    pub fn new(x: &'a [[f64; 3]], tets: &'a [[u32; 4]]) -> Self {
-        // a plain max over the ids vectorises; it costs a fraction of one element
-        let largest = tets.iter().flatten().fold(0u32, |m, &n| m.max(n));
-        assert!(
-            tets.is_empty() || (largest as usize) < x.len(),
-            "node id {largest} beyond the {} positions",
-            x.len()
-        );
-        Self { x, tets }
-    }
-
     /// Tetrahedra `range` of `tets`, whose ids were bounded once when `tets` was built:
-    /// one comparison against `x.len()`, where [`Self::new`] reads every id. A separate
-    /// read of a chunk's ids before its loop was 4–5 % of the kernel's time on a mesh
-    /// beyond L2 (docs/BENCHMARKS.md, session 74).
+    /// one comparison against `x.len()`. Reading a chunk's ids before its loop to check
+    /// them was 4–5 % of the kernel's time on a mesh beyond L2 (docs/BENCHMARKS.md,
+    /// session 74).
     pub fn of(x: &'a [[f64; 3]], tets: &'a Connectivity, range: Range<usize>) -> Self {
         assert!(
             tets.node_bound() <= x.len(),

@@ -38,7 +38,7 @@ pub(super) unsafe fn corners<V: Transpose, L: Lanes>(
     let x = nodes.x.as_ptr();
     let mut corners = [[L::splat(0.0); 3]; 4];
     // each row reads the three f64 of x[n] only (the mask drops the fourth), and every
-    // n < x.len() was checked by `TetNodes::new`
+    // n < x.len() was checked by `TetNodes::of`
     let xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
     for (a, corner) in corners.iter_mut().enumerate() {
         let [cx, cy, cz, _] =

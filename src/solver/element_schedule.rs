@@ -54,7 +54,7 @@ pub struct ElementChunk {
     /// slots follow element order.
     pub plastic_start: Option<usize>,
     /// The chunk's nodes in the order its elements first reach them; none for a grain
-    /// that runs whole (its task fetches all of the grain's node data first).
+    /// that runs whole (the grain before it and its own task fetch its node data).
     pub first_touches: FirstTouches,
     /// Nodes of the next whole grain of the task list whose positions and forces this
     /// chunk hints into L2, spread over its blocks (empty for chunks swept by colour and
