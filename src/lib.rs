@@ -36,6 +36,7 @@ pub mod kinematics;
 pub mod lanes;
 pub mod material;
 pub mod math;
+pub mod packed_vectors;
 pub mod sand;
 pub mod scene;
 pub mod solver;

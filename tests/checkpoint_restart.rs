@@ -13,6 +13,7 @@ mod mpi_launch;
 #[path = "common/results.rs"]
 mod results;
 
+use mufe::io::checkpoint::CHECKPOINT_FORMAT;
 use results::history;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -104,7 +105,7 @@ fn restart_continues_bitwise(ranks: usize) {
     let attr = |n: &str| f.attr(n).unwrap().read_scalar::<u64>().unwrap();
     assert_eq!(
         (attr("format_version"), attr("step"), attr("ranks")),
-        (2, 8000, ranks as u64)
+        (CHECKPOINT_FORMAT, 8000, ranks as u64)
     );
     drop(f);
 

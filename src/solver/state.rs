@@ -39,8 +39,10 @@ pub struct State {
     #[serde(default)]
     pub step_origin: u64,
     /// x_n (m).
+    #[serde(with = "crate::packed_vectors")]
     pub x: Vec<[f64; 3]>,
     /// v_{n−½} (m/s).
+    #[serde(with = "crate::packed_vectors")]
     pub v: Vec<[f64; 3]>,
     pub energy: EnergyLedger,
     /// Plastic state of every owned element of a plastic material, committed at x_{n−1}

@@ -56,6 +56,7 @@ pub struct DetectionReference {
     /// False until the first rebuild.
     pub built: bool,
     /// Surface node positions at the last rebuild (flat surface order, m).
+    #[serde(with = "crate::packed_vectors")]
     pub x_ref: Vec<[f64; 3]>,
     /// Wall displacements at the last rebuild (m).
     pub wall_ref: Vec<[f64; 3]>,
