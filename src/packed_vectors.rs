@@ -56,16 +56,16 @@ impl<'de> Visitor<'de> for PackedVectors {
 
 /// The base64 text of `v`'s little-endian bytes.
 pub fn encode(v: &[[f64; 3]]) -> String {
-    let mut text = Vec::with_capacity(v.len() * VECTOR_CHARS);
+    let mut text = vec![0u8; v.len() * VECTOR_CHARS];
     let mut bytes = [0u8; VECTOR_BYTES];
-    for vector in v {
+    for (vector, chars) in v.iter().zip(text.chunks_exact_mut(VECTOR_CHARS)) {
         for (i, c) in vector.iter().enumerate() {
             bytes[8 * i..8 * i + 8].copy_from_slice(&c.to_le_bytes());
         }
-        for group in bytes.chunks_exact(3) {
+        for (group, quad) in bytes.chunks_exact(3).zip(chars.chunks_exact_mut(4)) {
             let n = u32::from(group[0]) << 16 | u32::from(group[1]) << 8 | u32::from(group[2]);
-            for shift in [18, 12, 6, 0] {
-                text.push(ALPHABET[(n >> shift & 63) as usize]);
+            for (c, shift) in quad.iter_mut().zip([18, 12, 6, 0]) {
+                *c = ALPHABET[(n >> shift & 63) as usize];
             }
         }
     }
