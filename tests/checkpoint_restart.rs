@@ -1,7 +1,8 @@
 //! Checkpoint and restart (issue 13, item 3) on `jobs/tests/two_spheres_stages.toml`:
 //! - a run stopped after a checkpoint and restarted from it continues `results.h5`
 //!   bitwise as the uninterrupted run wrote it (history, frames), serially and on 2 ranks
-//!   (each rank its own hyperslab of the checkpoint);
+//!   (each rank its own hyperslab of the checkpoint), and so does the same checkpoint
+//!   rewritten as format 2 wrote it (vectors as JSON numbers, byte-by-byte checksums);
 //! - only the newest `output.checkpoints_kept` files remain, no temporary file is left,
 //!   and the file states its format, step, time and rank count;
 //! - a checkpoint of another format version or another scene, or one whose checksum
@@ -132,8 +133,91 @@ fn restart_continues_bitwise(ranks: usize) {
     );
     mpi_launch::assert_success(&o);
     assert_same_as_whole(&whole, &part);
+
+    // a checkpoint of format 2 (the state's vectors as JSON numbers, checksums byte by
+    // byte), as mufe wrote them before format 3, also continues exactly
+    let old = part.join("format_2.h5");
+    rewrite_as_format_2(&from, &old);
+    let o = mufe(
+        ranks,
+        &[&s, "--out", out, "--restart", old.to_str().unwrap()],
+    );
+    mpi_launch::assert_success(&o);
+    assert_same_as_whole(&whole, &part);
     let _ = std::fs::remove_dir_all(whole);
     let _ = std::fs::remove_dir_all(part);
+}
+
+/// FNV-1a byte by byte: the checksum of format 2.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// Copies the checkpoint `from` (format 3) to `to` as format 2 wrote it: every rank's
+/// state with its positions, velocities and detection reference as JSON arrays of
+/// numbers, and every checksum FNV-1a over the block's bytes.
+fn rewrite_as_format_2(from: &Path, to: &Path) {
+    std::fs::copy(from, to).unwrap();
+    let f = hdf5::File::open_rw(to).unwrap();
+    let u64s = |name: &str| f.dataset(name).unwrap().read_raw::<u64>().unwrap();
+    let offsets = u64s("state_offsets");
+    let state = f.dataset("state").unwrap().read_raw::<u8>().unwrap();
+    let (mut bytes, mut new_offsets, mut sums) = (Vec::new(), vec![0u64], Vec::new());
+    for w in offsets.windows(2) {
+        let block = &state[w[0] as usize..w[1] as usize];
+        let mut json: serde_json::Value = serde_json::from_slice(block).unwrap();
+        let unpack = |v: &mut serde_json::Value| {
+            let packed = v.as_str().expect("format 3 packs the vectors");
+            let vectors = mufe::packed_vectors::decode(packed).unwrap();
+            *v = serde_json::to_value(vectors).unwrap();
+        };
+        unpack(&mut json["x"]);
+        unpack(&mut json["v"]);
+        unpack(&mut json["contact"]["detection"]["x_ref"]);
+        let text = serde_json::to_vec(&json).unwrap();
+        sums.push(fnv1a(&text));
+        bytes.extend(text);
+        new_offsets.push(bytes.len() as u64);
+    }
+    f.unlink("state").unwrap();
+    let ds = f
+        .new_dataset::<u8>()
+        .shape(bytes.len())
+        .create("state")
+        .unwrap();
+    ds.write(&bytes).unwrap();
+    f.dataset("state_offsets")
+        .unwrap()
+        .write(&new_offsets)
+        .unwrap();
+    f.dataset("state_checksums").unwrap().write(&sums).unwrap();
+    let totals = f.dataset("totals").unwrap().read_raw::<u8>().unwrap();
+    let sums: Vec<u64> = (u64s("totals_offsets").windows(2))
+        .map(|w| fnv1a(&totals[w[0] as usize..w[1] as usize]))
+        .collect();
+    f.dataset("totals_checksums").unwrap().write(&sums).unwrap();
+    let packages = f.dataset("grains").unwrap().read_raw::<f64>().unwrap();
+    let (ids, lengths) = (u64s("grain_ids"), u64s("grain_package_lengths"));
+    let (id_rows, value_rows) = (u64s("grain_ids_offsets"), u64s("grains_offsets"));
+    let mut sums = Vec::new();
+    for (rows, values) in id_rows.windows(2).zip(value_rows.windows(2)) {
+        let (rows, values) = (
+            rows[0] as usize..rows[1] as usize,
+            values[0] as usize..values[1] as usize,
+        );
+        let mut block = Vec::new();
+        block.extend(ids[rows.clone()].iter().flat_map(|v| v.to_le_bytes()));
+        block.extend(lengths[rows].iter().flat_map(|v| v.to_le_bytes()));
+        block.extend(packages[values].iter().flat_map(|v| v.to_le_bytes()));
+        sums.push(fnv1a(&block));
+    }
+    f.dataset("grains_checksums").unwrap().write(&sums).unwrap();
+    f.attr("format_version")
+        .unwrap()
+        .write_scalar(&2u64)
+        .unwrap();
 }
 
 /// `part/results.h5` holds bitwise the history and frames of `whole/results.h5`.
