@@ -15,6 +15,7 @@ mod mpi_launch;
 mod results;
 
 use mufe::io::checkpoint::CHECKPOINT_FORMAT;
+use mufe::io::results::fnv1a;
 use results::history;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -146,13 +147,6 @@ fn restart_continues_bitwise(ranks: usize) {
     assert_same_as_whole(&whole, &part);
     let _ = std::fs::remove_dir_all(whole);
     let _ = std::fs::remove_dir_all(part);
-}
-
-/// FNV-1a byte by byte: the checksum of format 2.
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-    })
 }
 
 /// Copies the checkpoint `from` (format 3) to `to` as format 2 wrote it: every rank's

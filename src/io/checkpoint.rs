@@ -23,7 +23,7 @@
 //! intact; the last K are kept.
 
 use super::collective;
-use super::results::{agree, fnv1a, io_error, put_u64_attr};
+use super::results::{agree, fnv1a, io_error, put_u64_attr, FNV_OFFSET, FNV_PRIME};
 use crate::domain::Domain;
 use crate::error::{InputError, MufeError};
 use hdf5::File;
@@ -115,18 +115,16 @@ pub struct BlockChecksum {
 impl Default for BlockChecksum {
     fn default() -> Self {
         Self {
-            hash: 0xcbf2_9ce4_8422_2325,
+            hash: FNV_OFFSET,
             bytes: 0,
         }
     }
 }
 
 impl BlockChecksum {
-    const PRIME: u64 = 0x0100_0000_01b3;
-
     #[inline]
     fn mix(&mut self, word: u64) {
-        self.hash = (self.hash ^ word).wrapping_mul(Self::PRIME);
+        self.hash = (self.hash ^ word).wrapping_mul(FNV_PRIME);
     }
 
     /// Adds whole words (the little-endian bytes of each); only words may come before.

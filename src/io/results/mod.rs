@@ -759,11 +759,15 @@ pub(crate) fn put_u64_attr(loc: &Location, name: &str, value: u64) -> hdf5::Resu
     loc.new_attr::<u64>().create(name)?.write_scalar(&value)
 }
 
+/// FNV-1a's 64-bit offset basis and prime.
+pub(crate) const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+pub(crate) const FNV_PRIME: u64 = 0x0100_0000_01b3;
+
 /// FNV-1a: a stable (process- and platform-independent) hash for comparing metadata
-/// across ranks.
-pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+/// across ranks, and the checksum of checkpoint blocks in format 2.
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(FNV_OFFSET, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(FNV_PRIME)
     })
 }
 
