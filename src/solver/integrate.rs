@@ -24,6 +24,9 @@ use crate::math::dot;
 use crate::model::Model;
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+mod groups_avx512;
+
 /// Nodes per group of lanes.
 const LANES: usize = 8;
 // a chunk starts a group, so node k of a chunk is lane k mod LANES of its group
@@ -41,6 +44,29 @@ pub(super) struct NodePartials {
     /// node went in the step.
     pub max_speed: f64,
     pub bad_node: Option<usize>,
+}
+
+/// The body force a step's groups may have for `groups_avx512::update_group` to take them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum GroupForces {
+    /// None at all.
+    Free,
+    /// −α m v only (α, 1/s).
+    MassDamped(f64),
+}
+
+impl GroupForces {
+    /// The group forces of a step with body forces `body`; `None` when
+    /// `groups_avx512::update_group` cannot take them (gravity, or damping of deformation).
+    fn of(body: Option<&BodyForces>) -> Option<Self> {
+        match body {
+            None => Some(Self::Free),
+            Some(b) if !b.weighs() && b.deformation_damping <= 0.0 => {
+                Some(Self::MassDamped(b.alpha))
+            }
+            Some(_) => None,
+        }
+    }
 }
 
 /// What every node's update reads besides its own x and v.
@@ -201,7 +227,7 @@ fn integrate_chunk_on(
         // SAFETY: the same
         #[cfg(target_arch = "x86_64")]
         KernelPath::Avx2 => unsafe { integrate_chunk_avx2(inputs, base, x, v) },
-        _ => integrate_chunk(inputs, base, x, v),
+        _ => integrate_chunk(inputs, base, x, v, None),
     }
 }
 
@@ -217,7 +243,8 @@ unsafe fn integrate_chunk_avx512(
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
 ) -> NodePartials {
-    integrate_chunk(inputs, base, x, v)
+    let in_registers = GroupForces::of(inputs.body.as_ref());
+    integrate_chunk(inputs, base, x, v, in_registers)
 }
 
 /// [`integrate_chunk`] for AVX2.
@@ -232,18 +259,20 @@ unsafe fn integrate_chunk_avx2(
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
 ) -> NodePartials {
-    integrate_chunk(inputs, base, x, v)
+    integrate_chunk(inputs, base, x, v, None)
 }
 
 /// The nodes `base..` of one chunk (`x`, `v`; `base` a multiple of [`LANES`]): groups of
 /// [`LANES`] aligned to the chunk, node by node where a group has a stored v_{n+½} and
-/// at the chunk's end.
+/// at the chunk's end. A group goes through AVX-512 registers when `in_registers` says
+/// what body forces it has (only the AVX-512 path says it).
 #[inline(always)]
 fn integrate_chunk(
     inputs: &Inputs,
     base: usize,
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
+    in_registers: Option<GroupForces>,
 ) -> NodePartials {
     debug_assert!(base.is_multiple_of(LANES));
     let mut sums = LaneSums::default();
@@ -258,6 +287,15 @@ fn integrate_chunk(
                 update_node(inputs, n + l, l, x, v, &mut sums);
             }
         } else {
+            #[cfg(target_arch = "x86_64")]
+            if let Some(forces) = in_registers {
+                // SAFETY: only the AVX-512 path passes `in_registers`; the group has
+                // LANES nodes, all in `inputs`
+                unsafe { groups_avx512::update_group(inputs, n, x, v, &mut sums, forces) };
+                continue;
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            let _ = in_registers;
             update_group(inputs, n, x, v, &mut sums);
         }
     }
