@@ -5,10 +5,10 @@
 //! Why: the generic group ([`super::update_group`]) builds its lanes element by element,
 //! and the compiler assembles them through the stack; on the Zen 4 guest that pass took
 //! 4.0 ms per 659 k nodes against 3.0 ms for a plain node-by-node loop over the same
-//! arrays, and this one takes 2.8 ms (docs/BENCHMARKS.md, session 76). Here the three vectors of
-//! eight nodes (x, v: 24 consecutive f64 each) come in as three full loads and are sorted
-//! into components by two permutes per component, and go back the same way; the padded
-//! forces come in as four loads and seven permutes.
+//! arrays, and this one takes 2.8 ms (docs/BENCHMARKS.md, session 76). Here the three
+//! vectors of eight nodes (x, v: 24 consecutive f64 each) come in as three full loads and
+//! are sorted into components by two permutes per component, and go back the same way;
+//! the padded forces come in as four loads and seven permutes.
 //!
 //! Every lane evaluates the expressions of [`super::update_node`] in its order, with no
 //! fused multiply–add, so x, v and the lane sums are the same to the bit.
