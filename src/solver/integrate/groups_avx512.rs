@@ -66,15 +66,21 @@ unsafe fn index(i: &Index) -> __m512i {
     _mm512_loadu_si512(i.as_ptr().cast())
 }
 
+/// `N` consecutive registers of eight f64 from `p`.
+#[inline(always)]
+unsafe fn load_registers<const N: usize>(p: *const f64) -> [__m512d; N] {
+    // loops, not closures: a closure is compiled apart, without the caller's features
+    let mut r = [_mm512_setzero_pd(); N];
+    for (k, r) in r.iter_mut().enumerate() {
+        *r = _mm512_loadu_pd(p.add(8 * k));
+    }
+    r
+}
+
 /// The x, y, z of eight consecutive records of three f64 at `p`, one register each.
 #[inline(always)]
 unsafe fn load_components(p: *const f64) -> [__m512d; 3] {
-    let r = [
-        _mm512_loadu_pd(p),
-        _mm512_loadu_pd(p.add(8)),
-        _mm512_loadu_pd(p.add(16)),
-    ];
-    // loops, not closures: a closure is compiled apart, without the caller's features
+    let r = load_registers::<3>(p);
     let mut c = [_mm512_setzero_pd(); 3];
     for (c, (first, second)) in c.iter_mut().zip(&SPLIT) {
         let t = _mm512_permutex2var_pd(r[0], index(first), r[1]);
@@ -95,12 +101,7 @@ unsafe fn store_components(p: *mut f64, c: [__m512d; 3]) {
 /// The x, y, z of eight consecutive padded forces (four f64 each) at `p`.
 #[inline(always)]
 unsafe fn load_forces(p: *const f64) -> [__m512d; 3] {
-    let r = [
-        _mm512_loadu_pd(p),
-        _mm512_loadu_pd(p.add(8)),
-        _mm512_loadu_pd(p.add(16)),
-        _mm512_loadu_pd(p.add(24)),
-    ];
+    let r = load_registers::<4>(p);
     // per pair of registers: [x y] and [z pad] of their four nodes
     let xy = _mm512_setr_epi64(0, 4, 8, 12, 1, 5, 9, 13);
     let zw = _mm512_setr_epi64(2, 6, 10, 14, 3, 7, 11, 15);
