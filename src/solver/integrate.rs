@@ -11,7 +11,10 @@
 //! chunk to partial k mod 8, on every path), added in lane order at the chunk's end:
 //! summed node by node in node order, a scalar chain through every node, they were 40 %
 //! of the pass on the damped 2000-sphere block (docs/BENCHMARKS.md, session 48). A group
-//! with a node whose v_{n+½} a motion or wall stored goes node by node.
+//! with a node whose v_{n+½} a motion or wall stored goes node by node. In a step with no
+//! gravity and no deformation damping the AVX-512 and AVX2 paths sort a group into
+//! registers with full loads and permutes ([`groups_avx512`], [`groups_avx2`]) instead
+//! of building the lanes element by element (docs/BENCHMARKS.md, sessions 76 and 77).
 
 use super::damping::body_forces;
 use super::forces::{KernelPath, NODE_CHUNK};
@@ -24,6 +27,8 @@ use crate::math::dot;
 use crate::model::Model;
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+mod groups_avx2;
 #[cfg(target_arch = "x86_64")]
 mod groups_avx512;
 
@@ -46,7 +51,15 @@ pub(super) struct NodePartials {
     pub bad_node: Option<usize>,
 }
 
-/// The body force a step's groups may have for `groups_avx512::update_group` to take them.
+/// Which register group a path's chunks hand their groups to, and with what body force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum InRegisters {
+    Avx512(GroupForces),
+    Avx2(GroupForces),
+}
+
+/// The body force a step's groups may have for the register groups
+/// (`groups_avx512::update_group`, `groups_avx2::update_group`) to take them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum GroupForces {
     /// None at all.
@@ -56,8 +69,8 @@ enum GroupForces {
 }
 
 impl GroupForces {
-    /// The group forces of a step with body forces `body`; `None` when
-    /// `groups_avx512::update_group` cannot take them (gravity, or damping of deformation).
+    /// The group forces of a step with body forces `body`; `None` when the register
+    /// groups cannot take them (gravity, or damping of deformation).
     fn of(body: Option<&BodyForces>) -> Option<Self> {
         match body {
             None => Some(Self::Free),
@@ -243,7 +256,7 @@ unsafe fn integrate_chunk_avx512(
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
 ) -> NodePartials {
-    let in_registers = GroupForces::of(inputs.body.as_ref());
+    let in_registers = GroupForces::of(inputs.body.as_ref()).map(InRegisters::Avx512);
     integrate_chunk(inputs, base, x, v, in_registers)
 }
 
@@ -259,20 +272,22 @@ unsafe fn integrate_chunk_avx2(
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
 ) -> NodePartials {
-    integrate_chunk(inputs, base, x, v, None)
+    let in_registers = GroupForces::of(inputs.body.as_ref()).map(InRegisters::Avx2);
+    integrate_chunk(inputs, base, x, v, in_registers)
 }
 
 /// The nodes `base..` of one chunk (`x`, `v`; `base` a multiple of [`LANES`]): groups of
 /// [`LANES`] aligned to the chunk, node by node where a group has a stored v_{n+½} and
-/// at the chunk's end. A group goes through AVX-512 registers when `in_registers` says
-/// what body forces it has (only the AVX-512 path says it).
+/// at the chunk's end. A group goes through AVX-512 or AVX2 registers when
+/// `in_registers` says which and what body forces it has (only the AVX-512 and AVX2 paths,
+/// compiled for those instructions, say it).
 #[inline(always)]
 fn integrate_chunk(
     inputs: &Inputs,
     base: usize,
     x: &mut [[f64; 3]],
     v: &mut [[f64; 3]],
-    in_registers: Option<GroupForces>,
+    in_registers: Option<InRegisters>,
 ) -> NodePartials {
     debug_assert!(base.is_multiple_of(LANES));
     let mut sums = LaneSums::default();
@@ -288,11 +303,19 @@ fn integrate_chunk(
             }
         } else {
             #[cfg(target_arch = "x86_64")]
-            if let Some(forces) = in_registers {
-                // SAFETY: only the AVX-512 path passes `in_registers`; the group has
-                // LANES nodes, all in `inputs`
-                unsafe { groups_avx512::update_group(inputs, n, x, v, &mut sums, forces) };
-                continue;
+            match in_registers {
+                Some(InRegisters::Avx512(forces)) => {
+                    // SAFETY: only the AVX-512 path, run on a CPU found to have AVX-512,
+                    // names it; the group has LANES nodes, all in `inputs`
+                    unsafe { groups_avx512::update_group(inputs, n, x, v, &mut sums, forces) };
+                    continue;
+                }
+                Some(InRegisters::Avx2(forces)) => {
+                    // SAFETY: the same for the AVX2 path and AVX2
+                    unsafe { groups_avx2::update_group(inputs, n, x, v, &mut sums, forces) };
+                    continue;
+                }
+                None => {}
             }
             #[cfg(not(target_arch = "x86_64"))]
             let _ = in_registers;
