@@ -5,10 +5,10 @@
 //! Why: the generic group ([`super::update_group`]) builds its lanes element by element
 //! through the stack, which on the AVX2 path took 4.6–5.7 ms per pass over 659 k nodes on
 //! the Zen 4 guest against 2.8 ms for the AVX-512 registers (docs/BENCHMARKS.md, session
-//! 76). AVX2 has no two-register permute, so four records of three f64 come in as eight
-//! 128-bit halves and three in-lane shuffles ([`load_components`]), and go back as three
-//! shuffles, three lane swaps and three full stores; four padded forces are a 4 × 4
-//! transpose.
+//! 76). AVX2 permutes across two registers only by 128-bit halves, so four records of
+//! three f64 come in as eight 128-bit halves and three in-lane shuffles
+//! ([`load_components`]), and go back as three shuffles, three lane swaps and three full
+//! stores; four padded forces are a 4 × 4 transpose.
 //!
 //! Every lane evaluates the expressions of [`super::update_node`] in its order, with no
 //! fused multiply–add, so x, v and the lane sums are the same to the bit
