@@ -442,6 +442,18 @@ fn update_group(
     }
 }
 
+/// Asserts that `components` (x, y, z, one array of lanes each) hold what the register
+/// groups' unit tests load: lane l of component i is element `record × l + i` of records
+/// numbered 0, 1, 2, …, `record` f64 each.
+#[cfg(all(test, target_arch = "x86_64"))]
+fn assert_sorted_into_components<const W: usize>(components: [[f64; W]; 3], record: usize) {
+    for (i, lanes) in components.iter().enumerate() {
+        for (l, &value) in lanes.iter().enumerate() {
+            assert_eq!(value, (record * l + i) as f64, "component {i}, lane {l}");
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -199,19 +199,11 @@ mod tests {
         unsafe {
             let c = load_components(records.as_ptr());
             let lanes = c.map(|r| std::mem::transmute::<__m256d, [f64; 4]>(r));
-            for (i, lane) in lanes.iter().enumerate() {
-                for (l, &value) in lane.iter().enumerate() {
-                    assert_eq!(value, (3 * l + i) as f64);
-                }
-            }
+            super::super::assert_sorted_into_components(lanes, 3);
             store_components(back.as_mut_ptr(), c);
             let f =
                 load_forces(forces.as_ptr()).map(|r| std::mem::transmute::<__m256d, [f64; 4]>(r));
-            for (i, lane) in f.iter().enumerate() {
-                for (l, &value) in lane.iter().enumerate() {
-                    assert_eq!(value, (4 * l + i) as f64);
-                }
-            }
+            super::super::assert_sorted_into_components(f, 4);
         }
         assert_eq!(back, records);
     }
