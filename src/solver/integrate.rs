@@ -28,6 +28,8 @@ use crate::model::Model;
 use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
+mod group_lanes;
+#[cfg(target_arch = "x86_64")]
 mod groups_avx2;
 #[cfg(target_arch = "x86_64")]
 mod groups_avx512;
